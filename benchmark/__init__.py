@@ -1,0 +1,2 @@
+"""The method and the harness: viewpoints, classifiers, aggregators, post-processing,
+metrics, baselines, runner, tables and figures. Imports ``envs``, never the reverse."""

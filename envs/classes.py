@@ -1,0 +1,81 @@
+"""Room classes, the mapping from ProcTHOR room types, and class colours."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+#: The paper's seven room classes, in their fixed default order (class index = position).
+PAPER_CLASSES: tuple[str, ...] = (
+    "balcony",
+    "bathroom",
+    "bedroom",
+    "corridor",
+    "dining_room",
+    "kitchen",
+    "living_room",
+)
+
+#: ProcTHOR ``roomType`` -> paper class. ProcTHOR-10k uses the first four; the synthetic
+#: generator also writes the last three.
+ROOM_TYPE_TO_CLASS: dict[str, str] = {
+    "Kitchen": "kitchen",
+    "LivingRoom": "living_room",
+    "Bedroom": "bedroom",
+    "Bathroom": "bathroom",
+    "Balcony": "balcony",
+    "Corridor": "corridor",
+    "DiningRoom": "dining_room",
+}
+
+#: Fixed RGB colours (0-255) per class, used by every figure and PNG writer.
+CLASS_COLORS: dict[str, tuple[int, int, int]] = {
+    "balcony": (141, 211, 199),
+    "bathroom": (31, 120, 180),
+    "bedroom": (227, 26, 28),
+    "corridor": (255, 217, 47),
+    "dining_room": (106, 61, 154),
+    "kitchen": (51, 160, 44),
+    "living_room": (255, 127, 0),
+}
+#: Colour of unlabelled walkable pixels and of non-walkable background.
+UNLABELLED_COLOR: tuple[int, int, int] = (200, 200, 200)
+BACKGROUND_COLOR: tuple[int, int, int] = (0, 0, 0)
+
+_FALLBACK_PALETTE = [
+    (166, 206, 227), (178, 223, 138), (251, 154, 153), (253, 191, 111),
+    (202, 178, 214), (255, 255, 153), (177, 89, 40), (128, 128, 128),
+]
+
+
+def class_index(classes: Sequence[str], name: str) -> int:
+    """Index of ``name`` in ``classes``; a clear error when it is not one of them."""
+    try:
+        return list(classes).index(name)
+    except ValueError:
+        raise ValueError(f"unknown room class {name!r}; expected one of {list(classes)}") from None
+
+
+def room_type_to_class_index(
+    room_type: str,
+    classes: Sequence[str] = PAPER_CLASSES,
+    mapping: Mapping[str, str] = ROOM_TYPE_TO_CLASS,
+) -> int:
+    """Class index of a ProcTHOR ``roomType`` (e.g. ``"LivingRoom"`` -> index of living_room)."""
+    if room_type not in mapping:
+        raise ValueError(
+            f"unknown room type {room_type!r}; expected one of {sorted(mapping)}"
+        )
+    return class_index(classes, mapping[room_type])
+
+
+def class_colors(classes: Sequence[str]) -> list[tuple[int, int, int]]:
+    """RGB colour per class, in class order (paper classes keep their fixed colours)."""
+    out = []
+    extra = 0
+    for name in classes:
+        if name in CLASS_COLORS:
+            out.append(CLASS_COLORS[name])
+        else:
+            out.append(_FALLBACK_PALETTE[extra % len(_FALLBACK_PALETTE)])
+            extra += 1
+    return out

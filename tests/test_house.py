@@ -1,0 +1,122 @@
+import gzip
+import json
+
+import numpy as np
+import pytest
+
+from envs.house import House, HouseError, iter_house_file, load_houses, validate_house
+from envs.scene import rasterise_house
+
+
+def square_house():
+    """One 4 x 3 m kitchen, no walls or objects."""
+    return {
+        "rooms": [{"id": "room|1", "roomType": "Kitchen", "floorPolygon": [
+            {"x": 0, "y": 0, "z": 0}, {"x": 4, "y": 0, "z": 0}, {"x": 4, "y": 0, "z": 3}, {"x": 0, "y": 0, "z": 3}]}],
+        "walls": [], "doors": [], "objects": [],
+    }
+
+
+@pytest.mark.parametrize("mutate,field", [
+    (lambda h: h.pop("rooms"), "rooms"),
+    (lambda h: h.__setitem__("rooms", []), "rooms"),
+    (lambda h: h["rooms"][0].pop("floorPolygon"), "rooms[room|1].floorPolygon"),
+    (lambda h: h["rooms"][0].__setitem__("floorPolygon", h["rooms"][0]["floorPolygon"][:2]), "rooms[room|1].floorPolygon"),
+    (lambda h: h["rooms"][0].__setitem__("floorPolygon", [{"x": 0, "y": 0, "z": 0}, {"x": 1, "y": 0, "z": 1}, {"x": 2, "y": 0, "z": 2}]), "rooms[room|1].floorPolygon"),
+    (lambda h: h["rooms"][0]["floorPolygon"][1].__setitem__("x", float("nan")), "rooms[room|1].floorPolygon[1]"),
+    (lambda h: h["rooms"][0]["floorPolygon"][2].__setitem__("z", float("inf")), "rooms[room|1].floorPolygon[2]"),
+    (lambda h: h["rooms"][0].__setitem__("roomType", "Garage"), "rooms[room|1].roomType"),
+    (lambda h: h["objects"].append({"id": "o1", "assetId": "Chair_1", "position": {"x": "a", "z": 1}}), "objects[o1].position"),
+])
+def test_malformed_house_names_house_and_field(mutate, field):
+    h = square_house()
+    mutate(h)
+    with pytest.raises(HouseError) as e:
+        validate_house(h, "house-7")
+    assert e.value.house_id == "house-7"
+    assert e.value.field == field
+    assert "house-7" in str(e.value) and field in str(e.value)
+
+
+def test_file_formats_round_trip(tmp_path):
+    h = square_house()
+    (tmp_path / "one.json").write_text(json.dumps(h))
+    (tmp_path / "many.jsonl").write_text("\n".join(json.dumps(h) for _ in range(3)))
+    with gzip.open(tmp_path / "many.jsonl.gz", "wt") as f:
+        f.write("\n".join(json.dumps(h) for _ in range(4)))
+    assert [x.id for x in iter_house_file(tmp_path / "one.json")] == ["one"]
+    assert len(load_houses(tmp_path / "many.jsonl")) == 3
+    got = load_houses(tmp_path / "many.jsonl.gz", start=1, stop=3)
+    assert [x.id for x in got] == ["many-00001", "many-00002"]
+    (tmp_path / "x.txt").write_text("{}")
+    with pytest.raises(ValueError, match="expected .json"):
+        list(iter_house_file(tmp_path / "x.txt"))
+
+
+def test_bad_house_in_file_is_named(tmp_path):
+    bad = square_house()
+    bad["rooms"][0]["roomType"] = "Attic"
+    (tmp_path / "h.jsonl").write_text(json.dumps(square_house()) + "\n" + json.dumps(bad))
+    with pytest.raises(HouseError, match="'h-00001'.*roomType"):
+        load_houses(tmp_path / "h.jsonl")
+
+
+def test_square_room_rasterises_exactly():
+    scene = rasterise_house(House("sq", square_house()), resolution=0.1, wall_thickness=0.0, margin=0.2)
+    # 4 x 3 m at 0.1 m/px = 40 x 30 = 1200 pixel centres inside
+    assert scene.grid.walkable.sum() == 1200
+    assert scene.instances.max() == 0 and scene.semantic.max() == 5  # kitchen
+    assert scene.grid.shape == (34, 44)
+
+
+def two_rooms(door=True, chair=False):
+    """Kitchen (0..4 x 0..3) and bedroom (4..8 x 0..3) sharing the wall x=4, door 1 m wide."""
+    h = {
+        "rooms": [
+            {"id": "room|1", "roomType": "Kitchen", "floorPolygon": [
+                {"x": 0, "y": 0, "z": 0}, {"x": 4, "y": 0, "z": 0}, {"x": 4, "y": 0, "z": 3}, {"x": 0, "y": 0, "z": 3}]},
+            {"id": "room|2", "roomType": "Bedroom", "floorPolygon": [
+                {"x": 4, "y": 0, "z": 0}, {"x": 8, "y": 0, "z": 0}, {"x": 8, "y": 0, "z": 3}, {"x": 4, "y": 0, "z": 3}]},
+        ],
+        "walls": [
+            {"id": "wall|1|4.00|0.00|4.00|3.00", "roomId": "room|1", "polygon": [
+                {"x": 4, "y": 0, "z": 0}, {"x": 4, "y": 0, "z": 3}, {"x": 4, "y": 2.5, "z": 0}, {"x": 4, "y": 2.5, "z": 3}]},
+            {"id": "wall|2|4.00|0.00|4.00|3.00", "roomId": "room|2", "polygon": [
+                {"x": 4, "y": 0, "z": 0}, {"x": 4, "y": 0, "z": 3}, {"x": 4, "y": 2.5, "z": 0}, {"x": 4, "y": 2.5, "z": 3}]},
+        ],
+        "doors": [], "objects": [],
+    }
+    if door:
+        h["doors"].append({"id": "door|1|2", "room0": "room|1", "room1": "room|2",
+                           "wall0": "wall|1|4.00|0.00|4.00|3.00", "wall1": "wall|2|4.00|0.00|4.00|3.00",
+                           "holePolygon": [{"x": 1.0, "y": 0, "z": 0}, {"x": 2.0, "y": 2.0, "z": 0}]})
+    if chair:
+        h["objects"].append({"id": "c", "assetId": "NoSuchChair_99", "position": {"x": 2, "y": 0.45, "z": 1.5},
+                             "rotation": {"x": 0, "y": 45, "z": 0}})
+    return h
+
+
+def test_door_connects_rooms_and_wall_separates_them():
+    from scipy import ndimage
+
+    s = rasterise_house(House("two", two_rooms(door=True)), resolution=0.05)
+    lab, n = ndimage.label(s.grid.walkable)
+    assert n == 1
+    s2 = rasterise_house(House("two", two_rooms(door=False)), resolution=0.05)
+    lab, n = ndimage.label(s2.grid.walkable)
+    assert n == 2
+    # the opening lies where the hole is: z in [1, 2] (metres from the wall's first point z=0)
+    col = int(s.grid.world_to_cell(4.0, 0)[1])
+    rows = np.nonzero(s.grid.walkable[:, col])[0]
+    _, z = s.grid.pixel_to_world(rows, col)
+    assert z.min() > 0.9 and z.max() < 2.1
+
+
+def test_unknown_asset_uses_type_default_and_rotation():
+    s = rasterise_house(House("two", two_rooms(chair=True)), resolution=0.02, wall_thickness=0.0)
+    s0 = rasterise_house(House("two", two_rooms()), resolution=0.02, wall_thickness=0.0)
+    removed = s0.grid.walkable.sum() - s.grid.walkable.sum()
+    # unknown "NoSuchChair" -> generic default footprint 0.5 x 0.5 m = 625 px at 0.02 m/px
+    assert s.objects[0].known_asset is False
+    assert removed == pytest.approx(0.25 / 0.02**2, rel=0.05)
+
