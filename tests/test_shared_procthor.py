@@ -26,20 +26,43 @@ def test_all_houses_load_and_rasterise(shared_houses, shared_scenes):
         assert np.array_equal(s.instances >= 0, s.grid.walkable)
 
 
+def _expected_free_geometry(house, scene, wall_thickness=0.1, max_object_base=0.5):
+    """Free floor as exact geometry (shapely), independent of the raster code: floor
+    polygons minus wall bands (door openings cut out) minus blocking furniture boxes."""
+    half = wall_thickness / 2
+    res = scene.grid.resolution
+    walls = {}
+    for w in house.data["walls"]:
+        pts = [(p["x"], p["z"]) for p in w["polygon"] if p["y"] == min(q["y"] for q in w["polygon"])]
+        walls[w["id"]] = (np.array(pts[0], float), np.array(pts[-1], float))
+    bands = shapely.union_all([shapely.LineString([a, b]).buffer(half) for a, b in walls.values()])
+    holes = []
+    for d in house.data["doors"]:
+        t0, t1 = sorted((d["holePolygon"][0]["x"], d["holePolygon"][-1]["x"]))
+        for key in ("wall0", "wall1"):
+            if d.get(key) in walls:
+                a, b = walls[d[key]]
+                u = (b - a) / np.linalg.norm(b - a)
+                n = np.array([u[1], -u[0]]) * (half + 1.5 * res)
+                p0, p1 = a + u * t0, a + u * t1
+                holes.append(shapely.Polygon([p0 - n, p1 - n, p1 + n, p0 + n]))
+    walls_geom = bands.difference(shapely.union_all(holes)) if holes else bands
+    furniture = shapely.union_all([shapely.Polygon(o.corners()) for o in scene.objects if o.base < max_object_base])
+    return walls_geom, furniture
+
+
 def test_room_area_matches_polygon_minus_walls_and_furniture(shared_houses, shared_scenes):
-    """Each room's walkable area is its polygon area minus wall band and furniture, within 3 %."""
+    """Each room's rasterised walkable area is, within 3 % of the room's area, its polygon area
+    minus the wall band and the furniture footprints computed as exact geometry."""
     worst = 0.0
     for h, s in zip(shared_houses, shared_scenes):
         px = s.grid.resolution ** 2
-        blocking = np.array([o.base < 0.5 for o in s.objects] + [False])
-        furn = blocking[s.object_map]
+        walls_geom, furniture = _expected_free_geometry(h, s)
         for i, room in enumerate(h.rooms):
             poly = shapely.Polygon(floor_polygon(room))
-            in_room = s.rooms == i
-            expected = poly.area - (in_room & s.walls).sum() * px - (in_room & furn & ~s.walls).sum() * px
+            expected = poly.difference(walls_geom).difference(furniture).area
             got = (s.instances == i).sum() * px
-            # independent check of the polygon raster itself
-            assert abs(in_room.sum() * px - poly.area) / poly.area < 0.03, (s.house_id, room["id"])
+            assert abs((s.rooms == i).sum() * px - poly.area) / poly.area < 0.03, (s.house_id, room["id"])
             err = abs(got - expected) / poly.area
             worst = max(worst, err)
             assert err < 0.03, (s.house_id, room["id"], got, expected)
