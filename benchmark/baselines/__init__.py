@@ -1,0 +1,1 @@
+"""Baselines: scoring external methods' output maps, and geometric segmenters."""

@@ -1,0 +1,55 @@
+"""Score the SeLRoS release's SeLRoS and VRF outputs against its ground truth.
+
+``python -m benchmark.selros_table [--data ../shared/data/selros] [--min-segment-px 50]``
+prints the per-method means (IoU, precision, recall) over the 30 environments and the
+metric parameters; ``--out DIR`` also writes the per-map ``metrics.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import pandas as pd
+
+from benchmark.baselines.external import score_directory, summary_table
+from benchmark.metrics import MetricParams, describe
+from envs.atomic import atomic_write_text
+
+#: (method, folder, file pattern) of the outputs in the SeLRoS release.
+SELROS_METHODS = (("SeLRoS", "selros", "{id}_output.png"), ("VRF", "vrf", "{id}_segmented.png"))
+SELROS_RESOLUTION = 0.02  # metres per pixel
+
+
+def default_selros_dir() -> Path:
+    return Path(os.environ.get("ROOMSEG_SHARED_DATA", "../shared/data")) / "selros"
+
+
+def selros_rows(data: Path, params: MetricParams) -> pd.DataFrame:
+    """Per-map rows of every method in the SeLRoS release."""
+    frames = [score_directory(data / "ground_truth", "{id}_ground_truth.png", data / folder, pattern, method,
+                              params, dataset="selros", resolution=SELROS_RESOLUTION)
+              for method, folder, pattern in SELROS_METHODS]
+    return pd.concat(frames, ignore_index=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="SeLRoS / VRF outputs vs the SeLRoS ground truth")
+    ap.add_argument("--data", type=Path, default=default_selros_dir())
+    ap.add_argument("--min-segment-px", type=int, default=MetricParams().min_segment_px)
+    ap.add_argument("--connectivity", type=int, default=MetricParams().connectivity)
+    ap.add_argument("--match", default=MetricParams().match)
+    ap.add_argument("--out", type=Path, default=None, help="folder for metrics.csv")
+    a = ap.parse_args(argv)
+    params = MetricParams(match=a.match, connectivity=a.connectivity, min_segment_px=a.min_segment_px)
+    df = selros_rows(a.data, params)
+    if a.out:
+        atomic_write_text(a.out / "metrics.csv", df.to_csv(index=False))
+    print(summary_table(df).to_markdown(index=False))
+    print(f"\nMean ± std over maps, percent. Metrics: {describe(params)}; maps at {SELROS_RESOLUTION} m/px.")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
