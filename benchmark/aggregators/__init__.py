@@ -1,0 +1,1 @@
+"""Aggregators: views + class probabilities -> a label map (see benchmark.interfaces)."""

@@ -1,0 +1,128 @@
+"""Slow, obviously-correct references for the aggregators (tests and ``make perf``).
+
+* Graph KNN: one breadth-first search per viewpoint with SciPy's csgraph (the paper's
+  method), then each cell ranks viewpoints by (distance, index) and keeps the first K.
+* Vision cone: a per-ray Python loop walking each Bresenham line, with a set per view so a
+  cell gets at most one vote per view.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from benchmark.aggregators.common import view_cells, vote_neighbours
+from benchmark.aggregators.graph_knn import neighbour_offsets
+from benchmark.aggregators.vision_cone import window_mode
+from envs.gridmap import GridMap, yaw_to_pixel_direction
+from envs.raycast import cone_thetas
+
+
+def grid_graph(walkable: np.ndarray, connectivity: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Sparse unit-weight graph over walkable cells and the node index of every cell (-1 if none)."""
+    h, w = walkable.shape
+    node = np.full(h * w, -1, np.int64)
+    idx = np.flatnonzero(walkable.ravel())
+    node[idx] = np.arange(len(idx))
+    rr, cc = np.divmod(idx, w)
+    src, dst = [], []
+    for dr, dc in neighbour_offsets(connectivity):
+        r2, c2 = rr + dr, cc + dc
+        ok = (r2 >= 0) & (r2 < h) & (c2 >= 0) & (c2 < w)
+        ok[ok] = walkable[r2[ok], c2[ok]]
+        src.append(node[idx[ok]])
+        dst.append(node[r2[ok] * w + c2[ok]])
+    src, dst = np.concatenate(src), np.concatenate(dst)
+    g = sp.csr_matrix((np.ones(len(src)), (src, dst)), shape=(len(idx), len(idx)))
+    return g, node
+
+
+def graph_knn_reference(grid: GridMap, poses, proba, k: int, connectivity: int = 4, weighting: str = "majority",
+                        chunk: int = 64) -> np.ndarray:
+    """Graph KNN by one csgraph BFS per viewpoint."""
+    r, c, _, p, _ = view_cells(grid, poses, proba, k)
+    g, node = grid_graph(grid.walkable, connectivity)
+    w = grid.shape[1]
+    m = g.shape[0]
+    best_d = np.full((m, k), np.inf)
+    best_s = np.full((m, k), -1, np.int64)
+    src_nodes = node[r * w + c]
+    for start in range(0, len(src_nodes), chunk):
+        ids = np.arange(start, min(start + chunk, len(src_nodes)))
+        d = csgraph.shortest_path(g, method="D", unweighted=True, indices=src_nodes[ids])  # (chunk, M)
+        alld = np.concatenate([best_d, d.T], axis=1)
+        alls = np.concatenate([best_s, np.broadcast_to(ids, (m, len(ids)))], axis=1)
+        alls = np.where(np.isinf(alld), -1, alls)
+        order = np.lexsort((np.where(alls < 0, np.iinfo(np.int64).max, alls), alld), axis=1)[:, :k]
+        best_d = np.take_along_axis(alld, order, 1)
+        best_s = np.take_along_axis(alls, order, 1)
+    nbr = np.full((grid.shape[0] * w, k), -1, np.int64)
+    cells = np.flatnonzero(grid.walkable.ravel())
+    nbr[cells] = np.where(np.isinf(best_d), -1, best_s)
+    lab = vote_neighbours(nbr, p, weighting).reshape(grid.shape)
+    lab[~grid.walkable] = -1
+    return lab
+
+
+def bresenham(r0: int, c0: int, r1: int, c1: int) -> list[tuple[int, int]]:
+    """The cells of the Bresenham line from (r0, c0) to (r1, c1), in order."""
+    cells = []
+    dr, dc = abs(r1 - r0), abs(c1 - c0)
+    sr, sc = (1 if r1 > r0 else -1), (1 if c1 > c0 else -1)
+    err = dc - dr
+    r, c = r0, c0
+    while True:
+        cells.append((r, c))
+        if (r, c) == (r1, c1):
+            return cells
+        e2 = 2 * err
+        if e2 > -dr:
+            err -= dr
+            c += sc
+        if e2 < dc:
+            err += dc
+            r += sr
+
+
+def walk_ray(blocked: np.ndarray, r0: int, c0: int, theta: float, max_range: float):
+    """Free cells a ray visits before the first blocked cell or the map edge, and the hit."""
+    h, w = blocked.shape
+    r1 = int(np.floor(r0 + 0.5 - np.cos(theta) * max_range))
+    c1 = int(np.floor(c0 + 0.5 + np.sin(theta) * max_range))
+    seen = []
+    for r, c in bresenham(r0, c0, r1, c1):
+        if not (0 <= r < h and 0 <= c < w):
+            return seen, None
+        if blocked[r, c]:
+            return seen, (r, c)
+        seen.append((r, c))
+    return seen, None
+
+
+def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_range_m: float = 10.0,
+                          blocked_ray_m: float = 0.3, window: int = 5, vote: str = "label") -> np.ndarray:
+    """Vision-cone voting by a per-ray Python loop."""
+    r, c, yaw, p, _ = view_cells(grid, poses, proba)
+    blocked = ~grid.walkable
+    n_cls = p.shape[1]
+    counts = np.zeros((n_cls, *grid.shape))
+    max_px = max_range_m / grid.resolution
+    for i in range(len(r)):
+        _, hit = walk_ray(blocked, int(r[i]), int(c[i]), float(np.deg2rad(yaw[i])), blocked_ray_m / grid.resolution)
+        if hit is not None:
+            continue
+        cells = set()
+        for th in cone_thetas(yaw[i], fov, max_px):
+            seen, _ = walk_ray(blocked, int(r[i]), int(c[i]), float(th), max_px)
+            cells.update(seen)
+        for rr, cc in cells:
+            if vote == "label":
+                counts[int(np.argmax(p[i])), rr, cc] += 1
+            else:
+                counts[:, rr, cc] += p[i]
+    return window_mode(counts, grid.walkable, window)
+
+
+__all__ = ["graph_knn_reference", "vision_cone_reference", "bresenham", "walk_ray", "grid_graph",
+           "yaw_to_pixel_direction"]

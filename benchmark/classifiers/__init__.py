@@ -1,0 +1,1 @@
+"""Classifiers: N observations -> (N, C) class probabilities (see benchmark.interfaces)."""

@@ -1,0 +1,148 @@
+"""Viewpoints: where the robot takes its pictures.
+
+* :class:`Autotrace` — the paper's wall-following autotrace: the walkable area is shrunk by
+  ``offset`` metres (distance transform), the contours of what is left (outer boundaries and
+  the rings around furniture islands) form the path, points are sampled every ``spacing``
+  metres along each contour, and each point gets ``n_headings`` headings spread over
+  ``heading_spread`` degrees around the inward normal (the direction away from the nearest
+  wall). Every pose lies on a cell at least ``offset`` metres from any obstacle. A walkable
+  region narrower than ``2 * offset`` has no path and gets no viewpoint.
+* :class:`FromFile` — poses recorded elsewhere (teleoperation, a robot's log): CSV with
+  columns ``x, z, yaw`` or JSON (a list of ``{"x", "z", "yaw"}`` or ``{"poses": [...]}``),
+  in the simulator's convention (metres, degrees). The path may contain ``{house_id}``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+from scipy import ndimage
+
+from envs.gridmap import GridMap, pixel_direction_to_yaw
+from envs.scene import Scene
+
+
+def trace_path(walkable: np.ndarray, offset_px: float) -> list[np.ndarray]:
+    """Closed contours (each (L, 2) int (row, col), in order) of the walkable cells whose
+    distance to the nearest obstacle is more than ``offset_px`` pixels."""
+    dist = ndimage.distance_transform_edt(np.pad(walkable, 1))[1:-1, 1:-1]
+    inner = (dist > offset_px).astype(np.uint8)
+    contours, _ = cv2.findContours(inner, cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
+    return [c[:, 0, ::-1].astype(np.int64) for c in contours]
+
+
+def sample_along(contour: np.ndarray, spacing_px: float) -> np.ndarray:
+    """Indices of points every ``spacing_px`` pixels of arc length along a closed contour
+    (the first at half a spacing; a contour shorter than one spacing gets one point)."""
+    n = len(contour)
+    if n == 1:
+        return np.zeros(1, dtype=np.int64)
+    steps = np.linalg.norm(np.diff(np.vstack([contour, contour[:1]]), axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(steps)[:-1]])
+    total = steps.sum()
+    targets = np.arange(spacing_px / 2, total, spacing_px) if total >= spacing_px else np.array([0.0])
+    return np.unique(np.clip(np.searchsorted(arc, targets), 0, n - 1))
+
+
+class Autotrace:
+    """Wall-following autotrace viewpoints.
+
+    Args:
+        offset: distance of the path from walls and furniture, metres.
+        spacing: distance between sampled points along the path, metres.
+        n_headings: headings per point.
+        heading_spread: total angle the headings span, degrees, centred on the inward normal
+            (n_headings=1 looks straight inward).
+        min_contour: contours shorter than this (metres) are skipped (tiny islands).
+    """
+
+    def __init__(self, offset: float = 0.5, spacing: float = 1.0, n_headings: int = 3,
+                 heading_spread: float = 180.0, min_contour: float = 0.5):
+        if offset < 0 or spacing <= 0 or n_headings < 1:
+            raise ValueError(f"Autotrace needs offset >= 0, spacing > 0, n_headings >= 1; got "
+                             f"offset={offset}, spacing={spacing}, n_headings={n_headings}")
+        self.offset, self.spacing, self.n_headings = offset, spacing, n_headings
+        self.heading_spread, self.min_contour = heading_spread, min_contour
+
+    def path(self, grid: GridMap) -> list[np.ndarray]:
+        """The traced contours (pixel (row, col) arrays) long enough to be kept."""
+        res = grid.resolution
+        cs = trace_path(grid.walkable, self.offset / res)
+        return [c for c in cs if len(c) * res >= self.min_contour]
+
+    def generate(self, scene: Scene | GridMap) -> np.ndarray:
+        """(N, 3) poses (x, z, yaw degrees) on the traced path."""
+        grid = scene.grid if isinstance(scene, Scene) else scene
+        res = grid.resolution
+        dist = ndimage.distance_transform_edt(np.pad(grid.walkable, 1))[1:-1, 1:-1]
+        gr, gc = np.gradient(ndimage.gaussian_filter(dist, 1.0))
+        pts = []
+        for c in self.path(grid):
+            idx = sample_along(c, self.spacing / res)
+            pts.append(c[idx])
+        if not pts:
+            return np.zeros((0, 3))
+        p = np.vstack(pts)
+        inward = pixel_direction_to_yaw(gr[p[:, 0], p[:, 1]], gc[p[:, 0], p[:, 1]])
+        if self.n_headings == 1:
+            rel = np.zeros(1)
+        else:
+            full = abs(self.heading_spread) >= 360
+            rel = np.linspace(-self.heading_spread / 2, self.heading_spread / 2, self.n_headings,
+                              endpoint=not full)
+        x, z = grid.pixel_to_world(p[:, 0], p[:, 1])
+        yaw = np.mod(inward[:, None] + rel[None, :], 360.0)
+        n = len(p)
+        return np.column_stack([np.repeat(x, len(rel)), np.repeat(z, len(rel)), yaw.reshape(n * len(rel))])
+
+
+def load_poses(path: str | Path) -> np.ndarray:
+    """Read poses (x, z, yaw degrees) from a CSV or JSON file -> (N, 3) float array."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"pose file not found: {path}")
+    if path.suffix.lower() == ".json":
+        data = json.loads(path.read_text())
+        if isinstance(data, dict):
+            data = data.get("poses", data)
+        if not isinstance(data, list):
+            raise ValueError(f"{path}: expected a list of poses or {{'poses': [...]}}")
+        df = pd.DataFrame(data)
+    else:
+        df = pd.read_csv(path)
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    missing = [c for c in ("x", "z", "yaw") if c not in df]
+    if missing:
+        raise ValueError(f"{path}: pose file lacks column(s) {missing}; expected x, z (metres), yaw (degrees)")
+    arr = df[["x", "z", "yaw"]].to_numpy(dtype=float)
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{path}: non-finite pose values")
+    return arr
+
+
+class FromFile:
+    """Poses from a file (``path`` may contain ``{house_id}``); every pose must be on a
+    walkable cell of the map, or ``off_map="drop"`` drops the others."""
+
+    def __init__(self, path: str, off_map: str = "error"):
+        if off_map not in ("error", "drop"):
+            raise ValueError(f"off_map must be 'error' or 'drop', got {off_map!r}")
+        self.path, self.off_map = path, off_map
+
+    def generate(self, scene: Scene) -> np.ndarray:
+        path = str(self.path).format(house_id=scene.house_id)
+        poses = load_poses(path)
+        r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
+        ok = scene.grid.is_walkable(r, c)
+        if not ok.all():
+            bad = np.nonzero(~ok)[0]
+            if self.off_map == "error":
+                raise ValueError(f"{path}: {len(bad)} of {len(poses)} poses are off the walkable map of house "
+                                 f"{scene.house_id!r}, first at index {bad[0]}: x={poses[bad[0], 0]:.3f}, "
+                                 f"z={poses[bad[0], 1]:.3f}")
+            poses = poses[ok]
+        return poses

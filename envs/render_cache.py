@@ -1,0 +1,96 @@
+"""The render cache: observations of one house on disk, in a layout any renderer shares.
+
+One folder per house (so a cache rendered on a GPU box can be copied to a laptop)::
+
+    <folder>/poses.csv           index, x, z, yaw (metres, degrees), refused, image
+    <folder>/observations.jsonl  one JSON object per view: objects [[type, amount], ...],
+                                 visible_classes [...] or null, meta {...}
+    <folder>/images/000123.png   RGB frames (simulators only)
+    <folder>/COMPLETE            written last; a folder without it is ignored
+
+Floats are written with ``repr`` precision, so a round trip gives equal observations.
+Writes go to a temporary sibling folder that is renamed into place.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from envs.observation import Observation
+
+MARKER = "COMPLETE"
+
+
+def is_complete(folder: str | Path) -> bool:
+    """True if ``folder`` holds a finished render."""
+    return (Path(folder) / MARKER).exists()
+
+
+def write_observations(folder: str | Path, observations: Sequence[Observation]) -> None:
+    """Write ``observations`` to ``folder`` atomically (replacing an older render)."""
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix="." + folder.name + ".", dir=folder.parent))
+    try:
+        lines = ["index,x,z,yaw,refused,image"]
+        with open(tmp / "observations.jsonl", "w", encoding="utf-8") as f:
+            for i, o in enumerate(observations):
+                image = ""
+                if o.image is not None:
+                    img = np.asarray(o.image)
+                    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+                        raise ValueError(f"observation {i}: image must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
+                    (tmp / "images").mkdir(exist_ok=True)
+                    image = f"images/{i:06d}.png"
+                    Image.fromarray(img).save(tmp / image)
+                x, z, yaw = (float(v) for v in o.pose)
+                lines.append(f"{i},{x!r},{z!r},{yaw!r},{int(bool(o.meta.get('refused', False)))},{image}")
+                vis = None if o.visible_classes is None else [float(v) for v in np.asarray(o.visible_classes)]
+                f.write(json.dumps({"objects": [[str(t), float(a)] for t, a in o.objects], "visible_classes": vis,
+                                    "meta": o.meta}, default=_plain) + "\n")
+        (tmp / "poses.csv").write_text("\n".join(lines) + "\n")
+        (tmp / MARKER).write_text(f"{len(observations)}\n")
+        if folder.exists():
+            shutil.rmtree(folder)
+        os.rename(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _plain(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"observation meta value of type {type(o).__name__} is not JSON serialisable")
+
+
+def read_observations(folder: str | Path, images: bool = True) -> list[Observation]:
+    """Observations written by :func:`write_observations` (``images=False`` skips frames)."""
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise FileNotFoundError(f"no complete render in {folder}")
+    rows = (folder / "poses.csv").read_text().splitlines()[1:]
+    with open(folder / "observations.jsonl", encoding="utf-8") as f:
+        recs = [json.loads(line) for line in f]
+    if len(rows) != len(recs):
+        raise ValueError(f"{folder}: poses.csv has {len(rows)} views but observations.jsonl has {len(recs)}")
+    out = []
+    for row, rec in zip(rows, recs):
+        _, x, z, yaw, _, image = row.split(",", 5)
+        img = np.asarray(Image.open(folder / image).convert("RGB")) if (image and images) else None
+        vis = rec.get("visible_classes")
+        out.append(Observation(pose=(float(x), float(z), float(yaw)), image=img,
+                               objects=[(str(t), float(a)) for t, a in rec.get("objects", [])],
+                               visible_classes=None if vis is None else np.asarray(vis, dtype=np.float64),
+                               meta=rec.get("meta", {})))
+    return out
