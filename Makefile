@@ -26,5 +26,23 @@ test: setup  ## run the test suite
 lint: setup  ## ruff
 	$(VENV)/bin/ruff check benchmark envs tests
 
+# make bench: the offline benchmark (sizes: BENCH_HOUSES houses per dataset).
+comma := ,
+SHARED ?= ../shared/data
+BENCH_HOUSES ?= 20
+BENCH_ENVS := synthetic$(if $(wildcard $(SHARED)/procthor/*.jsonl.gz),$(comma)procthor_shared,)
+BENCH_OUT ?= results/bench
+
+bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench, tables + figures -> results/bench
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.run experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES)
+	$(PY) -m benchmark.tables results/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
+	$(PY) -m benchmark.figures from-run results/runs/bench --out $(BENCH_OUT)/figures
+
+perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.perf
+
+tables: setup  ## paper tables from every run under results/runs -> results/tables
+	$(PY) -m benchmark.tables results/runs --out results/tables
+
 clean:  ## remove caches (keeps .venv and results/)
 	rm -rf .pytest_cache .ruff_cache .hypothesis build *.egg-info
