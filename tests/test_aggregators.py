@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+from maps import pose_at, two_rooms_grid
+
+from benchmark.aggregators.euclidean_knn import EuclideanKNN
+from benchmark.aggregators.graph_knn import GraphKNN
+from benchmark.aggregators.reference import graph_knn_reference, vision_cone_reference
+from benchmark.aggregators.vision_cone import VisionCone
+from envs.gridmap import GridMap
+
+
+def random_case(seed, n=12, c=4):
+    rng = np.random.default_rng(seed)
+    walk = rng.random((30, 40)) > 0.25
+    walk[::7, :] = True  # corridors keep most of it connected
+    grid = GridMap(walk, 0.05, (0.0, 1.5))
+    rr, cc = np.nonzero(walk)
+    pick = rng.choice(len(rr), n, replace=False)
+    poses = np.array([pose_at(grid, rr[i], cc[i], rng.uniform(0, 360)) for i in pick])
+    proba = rng.dirichlet(np.ones(c), n)
+    # duplicated positions and equal labels make ties on purpose
+    poses[1, :2] = poses[0, :2]
+    proba[2] = proba[3]
+    return grid, poses, proba
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("conn", [4, 8])
+@pytest.mark.parametrize("k", [1, 3, 5])
+@pytest.mark.parametrize("weighting", ["majority", "probability"])
+def test_graph_knn_equals_one_bfs_per_viewpoint(seed, conn, k, weighting):
+    grid, poses, proba = random_case(seed)
+    fast = GraphKNN(k=k, connectivity=conn, weighting=weighting)(grid, poses, proba)
+    ref = graph_knn_reference(grid, poses, proba, k, conn, weighting)
+    assert np.array_equal(fast, ref)
+
+
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("vote", ["label", "probability"])
+def test_vision_cone_equals_per_ray_loop(seed, vote):
+    grid, poses, proba = random_case(seed)
+    kw = dict(fov=90.0, max_range_m=0.8, blocked_ray_m=0.1, window=3, vote=vote)
+    assert np.array_equal(VisionCone(**kw)(grid, poses, proba), vision_cone_reference(grid, poses, proba, **kw))
+
+
+def test_knn_splits_at_the_geodesic_midpoint_not_across_the_wall():
+    grid = two_rooms_grid(door=(2, 6))  # door at the top
+    # view A in the left room near the wall's bottom, view B in the right room far away
+    poses = np.array([pose_at(grid, 34, 34, 0), pose_at(grid, 4, 70, 0)])
+    proba = np.eye(3)[[0, 1]]
+    lab = GraphKNN(k=1)(grid, poses, proba)
+    eu = EuclideanKNN(k=1)(grid, poses, proba)
+    # the cell just right of the wall at the bottom is Euclidean-close to A but geodesically to B
+    assert eu[34, 41] == 0 and lab[34, 41] == 1
+    assert (lab[2:38, 2:38][grid.walkable[2:38, 2:38]] == 0).all()
+    # along the path, the boundary is where the geodesic distances are equal
+    assert lab[3, 50] == 1 and lab[30, 20] == 0
+
+
+def test_cone_labels_the_room_it_looks_into_knn_where_it_stands():
+    grid = two_rooms_grid(door=(16, 24))
+    left = pose_at(grid, 20, 30, 90)  # in the left room, looking right through the door
+    right = pose_at(grid, 20, 60, 90)  # in the right room, looking away (right)
+    poses = np.array([left, right])
+    proba = np.eye(2)[[1, 0]]
+    cone = VisionCone(fov=30, max_range_m=2.0, window=1)(grid, poses, proba)
+    knn = GraphKNN(k=1)(grid, poses, proba)
+    # (20, 50) in the right room: seen only by the left view -> its label; geodesically nearer
+    # to the right view (10 steps vs 20) -> KNN gives the right view's label
+    assert cone[20, 50] == 1 and knn[20, 50] == 0
+    assert knn[20, 30] == 1
+    assert cone[5, 5] == -1  # no view looked at the top-left corner
+
+
+def test_view_facing_a_wall_is_dropped():
+    grid = two_rooms_grid()
+    poses = np.array([pose_at(grid, 30, 36, 90)])  # 2 px from the wall, facing it
+    cone = VisionCone(blocked_ray_m=0.3)
+    assert (cone(grid, poses, np.eye(2)[[1]]) == -1).all() and cone.last_used == 0
+
+
+@pytest.mark.parametrize("agg", [GraphKNN(k=2), VisionCone(), EuclideanKNN(k=2)])
+def test_bad_inputs(agg):
+    grid = two_rooms_grid()
+    good = np.array([pose_at(grid, 10, 10, 0), pose_at(grid, 12, 12, 0)])
+    with pytest.raises(ValueError, match="no viewpoints"):
+        agg(grid, np.zeros((0, 3)), np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="off the walkable map"):
+        agg(grid, np.array([[99.0, 99.0, 0.0], [-5.0, 0.0, 0.0]]), np.eye(3)[:2])
+    with pytest.raises(ValueError, match="probability matrix"):
+        agg(grid, good, np.eye(3))
+    if not isinstance(agg, VisionCone):
+        with pytest.raises(ValueError, match="larger than"):
+            type(agg)(k=5)(grid, good, np.eye(3)[:2])

@@ -1,0 +1,54 @@
+import numpy as np
+from maps import pose_at, two_rooms_scene
+
+from envs.floorplan import FloorplanRenderer, occluders, view_from
+from envs.scene import ObjectFootprint
+
+
+def _with_objects(scene):
+    objs = [ObjectFootprint("bed", "Bed_1", "Bed", (0, 0), 0, (1, .5, 1), 0.0, 0.5, ("Pillow",)),
+            ObjectFootprint("fridge", "Fridge_1", "Fridge", (0, 0), 0, (1, 2, 1), 0.0, 1.8)]
+    omap = np.full(scene.grid.shape, -1, np.int32)
+    omap[18:22, 60:64] = 0   # low bed in the right room
+    omap[18:22, 66:70] = 1   # tall fridge behind it
+    omap[5:8, 60:63] = 1
+    scene.objects, scene.object_map = objs, omap
+    return scene
+
+
+def test_camera_facing_wall_sees_nothing_behind_it():
+    s = two_rooms_scene()
+    obs = FloorplanRenderer(fov=30, max_range=3.0).render(None, s, np.array([pose_at(s.grid, 32, 20, 90)]))
+    # looking right from row 32 with a 30-degree cone: the wall is hit at rows 27-36, the door
+    # (rows 18-21) is outside the cone, so only the left room is visible
+    assert obs[0].visible_classes.tolist() == [0, 0, 0, 0, 0, 1, 0]
+
+
+def test_view_through_door_sees_the_next_room_and_objects():
+    s = _with_objects(two_rooms_scene())
+    r = FloorplanRenderer(fov=20, max_range=3.0, occluder_height=1.2)
+    o = r.render(None, s, np.array([pose_at(s.grid, 20, 30, 90)]))[0]
+    assert o.visible_classes[2] > 0.5  # most of what it sees is the bedroom beyond the door
+    types = dict(o.objects)
+    assert "Bed" in types and "Pillow" in types and "Fridge" in types
+    assert types["Pillow"] == types["Bed"]
+    # rays stop at the tall fridge: nothing beyond column 66 on those rows
+    v = view_from(s, occluders(s, 1.2), pose_at(s.grid, 20, 30, 90), 20, 60)
+    assert not ((v.cols > 66) & (v.rows >= 18) & (v.rows < 22)).any()
+
+
+def test_batch_render_equals_per_pose_view():
+    s = _with_objects(two_rooms_scene())
+    rng = np.random.default_rng(0)
+    rr, cc = np.nonzero(s.grid.walkable)
+    pick = rng.choice(len(rr), 25, replace=False)
+    poses = np.array([pose_at(s.grid, rr[i], cc[i], rng.uniform(0, 360)) for i in pick])
+    obs = FloorplanRenderer(fov=90, max_range=2.0).render(None, s, poses)
+    block = occluders(s, 1.2)
+    for p, o in zip(poses, obs):
+        v = view_from(s, block, p, 90, 2.0 / s.grid.resolution)
+        cls = np.append(s.instance_classes, -1)[s.rooms[v.rows, v.cols]]
+        cls = cls[cls >= 0]
+        assert np.allclose(np.bincount(cls, minlength=7) / max(len(cls), 1), o.visible_classes)
+        assert sorted({s.objects[k].object_type for k in v.object_rays}) == sorted(
+            {t for t, _ in o.objects} - {"Pillow"})
