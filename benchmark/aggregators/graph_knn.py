@@ -120,6 +120,7 @@ class GraphKNN:
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
         r, c, _, p, _ = view_cells(grid, poses, proba, self.k)
         nbr = knn_neighbours(grid.walkable, r, c, self.k, self.connectivity)
-        lab = vote_neighbours(nbr, p, self.weighting).reshape(grid.shape)
-        lab[~grid.walkable] = -1
-        return lab
+        cells = np.flatnonzero(grid.walkable.ravel())
+        lab = np.full(grid.shape[0] * grid.shape[1], -1, np.int32)
+        lab[cells] = vote_neighbours(nbr[cells], p, self.weighting)
+        return lab.reshape(grid.shape)
