@@ -24,6 +24,7 @@ import pandas as pd
 
 
 def _timed(fn, *args, repeat: int = 3):
+    """(result, best wall time in seconds over ``repeat`` calls)."""
     best = float("inf")
     out = None
     for _ in range(repeat):
@@ -59,11 +60,11 @@ def run(houses: int, resolutions: list[float], cone_ref_views: int, path: Path) 
             proba = np.random.default_rng(0).dirichlet(np.ones(7), len(poses))
             knn(s.grid, poses[:5], proba[:5])  # compile once
             lab, t_knn = _timed(knn, s.grid, poses, proba)
-            ref, t_knn_ref = _timed(lambda: graph_knn_reference(s.grid, poses, proba, 5), repeat=1)
+            ref, t_knn_ref = _timed(graph_knn_reference, s.grid, poses, proba, 5, repeat=1)
             cone_lab, t_cone = _timed(cone, s.grid, poses, proba)
             sub = slice(0, cone_ref_views)
             small, t_cone_sub = _timed(cone, s.grid, poses[sub], proba[sub])
-            cref, t_cone_ref = _timed(lambda: vision_cone_reference(s.grid, poses[sub], proba[sub]), repeat=1)
+            cref, t_cone_ref = _timed(vision_cone_reference, s.grid, poses[sub], proba[sub], repeat=1)
             post, t_pp = _timed(pp, cone_lab, s.grid)
             h_, w_ = s.grid.shape
             rows.append({
