@@ -97,7 +97,7 @@ def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
     for col in ("classifier", "aggregator", "postprocess", "viewpoints", "segmenter", "dataset"):
         if col not in df:
             df[col] = ""
-        df[col] = df[col].fillna("").astype(str)
+        df[col] = df[col].astype("string").fillna("").astype(str)
     if "status" not in df:
         df["status"] = "ok"
     df["method"] = df.apply(method_label, axis=1)
