@@ -2,11 +2,12 @@
 
 * Fig. 3: ground truth | raw prediction | post-processed, for one house.
 * Fig. 4: ground truth with sample viewpoints | graph KNN | vision cone, for one house.
-* Fig. 2: the autotrace path and its sampled viewpoints on the map.
+* Fig. 2: the autotrace path and its sampled viewpoints on the map; and one view's cone
+  with the objects it sees.
 
 ``python -m benchmark.figures house --house-index 80 --out docs/figures`` runs the offline
 pipeline (autotrace, floorplan renderer, oracle classifier at ``--accuracy``) on a shared
-house and draws all three. ``python -m benchmark.figures from-run results/runs/bench --out DIR``
+house and draws them all. ``python -m benchmark.figures from-run results/runs/bench --out DIR``
 draws Fig. 3 and Fig. 4 from a sweep's cached label maps (``run.save_maps``).
 """
 
@@ -82,6 +83,33 @@ def figure_autotrace(scene: Scene, paths: Sequence[np.ndarray], poses: np.ndarra
     save(fig, path)
 
 
+def figure_view(scene: Scene, pose, path: str | Path, fov: float = 90.0, max_range: float = 6.0,
+                occluder_height: float = 1.2) -> None:
+    """One view: the floor cells its camera sees, and the objects it sees with their share of rays."""
+    from envs.floorplan import occluders, view_from
+
+    v = view_from(scene, occluders(scene, occluder_height), pose, fov, max_range / scene.grid.resolution)
+    fig, ax = plt.subplots(figsize=(8, 6.5))
+    show_map(ax, scene.semantic, scene.classes, scene.grid.walkable, scene.grid.resolution,
+             f"{scene.house_id}: one view ({fov:g} deg, {max_range:g} m)")
+    seen = np.zeros(scene.grid.shape, bool)
+    seen[v.rows, v.cols] = True
+    overlay = np.zeros((*scene.grid.shape, 4))
+    overlay[seen] = (1, 1, 1, 0.55)
+    ax.imshow(overlay, interpolation="nearest")
+    r, c = scene.grid.world_to_pixel(pose[0], pose[1])
+    draw_poses(ax, np.array([r - 0.5]), np.array([c - 0.5]), np.array([pose[2]]), size=40, arrow_px=12)
+    for k, n in sorted(v.object_rays.items(), key=lambda t: -t[1]):
+        o = scene.objects[k]
+        cr, cc = scene.grid.world_to_pixel(*o.center)
+        corners = np.array([scene.grid.world_to_pixel(x, z) for x, z in o.corners()])
+        ax.fill(corners[:, 1] - 0.5, corners[:, 0] - 0.5, facecolor="none", edgecolor="k", lw=1.2)
+        ax.text(cc, cr, f"{o.object_type}\n{n / max(v.n_rays, 1):.0%}", fontsize=7, ha="center", va="center",
+                bbox=dict(facecolor="white", alpha=0.8, pad=1, lw=0))
+    add_legend(ax, scene.classes)
+    save(fig, path)
+
+
 def house_figures(house_index: int, out: Path, accuracy: float = 0.8, houses: Path | None = None) -> list[Path]:
     """Run the offline pipeline on one shared house and draw Fig. 2, 3 and 4."""
     from benchmark.aggregators.graph_knn import GraphKNN
@@ -108,11 +136,14 @@ def house_figures(house_index: int, out: Path, accuracy: float = 0.8, houses: Pa
     cone = VisionCone()(scene.grid, poses, proba)
     post = PostProcess()(cone, scene.grid)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [out / "fig2_autotrace.png", out / "fig3_postprocess.png", out / "fig4_aggregators.png"]
+    paths = [out / "fig2_autotrace.png", out / "fig3_postprocess.png", out / "fig4_aggregators.png",
+             out / "view_cone.png"]
     tag = f"{scene.house_id}, oracle classifier at {accuracy:.0%} accuracy"
     figure_autotrace(scene, at.path(scene.grid), poses[::3], paths[0], np.argmax(proba[::3], axis=1))
     figure_postprocess(scene, cone, post, paths[1], f"{tag}, vision cone")
     figure_aggregators(scene, poses, knn, cone, paths[2], proba, title=tag)
+    n_seen = [len(o.objects) for o in obs]
+    figure_view(scene, poses[int(np.argmax(n_seen))], paths[3])
     return paths
 
 
