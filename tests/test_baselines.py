@@ -53,3 +53,26 @@ def test_shared_houses_do_not_crash(shared_scenes):
             assert inst.shape == scene.grid.shape and (inst[scene.grid.walkable] >= 0).all()
             s = score_instances(inst, scene.instances)
             assert 0 <= s["iou"] <= 1
+
+
+def test_match_finds_the_house_behind_a_rotated_map(shared_houses):
+    from benchmark.baselines.match import match_maps
+    from envs.scene import rasterise_house
+
+    houses = shared_houses[:6]
+    target = rasterise_house(houses[4], resolution=0.02).grid.walkable
+    maps = {"rotated": np.rot90(np.pad(target, ((7, 0), (0, 13))), 1)}
+    (row,) = match_maps(maps, 0.02, houses)
+    assert row["best_house"] == houses[4].id
+    assert row["iou"] > 0.85 and row["iou"] > row["second_iou"] + 0.1
+
+
+def test_score_cli_with_preset(selros_dir, tmp_path):
+    from benchmark.baselines.__main__ import main
+
+    assert main(["score", "--preset", "vrf", "--out", str(tmp_path)]) == 0
+    import pandas as pd
+
+    df = pd.read_csv(tmp_path / "metrics.csv")
+    assert len(df) == 30 and set(df["method"]) == {"VRF"}
+    assert main(["score", "--preset", "nope"]) == 2
