@@ -10,8 +10,9 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_bench_sweep_tables_and_figures(tmp_path, procthor_file):
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "ROOMSEG_SHARED_DATA": str(procthor_file.parents[1])}
+def test_bench_sweep_tables_and_figures(tmp_path):
+    """Runs on generated houses only: no shared data needed."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     res = tmp_path / "results"
     run = subprocess.run([sys.executable, "-m", "benchmark.run", "experiment=bench", "run.limit=2",
                           f"run.results_dir={res}", "run.progress=false", "env.resolution=0.1"],

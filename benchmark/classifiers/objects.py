@@ -53,24 +53,33 @@ class ObjectsClassifier:
     """Naive Bayes over visible object types.
 
     Args:
-        train_path: house file (.json/.jsonl/.jsonl.gz) with the training houses.
+        train_path: house file (.json/.jsonl/.jsonl.gz) with training houses, or None.
         train_start, train_stop: index range of the training houses in that file.
+        train_synthetic: [first, last) seeds of generated training houses (envs.synthetic),
+            or None. At least one source must be given; both are combined.
         alpha: Laplace smoothing.
         classes: the ordered class names.
     """
 
-    def __init__(self, train_path: str, train_start: int = 0, train_stop: int | None = None, alpha: float = 1.0,
+    def __init__(self, train_path: str | None = None, train_start: int = 0, train_stop: int | None = None,
+                 train_synthetic: Sequence[int] | None = None, alpha: float = 1.0,
                  classes: Sequence[str] = PAPER_CLASSES):
         self.classes = tuple(classes)
         self.alpha = float(alpha)
         houses = []
-        for i, h in enumerate(iter_house_file(train_path)):
-            if train_stop is not None and i >= train_stop:
-                break
-            if i >= train_start:
-                houses.append(h)
+        if train_path:
+            for i, h in enumerate(iter_house_file(train_path)):
+                if train_stop is not None and i >= train_stop:
+                    break
+                if i >= train_start:
+                    houses.append(h)
+        if train_synthetic:
+            from envs.synthetic import generate_house
+
+            houses += [generate_house(s) for s in range(int(train_synthetic[0]), int(train_synthetic[1]))]
         if not houses:
-            raise ValueError(f"objects classifier: no training houses in {train_path}[{train_start}:{train_stop}]")
+            raise ValueError(f"objects classifier: no training houses (train_path={train_path!r} "
+                             f"[{train_start}:{train_stop}], train_synthetic={train_synthetic})")
         self.train_ids = [h.id for h in houses]
         rooms, types = room_object_counts(houses, self.classes)
         self.types = sorted(types)
@@ -115,10 +124,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--houses", type=Path, default=default)
     ap.add_argument("--train", default="0:75", help="training index range a:b")
     ap.add_argument("--eval", default="75:150", help="evaluation index range a:b")
+    ap.add_argument("--synthetic", type=int, nargs=2, default=None, metavar=("FIRST", "LAST"),
+                    help="also train on generated houses with seeds [FIRST, LAST)")
     a = ap.parse_args(argv)
     t0, t1 = map(int, a.train.split(":"))
     e0, e1 = map(int, a.eval.split(":"))
-    clf = ObjectsClassifier(str(a.houses), t0, t1)
+    clf = ObjectsClassifier(str(a.houses), t0, t1, train_synthetic=a.synthetic)
     houses = load_houses(a.houses, e0, e1)
     clf.setup([h.id for h in houses])
     renderer, vp = FloorplanRenderer(), Autotrace()
