@@ -178,12 +178,16 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
             scenes[key] = instantiate(cfg.env).scene(hid)
         return scenes[key]
 
-    ok_ids = [set(df.loc[df["status"] == "ok", "house_id"]) for _, _, df in jobs]
-    pick = house or sorted(set.intersection(*ok_ids) if ok_ids else set())[0]
+    # one house per dataset: the first house every job of that dataset scored
+    ok_by_env: dict[str, list[set]] = {}
+    for _, summary, df in jobs:
+        ok_by_env.setdefault(summary["names"]["env"], []).append(set(df.loc[df["status"] == "ok", "house_id"]))
+    picks = {env: house or (sorted(set.intersection(*ids)) or [None])[0] for env, ids in ok_by_env.items()}
     groups: dict[tuple, dict[str, tuple]] = {}
     for cfg, summary, _ in jobs:
         names = summary["names"]
-        if names.get("segmenter"):
+        pick = picks.get(names["env"])
+        if names.get("segmenter") or pick is None:
             continue
         m = maps_for(cfg, summary, pick)
         if m is None:
@@ -196,6 +200,7 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
         key = (names["env"], names["classifier"], names["postprocess"])
         groups.setdefault(key, {})[names["aggregator"]] = (cfg, m)
     for (env, clf, post), by_agg in groups.items():
+        pick = picks[env]
         if "graph_knn" in by_agg and "vision_cone" in by_agg:
             cfg, mk = by_agg["graph_knn"]
             _, mc = by_agg["vision_cone"]
