@@ -53,11 +53,10 @@ def main(argv: list[str] | None = None) -> int:
             df = score_directory(p["gt_dir"], p["gt_pattern"], p["pred_dir"], p["pred_pattern"], p["method"],
                                  params, dataset=p.get("dataset", "external"), resolution=p.get("resolution"))
         elif a.cmd == "table5":
-            from benchmark.selros_table import default_selros_dir, geometric_rows, selros_rows
+            from benchmark.selros_table import main as selros_main
 
-            params = MetricParams(min_segment_px=a.min_segment_px)
-            df = pd.concat([selros_rows(default_selros_dir(), params),
-                            geometric_rows(default_selros_dir(), params)], ignore_index=True)
+            return selros_main(["--geometric", "--min-segment-px", str(a.min_segment_px)] +
+                               (["--out", str(a.out)] if a.out else []))
         else:
             from benchmark.baselines.match import match_maps
             from benchmark.selros_table import SELROS_RESOLUTION, default_selros_dir
