@@ -37,9 +37,10 @@ def test_graph_knn_equals_one_bfs_per_viewpoint(seed, conn, k, weighting):
 
 @pytest.mark.parametrize("seed", range(5))
 @pytest.mark.parametrize("vote", ["label", "probability"])
-def test_vision_cone_equals_per_ray_loop(seed, vote):
+@pytest.mark.parametrize("density", [1.0, 2.0])
+def test_vision_cone_equals_per_ray_loop(seed, vote, density):
     grid, poses, proba = random_case(seed)
-    kw = dict(fov=90.0, max_range_m=0.8, blocked_ray_m=0.1, window=3, vote=vote)
+    kw = dict(fov=90.0, max_range_m=0.8, blocked_ray_m=0.1, window=3, vote=vote, ray_density=density)
     assert np.array_equal(VisionCone(**kw)(grid, poses, proba), vision_cone_reference(grid, poses, proba, **kw))
 
 

