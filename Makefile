@@ -6,22 +6,24 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-models test lint bench perf tables figures clean
+.PHONY: help setup setup-core test lint bench perf tables figures clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
 
-setup: $(VENV)/.installed  ## create .venv and install the package with its test tools
+setup: $(VENV)/.installed  ## create .venv; install the package, its test tools and the model extra (torch)
 
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q -e ".[dev]"
-	touch $@
-
-setup-models: setup  ## also install torch/torchvision/transformers (image classifiers)
 	$(PIP) install -q $(TORCH_PIN)
 	$(PIP) install -q -e ".[dev,models]"
+	touch $@
+
+setup-core: ## create .venv with the core only (no torch): everything but the image classifiers
+	python3 -m venv $(VENV)
+	$(PIP) install -q --upgrade pip
+	$(PIP) install -q -e ".[dev]"
 
 test: setup  ## run the test suite
 	$(PY) -m pytest -q

@@ -1,0 +1,78 @@
+"""CNN room classifier: a torchvision ResNet (ResNet-50 from IMAGENET1K_V2 weights in the
+paper) with a new head over the configured classes, fine-tuned on Places-2 (see
+``benchmark.classifiers.train``). Inference in batches, softmax probabilities."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from benchmark.classifiers.torch_common import (
+    batches,
+    eval_transform,
+    images_of,
+    load_checkpoint,
+    pick_device,
+    require_torch,
+)
+from envs.classes import PAPER_CLASSES
+
+
+def build_resnet(arch: str, n_classes: int, pretrained: bool):
+    """torchvision ``arch`` with ImageNet weights (``pretrained``) and an ``n_classes`` head."""
+    torch = require_torch()
+    import torchvision  # noqa: PLC0415
+
+    weights = None
+    if pretrained:
+        weights = "IMAGENET1K_V2" if arch == "resnet50" else "DEFAULT"
+    try:
+        model = torchvision.models.get_model(arch, weights=weights)
+    except Exception as e:  # offline, or an unknown architecture
+        raise RuntimeError(f"could not build {arch} with weights={weights} ({type(e).__name__}: {e}); "
+                           "download the weights once into $TORCH_HOME or set classifier.pretrained=false") from None
+    model.fc = torch.nn.Linear(model.fc.in_features, n_classes)
+    return model
+
+
+class CNNClassifier:
+    """Args:
+        checkpoint: fine-tuned weights (``train --model cnn``); required for predictions
+            unless ``allow_untrained`` (tests, timing).
+        arch: torchvision architecture (``resnet50``; tests use ``resnet18``).
+        pretrained: start from ImageNet weights (ignored when a checkpoint is loaded).
+        device: ``auto``, ``cpu`` or ``cuda[:i]``; batch_size, image_size: inference settings.
+    """
+
+    def __init__(self, classes: Sequence[str] = PAPER_CLASSES, checkpoint: str | None = None, arch: str = "resnet50",
+                 pretrained: bool = True, device: str = "auto", batch_size: int = 32, image_size: int = 224,
+                 allow_untrained: bool = False):
+        torch = require_torch()
+        self.classes = tuple(classes)
+        self.device = pick_device(device)
+        self.batch_size, self.image_size = int(batch_size), int(image_size)
+        if checkpoint is None and not allow_untrained:
+            raise ValueError("classifier.checkpoint is not set: fine-tune first with "
+                             "python -m benchmark.classifiers.train --model cnn ...")
+        self.model = build_resnet(arch, len(self.classes), pretrained and checkpoint is None)
+        if checkpoint is not None:
+            load_checkpoint(checkpoint, self.model, self.classes)
+        self.model.to(self.device).eval()
+        self._tf = eval_transform(self.image_size)
+        self._torch = torch
+
+    def setup(self, eval_house_ids: Sequence[str]) -> None:
+        """Nothing to prepare (trained on Places-2, not on houses)."""
+
+    def predict_images(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        torch = self._torch
+        out = []
+        with torch.inference_mode():
+            for chunk in batches(list(images), self.batch_size):
+                x = torch.stack([self._tf(img) for img in chunk]).to(self.device)
+                out.append(torch.softmax(self.model(x).float(), dim=1).cpu().numpy())
+        return np.concatenate(out) if out else np.zeros((0, len(self.classes)))
+
+    def predict_proba(self, observations: Sequence) -> np.ndarray:
+        return self.predict_images(images_of(observations))
