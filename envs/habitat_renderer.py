@@ -32,6 +32,19 @@ def sensor_settings(width: int, height: int, fov: float, camera_y: float, semant
     return out
 
 
+def topdown_to_gridmap(topdown: np.ndarray, lower_bound, resolution: float):
+    """Habitat's navmesh top-down view -> our GridMap.
+
+    ``pathfinder.get_topdown_view(resolution, height)`` gives an (H, W) bool array whose
+    pixel (0, 0) is at the navmesh's lower bound (x_min, z_min in Habitat coordinates), rows
+    growing with Habitat z. Habitat z is -z in AI2-THOR, so rows grow as our z decreases,
+    which is our convention: the origin (top-left corner) is (x_min, -z_min)."""
+    from envs.gridmap import GridMap  # noqa: PLC0415
+
+    lb = np.asarray(lower_bound, dtype=float)
+    return GridMap(np.asarray(topdown, dtype=bool), float(resolution), (float(lb[0]), float(-lb[2])))
+
+
 class HabitatRenderer:
     """Args: scene_dataset (path of the ``*.scene_dataset_config.json``), width, height
     (pixels), fov (degrees), camera_y (metres), semantic (also render the semantic sensor)."""
@@ -66,13 +79,23 @@ class HabitatRenderer:
         agent_cfg.sensor_specifications = specs
         return hs.Simulator(hs.Configuration(sim_cfg, [agent_cfg]))
 
-    def render(self, house, scene, poses: np.ndarray) -> list[Observation]:
-        hs = require_habitat()
-        name = (house.data.get("scene") if isinstance(house.data, dict) else None) or house.id
+    def _sim_for(self, name: str):
         if self._sim is None or self._scene != name:
             if self._sim is not None:
                 self._sim.close()
             self._sim, self._scene = self._make_sim(name), name
+        return self._sim
+
+    def navmesh_grid(self, scene_name: str, resolution: float = 0.05, floor_y: float = 0.0):
+        """The walkable map of a scene: its navmesh seen from above at ``floor_y`` metres."""
+        sim = self._sim_for(scene_name)
+        lower, _ = sim.pathfinder.get_bounds()
+        return topdown_to_gridmap(sim.pathfinder.get_topdown_view(resolution, floor_y), lower, resolution)
+
+    def render(self, house, scene, poses: np.ndarray) -> list[Observation]:
+        hs = require_habitat()
+        name = (house.data.get("scene") if isinstance(house.data, dict) else None) or house.id
+        self._sim_for(name)
         agent = self._sim.initialize_agent(0)
         out = []
         for p in poses_array(poses):

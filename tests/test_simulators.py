@@ -177,3 +177,17 @@ def test_doctor_runs_and_names_what_is_missing(capsys):
     assert all(r[1] == "OK" for r in rows if r[0].startswith("core:"))
     assert main(["--hab-dataset", "/nonexistent/x.json"]) == 0
     assert "core OK" in capsys.readouterr().out
+
+
+def test_navmesh_topdown_orientation():
+    from envs.habitat_renderer import topdown_to_gridmap
+    from envs.poses import habitat_to_thor_position
+
+    top = np.zeros((4, 6), bool)
+    top[0, 5] = True  # Habitat: x = x_min + 5.5 * res, z_hab = z_min + 0.5 * res
+    g = topdown_to_gridmap(top, lower_bound=(2.0, 0.0, -3.0), resolution=0.5)
+    x_hab, z_hab = 2.0 + 5.5 * 0.5, -3.0 + 0.5 * 0.5
+    x, _, z = habitat_to_thor_position((x_hab, 0.0, z_hab))
+    r, c = g.world_to_cell(x, z)
+    assert (int(r), int(c)) == (0, 5) and g.walkable[r, c]
+    assert g.origin == (2.0, 3.0)
