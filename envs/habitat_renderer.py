@@ -112,3 +112,33 @@ class HabitatRenderer:
                 meta["semantic_ids"] = {int(i): float(c) / obs["semantic"].size for i, c in zip(ids, counts)}
             out.append(Observation(pose=(float(p[0]), float(p[1]), float(p[2])), image=rgb, meta=meta))
         return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m envs.habitat_renderer navmesh --scene NAME --out walkable.png [--resolution 0.05]``:
+    write a scene's navmesh top-down view as an annotation folder's ``walkable.png`` and
+    print its origin (the label map must share this grid)."""
+    import argparse  # noqa: PLC0415
+    import os  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    from PIL import Image  # noqa: PLC0415
+
+    ap = argparse.ArgumentParser(description="navmesh top-down view of an ai2thor-hab scene")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    n = sub.add_parser("navmesh")
+    n.add_argument("--scene", required=True)
+    n.add_argument("--out", type=Path, required=True)
+    n.add_argument("--resolution", type=float, default=0.05, help="metres per pixel")
+    n.add_argument("--dataset", default=os.environ.get("ROOMSEG_HAB_DATASET",
+                                                       "data/ai2thor-hab/ai2thor-hab.scene_dataset_config.json"))
+    a = ap.parse_args(argv)
+    g = HabitatRenderer(a.dataset).navmesh_grid(a.scene, a.resolution)
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray((g.walkable * 255).astype(np.uint8)).save(a.out)
+    print(f"{a.out}: {g.shape[1]} x {g.shape[0]} px at {g.resolution} m/px, origin (x, z) = {g.origin}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
