@@ -143,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         correct += int((pred[m] == truth[m]).sum())
         total += int(m.sum())
         prior_only += int(clf.last_flags.sum())
-    print(f"objects classifier trained on houses [{a.train}], evaluated on [{a.eval}] ({len(houses)} houses): "
+    src = f"houses [{a.train}]" + (f" + generated seeds [{a.synthetic[0]}, {a.synthetic[1]})" if a.synthetic else "")
+    print(f"objects classifier trained on {src}, evaluated on [{a.eval}] ({len(houses)} houses): "
           f"per-view accuracy {correct / max(total, 1):.4f} over {total} views; {prior_only} views saw no "
           f"known object (prior only)")
     return 0
