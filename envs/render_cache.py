@@ -87,7 +87,7 @@ def read_observations(folder: str | Path, images: bool = True) -> list[Observati
     out = []
     for row, rec in zip(rows, recs):
         _, x, z, yaw, _, image = row.split(",", 5)
-        img = np.asarray(Image.open(folder / image).convert("RGB")) if (image and images) else None
+        img = np.array(Image.open(folder / image).convert("RGB")) if (image and images) else None
         vis = rec.get("visible_classes")
         out.append(Observation(pose=(float(x), float(z), float(yaw)), image=img,
                                objects=[(str(t), float(a)) for t, a in rec.get("objects", [])],
