@@ -13,9 +13,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmark.baselines.external import score_directory, summary_table
+from benchmark.baselines.external import report, score_directory
 from benchmark.metrics import MetricParams, describe
-from envs.atomic import atomic_write_text
 
 #: (method, folder, file pattern) of the outputs in the SeLRoS release.
 SELROS_METHODS = (("SeLRoS", "selros", "{id}_output.png"), ("VRF", "vrf", "{id}_segmented.png"))
@@ -71,10 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     df = selros_rows(a.data, params)
     if a.geometric:
         df = pd.concat([df, geometric_rows(a.data, params)], ignore_index=True)
-    if a.out:
-        atomic_write_text(a.out / "metrics.csv", df.to_csv(index=False))
-    print(summary_table(df).to_markdown(index=False))
-    print(f"\nMean ± std over maps, percent. Metrics: {describe(params)}; maps at {SELROS_RESOLUTION} m/px.")
+    report(df, params, a.out, f"; maps at {SELROS_RESOLUTION} m/px.")
     return 0
 
 

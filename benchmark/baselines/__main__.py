@@ -15,9 +15,8 @@ from pathlib import Path
 import pandas as pd
 from omegaconf import OmegaConf
 
-from benchmark.baselines.external import score_directory, summary_table
-from benchmark.metrics import MetricParams, describe
-from envs.atomic import atomic_write_text
+from benchmark.baselines.external import report, score_directory
+from benchmark.metrics import MetricParams
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "external"
 
@@ -73,10 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    if a.out:
-        atomic_write_text(a.out / "metrics.csv", df.to_csv(index=False))
-    print(summary_table(df).to_markdown(index=False))
-    print(f"\nMean ± std over maps, percent. Metrics: {describe(params)}")
+    report(df, params, a.out)
     return 0
 
 

@@ -74,6 +74,17 @@ def score_directory(
     return pd.DataFrame(rows)
 
 
+def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note: str = "") -> None:
+    """Write ``df`` as ``out/metrics.csv`` (when given) and print its Table V-style summary
+    with the metric parameters."""
+    from envs.atomic import atomic_write_text  # noqa: PLC0415
+
+    if out:
+        atomic_write_text(Path(out) / "metrics.csv", df.to_csv(index=False))
+    print(summary_table(df).to_markdown(index=False))
+    print(f"\nMean ± std over maps, percent. Metrics: {describe(params)}{note}")
+
+
 def summary_table(df: pd.DataFrame, metrics: tuple[str, ...] = ("iou", "precision", "recall")) -> pd.DataFrame:
     """Table V-style summary: mean and std per method over its successful maps, in percent,
     with the count of maps and of failed/missing ones."""
