@@ -7,7 +7,7 @@ from pathlib import Path
 from envs.base import Environment
 from envs.classes import PAPER_CLASSES
 from envs.house import House, HouseError, iter_house_file, load_prior_houses, validate_house
-from envs.scene import Scene, rasterise_house
+from envs.scene import Scene, rasterise_house, scene_on_grid
 
 
 class ProcTHOREnv(Environment):
@@ -22,6 +22,9 @@ class ProcTHOREnv(Environment):
             (metres per pixel, metres, metres, metres); see :func:`envs.scene.rasterise_house`.
         classes: ordered class list.
         name: dataset name in tables.
+        occupancy: "floorplan" (rasterised from the house) or "ai2thor" (AI2-THOR's
+            reachable positions, ``thor`` = keyword arguments of the AI2-THOR renderer;
+            needs the simulator); the ground truth is carried onto that map.
 
     Houses that fail validation are kept as ids: :meth:`scene` raises their
     :class:`~envs.house.HouseError`, so a sweep records the failure for that house alone.
@@ -40,8 +43,13 @@ class ProcTHOREnv(Environment):
         max_object_base: float = 0.5,
         classes: list[str] | tuple[str, ...] = PAPER_CLASSES,
         name: str = "procthor",
+        occupancy: str = "floorplan",
+        thor: dict | None = None,
     ):
-        self.name = name
+        if occupancy not in ("floorplan", "ai2thor"):
+            raise ValueError(f"occupancy must be 'floorplan' or 'ai2thor', got {occupancy!r}")
+        self.name, self.occupancy, self.thor = name, occupancy, dict(thor or {})
+        self._renderer = None
         self.raster = dict(resolution=resolution, wall_thickness=wall_thickness,
                            clearance=clearance, max_object_base=max_object_base, classes=tuple(classes))
         if path is None:
@@ -67,7 +75,17 @@ class ProcTHOREnv(Environment):
         return h
 
     def scene(self, house_id: str) -> Scene:
-        return rasterise_house(self.house(house_id), **self.raster)
+        house = self.house(house_id)
+        scene = rasterise_house(house, **self.raster)
+        if self.occupancy == "floorplan":
+            return scene
+        from envs.ai2thor_renderer import AI2THORRenderer, reachable_grid  # noqa: PLC0415
+
+        if self._renderer is None:
+            self._renderer = AI2THORRenderer(**self.thor)
+        grid = reachable_grid(self._renderer.reachable_positions(house), self._renderer.grid_size,
+                              self.raster["resolution"])
+        return scene_on_grid(scene, grid)
 
 
 __all__ = ["ProcTHOREnv", "HouseError"]

@@ -266,9 +266,29 @@ def rasterise_house(
     )
 
 
+def scene_on_grid(scene: Scene, grid: GridMap) -> Scene:
+    """The same house on another occupancy map (e.g. from a simulator's reachable
+    positions): each cell of ``grid`` takes the room of the ``scene`` cell under its centre;
+    walkable cells outside every room keep no room (-1)."""
+    rr, cc = np.mgrid[: grid.shape[0], : grid.shape[1]]
+    x, z = grid.pixel_to_world(rr, cc)
+    r, c = scene.grid.world_to_cell(x, z)
+    ok = scene.grid.in_bounds(r, c)
+    rooms = np.full(grid.shape, -1, np.int32)
+    rooms[ok] = scene.rooms[r[ok], c[ok]]
+    walls = np.zeros(grid.shape, bool)
+    omap = np.full(grid.shape, -1, np.int32)
+    if scene.walls is not None:
+        walls[ok] = scene.walls[r[ok], c[ok]]
+    if scene.object_map is not None:
+        omap[ok] = scene.object_map[r[ok], c[ok]]
+    return Scene(scene.house_id, grid, rooms, np.where(grid.walkable, rooms, -1).astype(np.int32),
+                 scene.instance_classes, scene.room_ids, scene.classes, walls, scene.objects, omap)
+
+
 def room_polygon_areas(house: House) -> np.ndarray:
     """Floor polygon area of each room in square metres, in room order."""
     return np.array([shapely.Polygon(floor_polygon(r, house.id)).area for r in house.rooms])
 
 
-__all__ = ["ObjectFootprint", "Scene", "rasterise_house", "room_polygon_areas", "HouseError"]
+__all__ = ["ObjectFootprint", "Scene", "rasterise_house", "room_polygon_areas", "scene_on_grid", "HouseError"]

@@ -191,3 +191,27 @@ def test_navmesh_topdown_orientation():
     r, c = g.world_to_cell(x, z)
     assert (int(r), int(c)) == (0, 5) and g.walkable[r, c]
     assert g.origin == (2.0, 3.0)
+
+
+def test_ground_truth_carried_onto_a_reachable_positions_map(shared_houses):
+    from envs.ai2thor_renderer import reachable_grid
+    from envs.scene import rasterise_house, scene_on_grid
+
+    scene = rasterise_house(shared_houses[0])
+    # reachable positions on a 0.25 m grid where the raster is walkable (as AI2-THOR would report)
+    rr, cc = np.nonzero(scene.grid.walkable)
+    x, z = scene.grid.pixel_to_world(rr, cc)
+    pts = {(round(a * 4) / 4, round(b * 4) / 4) for a, b in zip(x, z)}
+    grid = reachable_grid([{"x": a, "y": 0.9, "z": b} for a, b in sorted(pts)], 0.25, resolution=0.05)
+    moved = scene_on_grid(scene, grid)
+    assert moved.grid is grid and moved.instances.shape == grid.shape
+    # every room is still there, and each moved cell's room matches the raster at that point
+    assert set(np.unique(moved.instances)) - {-1} == set(range(len(scene.room_ids)))
+    r, c = np.nonzero(moved.instances >= 0)
+    wx, wz = grid.pixel_to_world(r, c)
+    sr, sc = scene.grid.world_to_cell(wx, wz)
+    assert np.array_equal(scene.rooms[sr, sc], moved.instances[r, c])
+    from envs.procthor import ProcTHOREnv
+
+    with pytest.raises(ValueError, match="occupancy"):
+        ProcTHOREnv(path=None, occupancy="lidar")
