@@ -7,9 +7,10 @@ a watershed on the distance map (scikit-image), so every walkable cell connected
 gets a room; a walkable component with no seed becomes one room of its own.
 
 * :class:`Morphological` — erode the free space step by step (3 x 3); whenever a connected
-  part breaks off from its neighbours (or is about to vanish) with an area between
-  ``min_area`` and ``max_area``, record it as a room seed and remove it; continue until
-  nothing is left.
+  part of room size breaks off from another part of room size (or is about to vanish),
+  with an area between ``min_area`` and ``max_area``, record it as a room seed and remove
+  it; specks smaller than ``min_area`` do not count as a split; continue until nothing is
+  left.
 * :class:`DistanceTransform` — sweep a threshold over the distance-to-obstacle map and keep
   the threshold that gives the most parts of at least ``min_area`` (the lowest such
   threshold on a tie); those parts are the seeds.
@@ -78,8 +79,10 @@ class Morphological:
             ids, first = np.unique(lab.ravel(), return_index=True)
             parent = np.zeros(n + 1, np.int64)
             parent[ids] = prev.ravel()[first]
-            siblings = np.bincount(parent[1:], minlength=prev.max() + 1)
             sizes = np.bincount(lab.ravel(), minlength=n + 1)
+            # a real split: at least two parts of room size (>= min_area) from one parent
+            big = np.nonzero(sizes[1:] >= lo)[0] + 1
+            siblings = np.bincount(parent[big], minlength=prev.max() + 1)
             nxt = ndimage.binary_erosion(work, np.ones((3, 3), bool))
             alive = np.bincount(lab[nxt], minlength=n + 1) > 0
             for i in range(1, n + 1):
