@@ -11,13 +11,13 @@ TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
 
-setup: $(VENV)/.installed  ## create .venv; install the package, its test tools and the model extra (torch)
+setup: $(VENV)/.installed  ## create .venv; install the package, test tools, models (torch) and thor (ai2thor) extras
 
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
 	$(PIP) install -q $(TORCH_PIN)
-	$(PIP) install -q -e ".[dev,models]"
+	$(PIP) install -q -e ".[dev,models,thor]"
 	touch $@
 
 setup-core: ## create .venv with the core only (no torch): everything but the image classifiers
