@@ -15,7 +15,7 @@ from scipy.sparse import csgraph
 from benchmark.aggregators.common import view_cells, vote_neighbours
 from benchmark.aggregators.graph_knn import neighbour_offsets
 from benchmark.aggregators.vision_cone import window_mode
-from envs.gridmap import GridMap, yaw_to_pixel_direction
+from envs.gridmap import GridMap
 from envs.raycast import cone_thetas
 
 
@@ -125,5 +125,4 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
     return window_mode(counts, grid.walkable, window)
 
 
-__all__ = ["graph_knn_reference", "vision_cone_reference", "bresenham", "walk_ray", "grid_graph",
-           "yaw_to_pixel_direction"]
+__all__ = ["graph_knn_reference", "vision_cone_reference", "bresenham", "walk_ray", "grid_graph"]
