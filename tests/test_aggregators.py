@@ -4,14 +4,20 @@ from maps import pose_at, two_rooms_grid
 
 from benchmark.aggregators.euclidean_knn import EuclideanKNN
 from benchmark.aggregators.graph_knn import GraphKNN
-from benchmark.aggregators.reference import graph_knn_reference, vision_cone_reference
+from benchmark.aggregators.reference import (
+    euclidean_knn_reference,
+    graph_knn_reference,
+    vision_cone_reference,
+)
 from benchmark.aggregators.vision_cone import VisionCone
 from envs.gridmap import GridMap
 
 
-def random_case(seed, n=12, c=4):
+def random_case(seed, n=None, c=4):
+    """A random map (obstacle share and size vary with the seed) with n random walkable views."""
     rng = np.random.default_rng(seed)
-    walk = rng.random((30, 40)) > 0.25
+    n = int(rng.integers(6, 25)) if n is None else n
+    walk = rng.random((int(rng.integers(20, 36)), int(rng.integers(25, 45)))) > rng.uniform(0.1, 0.4)
     walk[::7, :] = True  # corridors keep most of it connected
     grid = GridMap(walk, 0.05, (0.0, 1.5))
     rr, cc = np.nonzero(walk)
@@ -33,6 +39,20 @@ def test_graph_knn_equals_one_bfs_per_viewpoint(seed, conn, k, weighting):
     fast = GraphKNN(k=k, connectivity=conn, weighting=weighting)(grid, poses, proba)
     ref = graph_knn_reference(grid, poses, proba, k, conn, weighting)
     assert np.array_equal(fast, ref)
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("k", [1, 4])
+@pytest.mark.parametrize("weighting", ["majority", "probability"])
+def test_euclidean_knn_equals_sorting_every_view(seed, k, weighting):
+    grid, poses, proba = random_case(seed)
+    if seed % 2:  # views on a lattice: many equal distances, ties at the K-th place included
+        rr, cc = np.nonzero(grid.walkable)
+        on = (rr % 4 == 0) & (cc % 4 == 0)
+        poses = np.array([pose_at(grid, r, c, 0) for r, c in zip(rr[on], cc[on])])
+        proba = np.random.default_rng(seed).dirichlet(np.ones(4), len(poses))
+    fast = EuclideanKNN(k=k, weighting=weighting)(grid, poses, proba)
+    assert np.array_equal(fast, euclidean_knn_reference(grid, poses, proba, k, weighting))
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -78,6 +98,16 @@ def test_view_facing_a_wall_is_dropped():
     poses = np.array([pose_at(grid, 30, 36, 90)])  # 2 px from the wall, facing it
     cone = VisionCone(blocked_ray_m=0.3)
     assert (cone(grid, poses, np.eye(2)[[1]]) == -1).all() and cone.last_used == 0
+
+
+@pytest.mark.parametrize("agg", [GraphKNN(k=2), VisionCone(max_range_m=1.0), EuclideanKNN(k=2)])
+def test_views_off_the_map_are_dropped_and_counted(agg, caplog):
+    grid, poses, proba = random_case(3)
+    r, c = np.nonzero(~grid.walkable)
+    bad = np.array([[-3.0, 0.0, 0.0], pose_at(grid, r[0], c[0], 0)])  # off the map; on an obstacle
+    both = agg(grid, np.vstack([bad, poses]), np.vstack([np.eye(4)[[0, 1]], proba]))
+    assert "2 of" in caplog.text and "dropped" in caplog.text
+    assert np.array_equal(both, agg(grid, poses, proba))
 
 
 @pytest.mark.parametrize("agg", [GraphKNN(k=2), VisionCone(), EuclideanKNN(k=2)])

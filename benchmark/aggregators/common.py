@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from envs.gridmap import GridMap
 from envs.observation import poses_array
 
+log = logging.getLogger(__name__)
+
 
 def view_cells(grid: GridMap, poses, proba, k: int | None = None):
     """Validate inputs; return (rows, cols, yaw, proba, kept) of the views on walkable cells.
 
-    Views off the map or on non-walkable cells are dropped (``kept`` marks the others);
-    no views, all views dropped, a probability matrix of the wrong shape, or K larger
+    Views off the map or on non-walkable cells are dropped (``kept`` marks the others) and
+    their count is logged as a warning; no views, all views dropped, a probability matrix of the wrong shape, or K larger
     than the number of views raise ``ValueError``.
     """
     poses = poses_array(poses) if len(np.asarray(poses)) else np.zeros((0, 3))
@@ -25,6 +29,8 @@ def view_cells(grid: GridMap, poses, proba, k: int | None = None):
     kept = grid.is_walkable(r, c)
     if not kept.any():
         raise ValueError(f"all {len(poses)} viewpoints are off the walkable map")
+    if not kept.all():
+        log.warning("%d of %d viewpoints are off the walkable map and were dropped", int((~kept).sum()), len(poses))
     if k is not None and k > int(kept.sum()):
         raise ValueError(f"K = {k} is larger than the number of usable viewpoints ({int(kept.sum())} of {len(poses)})")
     if k is not None and k < 1:

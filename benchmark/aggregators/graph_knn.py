@@ -12,7 +12,8 @@ The paper runs one BFS per viewpoint. Here one multi-source BFS, level by level,
 every viewpoint's wavefront and lets a cell accept at most K viewpoints, lowest index first
 within a level (the frontier stays ordered by viewpoint index, so no sorting is needed). This is exact: if a cell on a shortest path from viewpoint s already holds
 K viewpoints ranked before s, every cell behind it does too, so s is not among their K
-nearest. Memory: (H*W, K) int32, linear in the map size.
+nearest. Memory: (H*W, K) int32 slots plus the frontier of one BFS level (at most K
+entries per cell of that level), linear in the map size.
 """
 
 from __future__ import annotations
@@ -34,11 +35,9 @@ def neighbour_offsets(connectivity: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _knn_bfs(walk, src_r, src_c, k, offs):
+def _knn_bfs(walk, src_r, src_c, k, offs, slots, cnt):
     h, w = walk.shape
     n = src_r.shape[0]
-    slots = np.full((h * w, k), -1, np.int32)
-    cnt = np.zeros(h * w, np.int32)
     fr_cell = np.empty(n, np.int64)
     fr_src = np.empty(n, np.int64)
     m = 0
@@ -91,8 +90,13 @@ def _knn_bfs(walk, src_r, src_c, k, offs):
 
 def knn_neighbours(walkable: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: int, connectivity: int = 4) -> np.ndarray:
     """(H*W, K) int32 viewpoint indices per cell, nearest first by (geodesic hops, index); -1 = none."""
+    offs = neighbour_offsets(connectivity)
+    h, w = walkable.shape
+    # the map-sized work arrays are allocated here, in NumPy, and filled by the kernel
+    slots = np.full((h * w, int(k)), -1, np.int32)
+    cnt = np.zeros(h * w, np.int32)
     return _knn_bfs(np.ascontiguousarray(walkable, dtype=np.bool_), np.asarray(rows, np.int64),
-                    np.asarray(cols, np.int64), int(k), neighbour_offsets(connectivity))
+                    np.asarray(cols, np.int64), int(k), offs, slots, cnt)
 
 
 class GraphKNN:

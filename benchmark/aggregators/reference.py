@@ -2,6 +2,8 @@
 
 * Graph KNN: one breadth-first search per viewpoint with SciPy's csgraph (the paper's
   method), then each cell ranks viewpoints by (distance, index) and keeps the first K.
+* Euclidean KNN: all (cell, view) squared pixel distances, each cell sorted by
+  (distance, index).
 * Vision cone: a per-ray Python loop walking each Bresenham line, with a set per view so a
   cell gets at most one vote per view.
 """
@@ -65,6 +67,18 @@ def graph_knn_reference(grid: GridMap, poses, proba, k: int, connectivity: int =
     return lab
 
 
+def euclidean_knn_reference(grid: GridMap, poses, proba, k: int, weighting: str = "majority") -> np.ndarray:
+    """Euclidean KNN by sorting every view for every cell (M x N memory: small maps only)."""
+    r, c, _, p, _ = view_cells(grid, poses, proba, k)
+    cells = np.argwhere(grid.walkable)
+    d2 = (cells[:, None, 0] - r[None, :]) ** 2 + (cells[:, None, 1] - c[None, :]) ** 2
+    ids = np.broadcast_to(np.arange(len(r)), d2.shape)
+    nbr = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
+    lab = np.full(grid.shape, -1, np.int32)
+    lab[cells[:, 0], cells[:, 1]] = vote_neighbours(nbr, p, weighting)
+    return lab
+
+
 def bresenham(r0: int, c0: int, r1: int, c1: int) -> list[tuple[int, int]]:
     """The cells of the Bresenham line from (r0, c0) to (r1, c1), in order."""
     cells = []
@@ -125,4 +139,4 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
     return window_mode(counts, grid.walkable, window)
 
 
-__all__ = ["graph_knn_reference", "vision_cone_reference", "bresenham", "walk_ray", "grid_graph"]
+__all__ = ["graph_knn_reference", "vision_cone_reference", "euclidean_knn_reference", "bresenham", "walk_ray", "grid_graph"]

@@ -8,7 +8,7 @@ and every walkable cell a ray reaches with clear line of sight gets one vote fro
 several rays of one view still gets one vote. The label of a cell is the class with the
 most votes summed over the ``window`` x ``window`` pixels around it (ties: lower class
 index); walkable cells with no vote in their window stay unlabelled.
-Memory: (C, H, W) vote counts, linear in the map size.
+Memory: (C, H, W) float32 vote counts and an (H, W) int32 stamp, linear in the map size.
 """
 
 from __future__ import annotations
@@ -23,12 +23,10 @@ from envs.raycast import cone_thetas, ray_end, trace_ray
 
 
 @njit(cache=True)
-def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, labels, votes, counts):
-    h, w = blocked.shape
+def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, labels, votes, counts, stamp):
     cap = int(np.ceil(max(max_range, short_px))) + 2
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
-    stamp = np.full((h, w), -1, np.int32)
     n_cls = votes.shape[1]
     used = 0
     for v in range(rows.shape[0]):
@@ -106,7 +104,7 @@ class VisionCone:
         counts = np.zeros((n_cls, *grid.shape), np.float32)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), r.astype(np.int64), c.astype(np.int64),
                                      np.deg2rad(yaw), thetas, float(max_px), float(self.blocked_ray_m / grid.resolution),
-                                     labels, p.astype(np.float32), counts)
+                                     labels, p.astype(np.float32), counts, np.full(grid.shape, -1, np.int32))
         return counts
 
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
