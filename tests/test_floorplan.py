@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 from maps import pose_at, two_rooms_scene
 
 from envs.floorplan import FloorplanRenderer, occluders, view_from
@@ -52,3 +53,64 @@ def test_batch_render_equals_per_pose_view():
         assert np.allclose(np.bincount(cls, minlength=7) / max(len(cls), 1), o.visible_classes)
         assert sorted({s.objects[k].object_type for k in v.object_rays}) == sorted(
             {t for t, _ in o.objects} - {"Pillow"})
+
+
+def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
+    """Slow renderer: Python rays (tests/test_raycast.py's reference) over blockers built
+    from the scene's fields; visible floor share per class and each object type's share of
+    rays (children with their parent)."""
+    from test_raycast import reference_ray
+
+    from envs.raycast import cone_thetas
+
+    g = scene.grid
+    h, w = g.shape
+    blocked = np.zeros((h, w), bool)
+    omap = scene.object_map
+    for r in range(h):
+        for c in range(w):
+            k = omap[r, c]
+            blocked[r, c] = (scene.rooms[r, c] < 0 or bool(scene.walls[r, c])
+                             or (k >= 0 and scene.objects[k].top >= occluder_height))
+    r0, c0 = (int(v) for v in g.world_to_cell(pose[0], pose[1]))
+    max_px = max_range_m / g.resolution
+    thetas = cone_thetas(pose[2], fov, max_px)
+    cells, rays_on = set(), {}
+    for th in thetas:
+        seen, hit = reference_ray(blocked, r0, c0, float(th), max_px)
+        cells.update(seen)
+        touched = {int(omap[rc]) for rc in seen + ([hit] if hit else [])} - {-1}
+        for k in touched:
+            rays_on[k] = rays_on.get(k, 0) + 1
+    counts = np.zeros(len(scene.classes))
+    for r, c in cells:
+        if scene.rooms[r, c] >= 0:
+            counts[scene.instance_classes[scene.rooms[r, c]]] += 1
+    objects = {}
+    for k, n in rays_on.items():
+        o = scene.objects[k]
+        for t in (o.object_type, *o.children):
+            objects[t] = max(objects.get(t, 0.0), n / len(thetas))
+    return counts / max(counts.sum(), 1), objects
+
+
+def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
+    from benchmark.classifiers.oracle import OracleClassifier
+    from benchmark.viewpoints import Autotrace
+    from envs.house import load_houses
+    from envs.scene import rasterise_house
+
+    house = load_houses(procthor_file, 80, 81)[0]
+    scene = rasterise_house(house, resolution=0.1)
+    poses = Autotrace(offset=0.4, spacing=1.0, n_headings=3).generate(scene)[::9][:12]
+    assert len(poses) >= 8
+    obs = FloorplanRenderer(fov=90, max_range=4.0, occluder_height=1.2).render(house, scene, poses)
+    majority = []
+    for p, o in zip(poses, obs):
+        vis, objects = _reference_observation(scene, p, 90, 4.0, 1.2)
+        assert np.allclose(o.visible_classes, vis)
+        assert dict(o.objects) == pytest.approx(objects)
+        majority.append(int(np.argmax(vis)))
+    assert sum(len(o.objects) > 0 for o in obs) >= len(obs) // 2  # the house has furniture in view
+    # the oracle at accuracy 1.0 gives the class covering most of the visible floor
+    assert OracleClassifier(accuracy=1.0).predict_proba(obs).argmax(1).tolist() == majority

@@ -1,24 +1,110 @@
+"""envs.raycast against a slow reference written from the definition of a digital line.
+
+The reference does not share code or the error-term loop with the kernel: on every step
+along the line's major axis it takes the cell nearest the exact line (exact rational
+arithmetic), ties going to the cell nearer the start. A ray ends at the cell containing
+the point ``max_range`` pixels from the camera cell's centre, and stops before the first
+blocked cell or at the map edge.
+"""
+
+import math
+from fractions import Fraction
+
 import numpy as np
 import pytest
 
-from benchmark.aggregators.reference import walk_ray
-from envs.raycast import cast_rays, cone_thetas
+from envs.raycast import cast_rays, cone_thetas, ray_end, trace_ray
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_cast_rays_equals_python_bresenham(seed):
+def _nearest(exact: Fraction, step: int) -> int:
+    """Integer nearest ``exact``; a tie goes toward the start of a line moving by ``step``."""
+    low = math.floor(exact)
+    frac = exact - low
+    if frac != Fraction(1, 2):
+        return low if frac < Fraction(1, 2) else low + 1
+    return low if step > 0 else low + 1
+
+
+def line_cells(r0: int, c0: int, r1: int, c1: int) -> list[tuple[int, int]]:
+    """Cells of the digital line from (r0, c0) to (r1, c1), in order, one per major-axis step."""
+    dr, dc = r1 - r0, c1 - c0
+    n = max(abs(dr), abs(dc))
+    if n == 0:
+        return [(r0, c0)]
+    cells = []
+    for i in range(n + 1):
+        if abs(dc) >= abs(dr):
+            cells.append((_nearest(r0 + Fraction(dr * i, n), dr), c0 + i * (1 if dc > 0 else -1)))
+        else:
+            cells.append((r0 + i * (1 if dr > 0 else -1), _nearest(c0 + Fraction(dc * i, n), dc)))
+    return cells
+
+
+def reference_ray(blocked: np.ndarray, r0: int, c0: int, theta: float, max_range: float):
+    """Free cells one ray visits (in order) and the blocked cell it hits, or None."""
+    h, w = blocked.shape
+    r1 = math.floor(r0 + 0.5 - math.cos(theta) * max_range)
+    c1 = math.floor(c0 + 0.5 + math.sin(theta) * max_range)
+    seen = []
+    for r, c in line_cells(r0, c0, r1, c1):
+        if not (0 <= r < h and 0 <= c < w):
+            return seen, None
+        if blocked[r, c]:
+            return seen, (r, c)
+        seen.append((r, c))
+    return seen, None
+
+
+def test_line_reference_is_a_line():
+    # the reference's own sanity: endpoints, 8-connected unit steps, within half a cell of the line
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        r0, c0, r1, c1 = (int(v) for v in rng.integers(-20, 20, 4))
+        cells = line_cells(r0, c0, r1, c1)
+        assert cells[0] == (r0, c0) and cells[-1] == (r1, c1)
+        steps = np.abs(np.diff(np.array(cells), axis=0))
+        assert (steps.max(axis=1) == 1).all()
+        n = max(abs(r1 - r0), abs(c1 - c0))
+        for i, (r, c) in enumerate(cells):
+            if abs(c1 - c0) >= abs(r1 - r0):
+                assert abs(r - (r0 + (r1 - r0) * i / max(n, 1))) <= 0.5
+            else:
+                assert abs(c - (c0 + (c1 - c0) * i / max(n, 1))) <= 0.5
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_cast_rays_equals_reference_on_random_maps(seed):
     rng = np.random.default_rng(seed)
-    blocked = rng.random((50, 70)) < 0.08
-    r0, c0 = int(rng.integers(0, 50)), int(rng.integers(0, 70))
+    h, w = int(rng.integers(20, 80)), int(rng.integers(20, 80))
+    blocked = rng.random((h, w)) < rng.uniform(0.0, 0.15)
+    r0, c0 = int(rng.integers(0, h)), int(rng.integers(0, w))
     blocked[r0, c0] = False
-    thetas = rng.uniform(0, 2 * np.pi, 40)
-    rng_px = float(rng.uniform(5, 60))
-    rows, cols, off, hits = cast_rays(blocked, r0, c0, thetas, rng_px)
+    thetas = np.concatenate([rng.uniform(-np.pi, 3 * np.pi, 60), np.arange(16) * np.pi / 8])  # incl. axes, diagonals
+    max_range = float(rng.uniform(0, 100))  # often past the map edge
+    rows, cols, off, hits = cast_rays(blocked, r0, c0, thetas, max_range)
+    assert off[-1] == len(rows) == len(cols)
     for i, th in enumerate(thetas):
-        seen, hit = walk_ray(blocked, r0, c0, th, rng_px)
+        seen, hit = reference_ray(blocked, r0, c0, float(th), max_range)
         got = list(zip(rows[off[i]:off[i + 1]].tolist(), cols[off[i]:off[i + 1]].tolist()))
-        assert got == seen
-        assert (tuple(hits[i]) == (-1, -1)) if hit is None else (tuple(hits[i]) == hit)
+        assert got == seen, f"ray {i} theta={th:.4f}"
+        assert tuple(hits[i].tolist()) == ((-1, -1) if hit is None else hit)
+
+
+def test_trace_ray_edge_cases():
+    blocked = np.zeros((10, 10), bool)
+    blocked[5, 5] = True
+    br, bc = np.empty(20, np.int32), np.empty(20, np.int32)
+    assert trace_ray(blocked, 5, 5, 5, 9, br, bc) == (0, 5, 5)  # starting on a blocked cell
+    n, hr, hc = trace_ray(blocked, 2, 2, 2, 2, br, bc)  # zero-length ray: its own cell
+    assert (n, hr, hc) == (1, -1, -1) and (br[0], bc[0]) == (2, 2)
+    n, hr, hc = trace_ray(blocked, 5, 2, 5, 30, br, bc)  # blocked at (5, 5)
+    assert (n, hr, hc) == (3, 5, 5) and bc[:n].tolist() == [2, 3, 4]
+    n, hr, hc = trace_ray(blocked, 1, 1, 1, 30, br, bc)  # leaves the map: no hit
+    assert (n, hr, hc) == (9, -1, -1)
+    assert ray_end(10, 10, 0.0, 5.0) == (5, 10)  # yaw 0 = up the map (row decreases)
+    assert ray_end(10, 10, np.pi / 2, 5.0) == (10, 15)  # yaw 90 = right (col increases)
+    with pytest.raises(ValueError, match="max_range"):
+        cast_rays(blocked, 0, 0, np.zeros(1), -1.0)
 
 
 def test_wall_blocks_view():

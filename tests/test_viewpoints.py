@@ -56,3 +56,61 @@ def test_poses_from_file(tmp_path):
     (tmp_path / "bad.csv").write_text("a,b\n1,2\n")
     with pytest.raises(ValueError, match="lacks column"):
         load_poses(tmp_path / "bad.csv")
+
+
+def test_autotrace_covers_both_arms_of_the_l():
+    g = l_grid()
+    p = Autotrace(offset=0.2, spacing=0.3, n_headings=1).generate(g)
+    r, c = g.world_to_cell(p[:, 0], p[:, 1])
+    assert ((r < 30) & (c < 22)).any()  # the vertical arm, above the corner
+    assert ((c > 30) & (r >= 38)).any()  # the horizontal arm, right of the corner
+
+
+def test_autotrace_headings_spread_around_the_inward_normal():
+    g = rect_grid()
+    one = Autotrace(offset=0.2, spacing=0.3, n_headings=1).generate(g)
+    three = Autotrace(offset=0.2, spacing=0.3, n_headings=3, heading_spread=180).generate(g)
+    assert np.array_equal(three[::3, :2], one[:, :2]) and np.array_equal(three[1::3], one)
+    rel = np.mod(three[:, 2].reshape(-1, 3) - one[:, 2:3] + 180, 360) - 180
+    assert np.allclose(rel, [-90, 0, 90])
+    four = Autotrace(offset=0.2, spacing=0.3, n_headings=4, heading_spread=360).generate(g)
+    rel4 = np.mod(four[:, 2].reshape(-1, 4) - one[:, 2:3] + 180, 360) - 180
+    assert np.allclose(rel4, [-180, -90, 0, 90])  # a full circle does not repeat its first heading
+    with pytest.raises(ValueError, match="spacing"):
+        Autotrace(spacing=0)
+
+
+def test_autotrace_covers_every_room_of_shared_houses(procthor_file):
+    from envs.house import load_houses
+    from envs.scene import rasterise_house
+
+    at = Autotrace(offset=0.5, spacing=1.0, n_headings=1)
+    checked = 0
+    for house in load_houses(procthor_file, 0, 12):
+        scene = rasterise_house(house, resolution=0.05)
+        p = at.generate(scene)
+        r, c = scene.grid.world_to_cell(p[:, 0], p[:, 1])
+        assert scene.grid.is_walkable(r, c).all()
+        dist = ndimage.distance_transform_edt(np.pad(scene.grid.walkable, 1))[1:-1, 1:-1] * 0.05
+        assert (dist[r, c] > 0.5).all()
+        visited = set(scene.instances[r, c].tolist())
+        for k in range(len(scene.instance_classes)):
+            room = scene.instances == k
+            if room.any() and dist[room].max() > 0.6:  # a room wide enough for the path
+                assert k in visited, f"{house.id}: room {k} has no viewpoint"
+                checked += 1
+    assert checked >= 40
+
+
+def test_pose_file_formats_and_errors(tmp_path):
+    (tmp_path / "list.json").write_text(json.dumps([{"x": 1.0, "z": 2.0, "yaw": 90}, {"x": 3, "z": 4, "yaw": -45}]))
+    assert load_poses(tmp_path / "list.json").tolist() == [[1, 2, 90], [3, 4, -45]]
+    (tmp_path / "upper.csv").write_text(" X , Z , Yaw \n1.5,2.5,180\n")
+    assert load_poses(tmp_path / "upper.csv").tolist() == [[1.5, 2.5, 180]]
+    with pytest.raises(FileNotFoundError, match="pose file not found"):
+        load_poses(tmp_path / "missing.csv")
+    (tmp_path / "nan.csv").write_text("x,z,yaw\n1,nan,0\n")
+    with pytest.raises(ValueError, match="non-finite"):
+        load_poses(tmp_path / "nan.csv")
+    with pytest.raises(ValueError, match="off_map"):
+        FromFile("p.csv", off_map="ignore")
