@@ -146,3 +146,50 @@ class FromFile:
                                  f"z={poses[bad[0], 1]:.3f}")
             poses = poses[ok]
         return poses
+
+
+def room_coverage(scene: Scene, poses: np.ndarray) -> tuple[int, int, list[tuple[int, float]]]:
+    """(rooms with a pose, rooms, [(room index, its largest clearance in metres)] for rooms with none)."""
+    grid = scene.grid
+    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
+    visited = set(scene.instances[r, c].tolist()) if len(poses) else set()
+    dist = ndimage.distance_transform_edt(np.pad(grid.walkable, 1))[1:-1, 1:-1] * grid.resolution
+    rooms = [k for k in range(len(scene.instance_classes)) if (scene.instances == k).any()]
+    missed = [(k, float(dist[scene.instances == k].max())) for k in rooms if k not in visited]
+    return len(rooms) - len(missed), len(rooms), missed
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Autotrace on a house file: poses per house and how many rooms get at least one pose."""
+    import argparse
+    import os
+
+    from envs.house import load_houses
+    from envs.scene import rasterise_house
+
+    default = Path(os.environ.get("ROOMSEG_SHARED_DATA", "../shared/data")) / "procthor/procthor-10k-uniform-hard-val.jsonl.gz"
+    ap = argparse.ArgumentParser(description="autotrace room coverage on a house file")
+    ap.add_argument("--houses", type=Path, default=default)
+    ap.add_argument("--range", default="0:150", help="house index range a:b")
+    ap.add_argument("--offset", type=float, default=0.5, help="metres")
+    ap.add_argument("--spacing", type=float, default=1.0, help="metres")
+    a = ap.parse_args(argv)
+    start, stop = map(int, a.range.split(":"))
+    at = Autotrace(offset=a.offset, spacing=a.spacing)
+    n_poses, covered, total = [], 0, 0
+    for house in load_houses(a.houses, start, stop):
+        scene = rasterise_house(house)
+        poses = at.generate(scene)
+        n_poses.append(len(poses))
+        got, n, missed = room_coverage(scene, poses)
+        covered, total = covered + got, total + n
+        for k, clearance in missed:
+            print(f"{house.id}: room {k} ({scene.classes[scene.instance_classes[k]]}) has no pose; "
+                  f"largest clearance {clearance:.2f} m (offset {a.offset} m)")
+    print(f"{len(n_poses)} houses: {np.mean(n_poses):.0f} poses per house (min {min(n_poses)}, max {max(n_poses)}); "
+          f"{covered} of {total} rooms have at least one pose")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
