@@ -32,8 +32,8 @@ def draw_scene(scene: Scene, path: str | Path) -> None:
     for ax in axes:
         ax.set_xticks([])
         ax.set_yticks([])
-        add_scale_bar(ax, scene.grid.resolution, color="tab:red")
-    add_legend(axes[1], scene.classes)
+        add_scale_bar(ax, scene.grid.resolution, color="white", outline="black")
+    add_legend(axes[1], scene.classes, unlabelled_label="in a room, not walkable")
     save(fig, path)
 
 

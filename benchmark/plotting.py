@@ -9,6 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib import patheffects  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
 from envs.classes import UNLABELLED_COLOR, class_colors  # noqa: E402
@@ -21,19 +22,25 @@ def colorize(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | 
     return label_colors_rgb(labels, classes, walkable)
 
 
-def add_legend(ax, classes: Sequence[str], unlabelled: bool = True, **kw) -> None:
-    """Class colour legend on ``ax`` (outside the axes, right)."""
+def add_legend(ax, classes: Sequence[str], unlabelled: bool = True, unlabelled_label: str = "unlabelled",
+               **kw) -> None:
+    """Class colour legend on ``ax`` (outside the axes, right); ``unlabelled_label`` names the
+    grey of -1 pixels on walkable ground."""
     handles = [Patch(color=np.array(c) / 255, label=n.replace("_", " ")) for c, n in zip(class_colors(classes), classes)]
     if unlabelled:
-        handles.append(Patch(color=np.array(UNLABELLED_COLOR) / 255, label="unlabelled"))
+        handles.append(Patch(color=np.array(UNLABELLED_COLOR) / 255, label=unlabelled_label))
     opts = dict(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     opts.update(kw)
     ax.legend(handles=handles, **opts)
 
 
-def add_scale_bar(ax, resolution: float, length_m: float | None = None, color: str = "white") -> None:
+def add_scale_bar(ax, resolution: float, length_m: float | None = None, color: str = "white",
+                  outline: str = "black") -> None:
     """A scale bar of ``length_m`` metres (default: a round length near 1/5 of the width)
-    in the lower-left corner of an image axis drawn at ``resolution`` metres per pixel."""
+    in the lower-left corner of an image axis drawn at ``resolution`` metres per pixel;
+    bar and text are edged in ``outline`` so they show on any map colour."""
+    if not resolution or resolution <= 0:
+        raise ValueError(f"scale bar needs a resolution > 0 (metres per pixel), got {resolution}")
     x0, x1 = sorted(ax.get_xlim())
     y_lo, y_hi = sorted(ax.get_ylim())
     width_m = (x1 - x0) * resolution
@@ -43,9 +50,10 @@ def add_scale_bar(ax, resolution: float, length_m: float | None = None, color: s
     px = length_m / resolution
     pad = 0.04 * (x1 - x0)
     y = y_hi - pad
-    ax.add_patch(Rectangle((x0 + pad, y - 0.012 * (y_hi - y_lo)), px, 0.012 * (y_hi - y_lo), color=color))
+    ax.add_patch(Rectangle((x0 + pad, y - 0.012 * (y_hi - y_lo)), px, 0.012 * (y_hi - y_lo), facecolor=color,
+                           edgecolor=outline, linewidth=0.8, zorder=4))
     ax.text(x0 + pad + px / 2, y - 0.02 * (y_hi - y_lo), f"{length_m:g} m", color=color, ha="center",
-            va="bottom", fontsize=8)
+            va="bottom", fontsize=8, zorder=4, path_effects=[patheffects.withStroke(linewidth=2, foreground=outline)])
 
 
 def show_map(ax, labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None = None,

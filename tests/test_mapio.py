@@ -45,3 +45,21 @@ def test_instance_png_with_blended_edge(tmp_path):
     assert (dropped[:, 9:11] == -1).all()
     with pytest.raises(FileNotFoundError):
         read_instance_png(tmp_path / "none.png")
+
+
+def test_draw_house_shows_every_room_class(procthor_file, tmp_path):
+    from benchmark.draw_house import main
+    from envs.classes import class_colors
+    from envs.house import load_houses
+    from envs.scene import rasterise_house
+
+    out = tmp_path / "house.png"
+    assert main(["--houses", str(procthor_file), "--index", "3", "--out", str(out), "--resolution", "0.1"]) == 0
+    rgb = np.asarray(Image.open(out).convert("RGB"))
+    scene = rasterise_house(load_houses(procthor_file, 3, 4)[0], resolution=0.1)
+    count = {name: int((rgb == np.array(c)).all(-1).sum()) for name, c in zip(scene.classes, class_colors(scene.classes))}
+    shown = {scene.classes[int(c)] for c in scene.instance_classes}
+    swatch = max(n for name, n in count.items() if name not in shown)  # legend only
+    assert swatch > 0  # every class is in the legend
+    for name in shown:  # a room class also covers its rooms on the map
+        assert count[name] > 10 * swatch, (name, count)
