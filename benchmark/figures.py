@@ -1,20 +1,28 @@
-"""The paper's figures, in fixed class colours with a legend and a scale bar.
+"""The paper's figures, in fixed class colours with a legend and a scale bar on every map.
 
 * Fig. 3: ground truth | raw prediction | post-processed, for one house.
 * Fig. 4: ground truth with sample viewpoints | graph KNN | vision cone, for one house.
 * Fig. 2: the autotrace path and its sampled viewpoints on the map; and one view's cone
   with the objects it sees.
 
-``python -m benchmark.figures house --house-index 80 --out docs/figures`` runs the offline
-pipeline (autotrace, floorplan renderer, oracle classifier at ``--accuracy``) on a shared
-house and draws them all. ``python -m benchmark.figures from-run results/runs/bench --out DIR``
-draws Fig. 3 and Fig. 4 from a sweep's cached label maps (``run.save_maps``).
+Fig. 3 and Fig. 4 are drawn from the runner's caches: the command composes the Hydra
+config of ``conf/`` with the given overrides, runs the house through
+:class:`benchmark.pipeline.Pipeline` (which reuses cached renders, classifications and
+label maps, and computes and caches whatever is missing) and draws the cached maps::
+
+    python -m benchmark.figures fig3 --house-index 80 --out docs/figures/fig3.png
+    python -m benchmark.figures fig4 --house-index 80 --out docs/figures/fig4.png classifier=objects
+    python -m benchmark.figures house --house-index 80 --out docs/figures   # Fig. 2, 3, 4 + one view
+    python -m benchmark.figures from-run results/runs/bench --out DIR       # every config of a sweep
+
+Defaults: ``env=procthor_shared classifier=oracle`` (80 % accuracy), Fig. 3 with
+``aggregator=vision_cone postprocess=default``, Fig. 4 with ``postprocess=none`` (the
+aggregators' raw output). The figure functions take arrays only.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -25,38 +33,93 @@ import pandas as pd
 from benchmark.plotting import add_legend, draw_poses, save, show_map
 from envs.scene import Scene
 
+#: dots per inch of the Fig. 3 / Fig. 4 PNGs (their pixel size is ``figure_size(...) * DPI``).
+DPI = 110
+#: height of one map panel, inches; its width follows the map's aspect ratio (clipped).
+PANEL_H = 4.2
+_TITLE_H, _LEGEND_W = 0.45, 1.45
+
+FIG3_DEFAULTS = {"env": "procthor_shared", "classifier": "oracle", "aggregator": "vision_cone",
+                 "postprocess": "default"}
+FIG4_DEFAULTS = {"env": "procthor_shared", "classifier": "oracle", "postprocess": "none"}
+
+
+def figure_size(map_shape: tuple[int, int], n_panels: int = 3) -> tuple[float, float]:
+    """(width, height) in inches of a figure of ``n_panels`` maps of ``map_shape`` (H, W) pixels
+    side by side, with a title row and a legend column."""
+    h, w = map_shape
+    panel_w = float(np.clip(PANEL_H * w / max(h, 1), 0.45 * PANEL_H, 1.8 * PANEL_H))
+    return n_panels * panel_w + _LEGEND_W, PANEL_H + _TITLE_H
+
+
+def _panels(scene: Scene, n: int = 3):
+    """A fixed-size figure with ``n`` map axes and a legend axis at the right."""
+    fw, fh = figure_size(scene.grid.shape, n)
+    fig = plt.figure(figsize=(fw, fh), dpi=DPI)
+    gs = fig.add_gridspec(1, n + 1, width_ratios=[(fw - _LEGEND_W) / n] * n + [_LEGEND_W],
+                          left=0.01, right=0.99, bottom=0.02, top=PANEL_H / fh - 0.02, wspace=0.04)
+    axes = [fig.add_subplot(gs[0, i]) for i in range(n)]
+    leg = fig.add_subplot(gs[0, n])
+    leg.axis("off")
+    add_legend(leg, scene.classes, loc="center left", bbox_to_anchor=(0.0, 0.5))
+    return fig, axes
+
+
+def _save_fixed(fig, path: str | Path, title: str) -> None:
+    """Title, then save at :data:`DPI` without cropping (the PNG is exactly figure_size * DPI)."""
+    fig.suptitle(title, fontsize=9, y=1 - 0.12 / fig.get_figheight())
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def _check_map(name: str, labels: np.ndarray, scene: Scene) -> np.ndarray:
+    labels = np.asarray(labels)
+    if labels.shape != scene.grid.shape:
+        raise ValueError(f"{name} label map has shape {labels.shape}, expected the scene's map shape "
+                         f"{scene.grid.shape}")
+    return labels.astype(np.int32)
+
 
 def figure_postprocess(scene: Scene, raw: np.ndarray, post: np.ndarray, path: str | Path, title: str = "") -> None:
-    """Fig. 3: ground truth | raw prediction | post-processed."""
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.8))
+    """Fig. 3: ground truth | raw prediction | post-processed. ``raw`` and ``post`` are (H, W)
+    label maps on ``scene.grid``; writes a PNG of ``figure_size(scene.grid.shape) * DPI`` px."""
+    raw, post = _check_map("raw", raw, scene), _check_map("post-processed", post, scene)
+    fig, axes = _panels(scene)
     res, walk, cls = scene.grid.resolution, scene.grid.walkable, scene.classes
     show_map(axes[0], scene.semantic, cls, walk, res, "ground truth")
     show_map(axes[1], raw, cls, walk, res, "raw prediction")
     show_map(axes[2], post, cls, walk, res, "post-processed")
-    add_legend(axes[2], cls)
-    fig.suptitle(title or scene.house_id, fontsize=10)
-    save(fig, path)
+    _save_fixed(fig, path, title or scene.house_id)
 
 
 def figure_aggregators(scene: Scene, poses: np.ndarray, knn: np.ndarray, cone: np.ndarray, path: str | Path,
                        proba: np.ndarray | None = None, max_poses: int = 60, title: str = "") -> None:
-    """Fig. 4: ground truth with sample viewpoints | graph KNN | vision cone."""
+    """Fig. 4: ground truth with sample viewpoints | graph KNN | vision cone.
+
+    ``poses`` (N, 3) [x, z, yaw_deg]; up to ``max_poses`` of them, evenly spread, are drawn
+    with heading arrows, coloured by their predicted class when ``proba`` (N, C) is given.
+    ``knn`` and ``cone`` are (H, W) label maps on ``scene.grid``."""
     from envs.classes import class_colors
 
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.8))
+    knn, cone = _check_map("graph KNN", knn, scene), _check_map("vision cone", cone, scene)
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    if proba is not None and len(proba) != len(poses):
+        raise ValueError(f"proba has {len(proba)} rows, expected one per pose ({len(poses)})")
+    fig, axes = _panels(scene)
     res, walk, cls = scene.grid.resolution, scene.grid.walkable, scene.classes
-    show_map(axes[0], scene.semantic, cls, walk, res, "ground truth + viewpoints")
-    pick = np.linspace(0, len(poses) - 1, min(max_poses, len(poses))).astype(int) if len(poses) else []
-    r, c = scene.grid.world_to_pixel(poses[pick, 0], poses[pick, 1])
-    colors = None
-    if proba is not None:
-        colors = np.array(class_colors(cls))[np.argmax(proba[pick], axis=1)] / 255
-    draw_poses(axes[0], r - 0.5, c - 0.5, poses[pick, 2], colors=colors, size=14)
+    show_map(axes[0], scene.semantic, cls, walk, res, f"ground truth + viewpoints ({len(poses)} views)")
+    if len(poses):
+        pick = np.unique(np.linspace(0, len(poses) - 1, min(max_poses, len(poses))).astype(int))
+        r, c = scene.grid.world_to_pixel(poses[pick, 0], poses[pick, 1])
+        colors = None
+        if proba is not None:
+            colors = np.array(class_colors(cls))[np.argmax(proba[pick], axis=1)] / 255
+        draw_poses(axes[0], r - 0.5, c - 0.5, poses[pick, 2], colors=colors, size=14)
     show_map(axes[1], knn, cls, walk, res, "graph KNN")
     show_map(axes[2], cone, cls, walk, res, "vision cone")
-    add_legend(axes[2], cls)
-    fig.suptitle(title or scene.house_id, fontsize=10)
-    save(fig, path)
+    _save_fixed(fig, path, title or scene.house_id)
 
 
 def figure_autotrace(scene: Scene, paths: Sequence[np.ndarray], poses: np.ndarray, path: str | Path,
@@ -110,40 +173,122 @@ def figure_view(scene: Scene, pose, path: str | Path, fov: float = 90.0, max_ran
     save(fig, path)
 
 
-def house_figures(house_index: int, out: Path, accuracy: float = 0.8, houses: Path | None = None) -> list[Path]:
-    """Run the offline pipeline on one shared house and draw Fig. 2, 3 and 4."""
-    from benchmark.aggregators.graph_knn import GraphKNN
-    from benchmark.aggregators.vision_cone import VisionCone
-    from benchmark.classifiers.oracle import OracleClassifier
-    from benchmark.postprocess import PostProcess
-    from benchmark.viewpoints import Autotrace
-    from envs.floorplan import FloorplanRenderer
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+def merge_overrides(defaults: dict[str, str], overrides: Sequence[str]) -> list[str]:
+    """Hydra overrides: ``defaults`` (group -> option) unless ``overrides`` sets the same key."""
+    for o in overrides:
+        if "=" not in o:
+            raise ValueError(f"override {o!r} is not of the form key=value (e.g. classifier=objects)")
+    given = {o.split("=", 1)[0].lstrip("+~") for o in overrides}
+    return [f"{k}={v}" for k, v in defaults.items() if k not in given] + list(overrides)
 
-    houses = houses or Path(os.environ.get("ROOMSEG_SHARED_DATA", "../shared/data")) / \
-        "procthor/procthor-10k-uniform-hard-val.jsonl.gz"
-    found = load_houses(houses, house_index, house_index + 1)
-    if not found:
-        raise ValueError(f"{houses} has no house at index {house_index}")
-    house = found[0]
-    scene = rasterise_house(house)
-    at = Autotrace()
+
+def compose_config(overrides: Sequence[str]):
+    """The root config of ``conf/`` with Hydra ``overrides`` -> (config, group choices)."""
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from benchmark.run import CONF_DIR
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        full = compose(config_name="config", overrides=list(overrides), return_hydra_config=True)
+    choices = {k: (str(v) if v is not None else "") for k, v in full.hydra.runtime.choices.items()
+               if not k.startswith("hydra")}
+    cfg = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
+    return cfg, choices
+
+
+def house_maps(overrides: Sequence[str], house_index: int) -> tuple[Scene, dict[str, np.ndarray], dict[str, str]]:
+    """Run house number ``house_index`` of the configured env through the cached pipeline.
+
+    Returns (scene, maps, names): ``maps`` holds the cached ``raw`` and ``post`` (H, W) label
+    maps, ``poses`` (N, 3) and ``proba`` (N, C); ``names`` the stage names. Cached stages are
+    reused; missing ones are computed and cached (``run.cache_dir``)."""
+    from benchmark.cache import load_npz
+    from benchmark.run import build_pipeline
+
+    cfg, choices = compose_config(overrides)
+    if cfg.get("segmenter") is not None:
+        raise ValueError("figures need a classifier + aggregator configuration, not segmenter=...")
+    cfg.run.save_maps = True
+    pipe = build_pipeline(cfg, choices)
+    ids = pipe.env.house_ids()
+    if not 0 <= house_index < len(ids):
+        raise ValueError(f"--house-index {house_index} is out of range: env {choices.get('env')!r} has "
+                         f"{len(ids)} houses (0..{len(ids) - 1})")
+    hid = ids[house_index]
+    if hasattr(pipe.classifier, "setup"):
+        pipe.classifier.setup([hid])
+    if not pipe.maps_path(hid).exists():
+        pipe.force = set(pipe.force) | {"score"}
+    row = pipe.run_house(hid)
+    if row.get("status") != "ok":
+        raise RuntimeError(f"house {hid!r} failed in the pipeline: {row.get('error')}")
+    maps = load_npz(pipe.maps_path(hid))
+    maps["raw"], maps["post"] = maps["raw"].astype(np.int32), maps["post"].astype(np.int32)
+    return pipe.env.scene(hid), maps, dict(pipe.names)
+
+
+def _describe(names: dict[str, str], cfg_acc: float | None = None) -> str:
+    clf = names["classifier"] + (f" at {cfg_acc:.0%} accuracy" if cfg_acc is not None else "")
+    return f"{names['env']}, {names['viewpoints']}, {names['renderer']}, {clf}"
+
+
+def fig3(house_index: int, out: str | Path, overrides: Sequence[str] = ()) -> Path:
+    """Fig. 3 for one house and configuration (defaults :data:`FIG3_DEFAULTS`) -> ``out`` PNG."""
+    ov = merge_overrides(FIG3_DEFAULTS, overrides)
+    cfg, _ = compose_config(ov)
+    if cfg.get("postprocess") is None or str(cfg.postprocess.get("_target_", "")).endswith("NoPostProcess"):
+        raise ValueError("fig3 compares raw and post-processed maps: it needs a post-processing config "
+                         "(postprocess=default), not postprocess=none")
+    scene, maps, names = house_maps(ov, house_index)
+    acc = cfg.classifier.get("accuracy")
+    title = (f"{scene.house_id}: {_describe(names, acc)}, {names['aggregator']}, "
+             f"post-processing {names['postprocess']}")
+    figure_postprocess(scene, maps["raw"], maps["post"], out, title)
+    return Path(out)
+
+
+def fig4(house_index: int, out: str | Path, overrides: Sequence[str] = (), max_poses: int = 60) -> Path:
+    """Fig. 4 for one house and configuration (defaults :data:`FIG4_DEFAULTS`): the same views
+    aggregated by ``aggregator=graph_knn`` and ``aggregator=vision_cone`` -> ``out`` PNG."""
+    if any(o.lstrip("+~").split("=", 1)[0] == "aggregator" for o in overrides):
+        raise ValueError("fig4 draws both graph_knn and vision_cone; do not override aggregator=")
+    ov = merge_overrides(FIG4_DEFAULTS, overrides)
+    cfg, _ = compose_config(ov)
+    scene, knn, names = house_maps([*ov, "aggregator=graph_knn"], house_index)
+    _, cone, _ = house_maps([*ov, "aggregator=vision_cone"], house_index)
+    which = "post" if names["postprocess"] != "none" else "raw"
+    title = (f"{scene.house_id}: {_describe(names, cfg.classifier.get('accuracy'))}, "
+             f"post-processing {names['postprocess']}; viewpoints coloured by predicted class")
+    figure_aggregators(scene, knn["poses"], knn[which], cone[which], out, knn["proba"], max_poses, title)
+    return Path(out)
+
+
+def house_figures(house_index: int, out: Path, overrides: Sequence[str] = ()) -> list[Path]:
+    """Fig. 2 (autotrace), Fig. 3, Fig. 4 and one view's cone for one house into folder ``out``:
+    ``fig2_autotrace.png``, ``fig3.png``, ``fig4.png``, ``view_cone.png``."""
+    from hydra.utils import instantiate
+
+    out = Path(out)
+    paths = [fig3(house_index, out / "fig3.png", overrides), fig4(house_index, out / "fig4.png", overrides)]
+    cfg, _ = compose_config(merge_overrides(FIG4_DEFAULTS, overrides))
+    env = instantiate(cfg.env)
+    hid = env.house_ids()[house_index]
+    scene, house = env.scene(hid), env.house(hid)
+    at = instantiate(cfg.viewpoints)
     poses = at.generate(scene)
-    obs = FloorplanRenderer().render(house, scene, poses)
-    proba = OracleClassifier(accuracy=accuracy).predict_proba(obs)
-    knn = GraphKNN()(scene.grid, poses, proba)
-    cone = VisionCone()(scene.grid, poses, proba)
-    post = PostProcess()(cone, scene.grid)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [out / "fig2_autotrace.png", out / "fig3_postprocess.png", out / "fig4_aggregators.png",
-             out / "view_cone.png"]
-    tag = f"{scene.house_id}, oracle classifier at {accuracy:.0%} accuracy"
-    figure_autotrace(scene, at.path(scene.grid), poses[::3], paths[0], np.argmax(proba[::3], axis=1))
-    figure_postprocess(scene, cone, post, paths[1], f"{tag}, vision cone")
-    figure_aggregators(scene, poses, knn, cone, paths[2], proba, title=tag)
-    n_seen = [len(o.objects) for o in obs]
-    figure_view(scene, poses[int(np.argmax(n_seen))], paths[3])
+    if hasattr(at, "path"):
+        clf = instantiate(cfg.classifier)
+        if hasattr(clf, "setup"):
+            clf.setup([hid])
+        obs = instantiate(cfg.renderer).render(house, scene, poses[::3])
+        proba = clf.predict_proba(obs)
+        figure_autotrace(scene, at.path(scene.grid), poses[::3], out / "fig2_autotrace.png",
+                         np.argmax(proba, axis=1))
+        paths.insert(0, out / "fig2_autotrace.png")
+        n_seen = [len(o.objects) for o in obs]
+        figure_view(scene, poses[::3][int(np.argmax(n_seen))], out / "view_cone.png")
+        paths.append(out / "view_cone.png")
     return paths
 
 
@@ -212,20 +357,37 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="the paper's figures")
+    ap = argparse.ArgumentParser(description="the paper's figures (Fig. 3, Fig. 4) from the runner's caches")
     sub = ap.add_subparsers(dest="cmd", required=True)
-    h = sub.add_parser("house", help="run the offline pipeline on a shared house and draw Fig. 2-4")
-    h.add_argument("--house-index", type=int, default=80)
-    h.add_argument("--accuracy", type=float, default=0.8, help="oracle classifier accuracy")
-    h.add_argument("--houses", type=Path, default=None)
-    h.add_argument("--out", type=Path, default=Path("docs/figures"))
-    r = sub.add_parser("from-run", help="Fig. 3 and 4 from a sweep's cached maps")
+    helps = {"fig3": "ground truth | raw | post-processed for one house",
+             "fig4": "ground truth + viewpoints | graph KNN | vision cone for one house",
+             "house": "Fig. 2, 3, 4 and one view's cone for one house into a folder"}
+    for name, text in helps.items():
+        p = sub.add_parser(name, help=text, description=text + "; trailing key=value arguments are Hydra "
+                           "overrides of conf/ (e.g. classifier=objects env.resolution=0.02 run.results_dir=...)")
+        p.add_argument("--house-index", type=int, default=80, help="position of the house in the env")
+        default_out = "docs/figures" if name == "house" else f"results/figures/{name}.png"
+        p.add_argument("--out", type=Path, default=Path(default_out), help="PNG path (house: a folder)")
+        if name == "fig4":
+            p.add_argument("--max-poses", type=int, default=60, help="viewpoints drawn on the first panel")
+        p.add_argument("overrides", nargs="*", help="Hydra overrides, key=value")
+    r = sub.add_parser("from-run", help="Fig. 3 and 4 for every configuration of a finished sweep's cached maps")
     r.add_argument("run_dir", type=Path)
     r.add_argument("--house", default=None)
     r.add_argument("--out", type=Path, default=Path("results/figures"))
     a = ap.parse_args(argv)
-    paths = house_figures(a.house_index, a.out, a.accuracy, a.houses) if a.cmd == "house" else \
-        from_run(a.run_dir, a.out, a.house)
+    try:
+        if a.cmd == "fig3":
+            paths = [fig3(a.house_index, a.out, a.overrides)]
+        elif a.cmd == "fig4":
+            paths = [fig4(a.house_index, a.out, a.overrides, a.max_poses)]
+        elif a.cmd == "house":
+            paths = house_figures(a.house_index, a.out, a.overrides)
+        else:
+            paths = from_run(a.run_dir, a.out, a.house)
+    except (ValueError, FileNotFoundError, RuntimeError) as e:
+        print(f"error: {e}")
+        return 2
     for p in paths:
         print(p)
     return 0

@@ -366,3 +366,14 @@ def test_bad_input():
         PostProcess(target_resolution=0)
     with pytest.raises(ValueError, match="min_area"):
         PostProcess(min_area=-1)
+
+
+def test_timing_helpers(procthor_file, tmp_path, capsys):
+    from benchmark.postprocess import main, time_postprocess, time_postprocess_job
+
+    rows = time_postprocess(procthor_file, houses=2, repeat=1)
+    assert len(rows) == 2 and all(r["ms"] > 0 and r["agree_after"] > r["agree_before"] for r in rows)
+    assert main(["--data", str(procthor_file), "--houses", "1"]) == 0
+    assert "post-process median" in capsys.readouterr().out
+    with pytest.raises(FileNotFoundError, match="not a finished runner job"):
+        time_postprocess_job(tmp_path)

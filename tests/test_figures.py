@@ -1,0 +1,108 @@
+"""Fig. 3 / Fig. 4: the command on a shared house (and a generated one), the array functions, bad input."""
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from benchmark.figures import DPI, figure_aggregators, figure_postprocess, figure_size, main
+from envs.classes import class_colors
+from envs.gridmap import GridMap
+from envs.scene import Scene
+
+SMALLEST_SHARED = 71  # the shared house with the smallest map (fast)
+
+
+def png_ok(path, map_shape, must_show=()):
+    """The PNG exists, has the layout's exact pixel size, and shows the given class colours."""
+    assert path.exists() and path.stat().st_size > 10_000
+    img = imread(path)
+    w, h = figure_size(map_shape)
+    assert abs(img.shape[1] - w * DPI) <= 1 and abs(img.shape[0] - h * DPI) <= 1, img.shape
+    rgb = np.round(img[..., :3] * 255).astype(int)
+    colours = {tuple(c) for c in rgb.reshape(-1, 3)[::7]}
+    for c in must_show:
+        assert tuple(c) in colours, c
+
+
+def test_fig3_and_fig4_commands_on_a_shared_house(procthor_file, tmp_path, capsys):
+    from envs.house import load_houses
+    from envs.scene import rasterise_house
+
+    scene = rasterise_house(load_houses(procthor_file, SMALLEST_SHARED, SMALLEST_SHARED + 1)[0])
+    present = np.unique(scene.semantic[scene.semantic >= 0])
+    colours = [class_colors(scene.classes)[k] for k in present]
+    res = f"run.results_dir={tmp_path / 'results'}"
+    assert main(["fig3", "--house-index", str(SMALLEST_SHARED), "--out", str(tmp_path / "fig3.png"), res]) == 0
+    png_ok(tmp_path / "fig3.png", scene.grid.shape, colours)
+    assert main(["fig4", "--house-index", str(SMALLEST_SHARED), "--out", str(tmp_path / "fig4.png"), res]) == 0
+    png_ok(tmp_path / "fig4.png", scene.grid.shape, colours)
+    # the maps came from (and were left in) the runner's cache: one per configuration drawn
+    assert len(list((tmp_path / "results" / "cache" / "maps").rglob("*.npz"))) == 3
+    mtime = (tmp_path / "fig3.png").stat().st_mtime_ns
+    assert main(["fig3", "--house-index", str(SMALLEST_SHARED), "--out", str(tmp_path / "fig3.png"), res]) == 0
+    assert (tmp_path / "fig3.png").stat().st_mtime_ns >= mtime
+    assert len(list((tmp_path / "results" / "cache" / "maps").rglob("*.npz"))) == 3
+    assert "fig3.png" in capsys.readouterr().out
+
+
+def test_fig3_command_on_a_generated_house_with_overrides(tmp_path):
+    """No shared data needed: env=synthetic at 0.1 m/px, the graph KNN aggregator."""
+    out = tmp_path / "f.png"
+    rc = main(["fig3", "--house-index", "1", "--out", str(out), "env=synthetic", "env.resolution=0.1",
+               "aggregator=graph_knn", f"run.results_dir={tmp_path}"])
+    assert rc == 0
+    from hydra.utils import instantiate
+
+    from benchmark.figures import compose_config
+
+    cfg, _ = compose_config(["env=synthetic", "env.resolution=0.1"])
+    env = instantiate(cfg.env)
+    png_ok(out, env.scene(env.house_ids()[1]).grid.shape)
+
+
+def hand_scene():
+    walk = np.zeros((40, 60), bool)
+    walk[2:38, 2:58] = True
+    rooms = np.full(walk.shape, -1, np.int32)
+    rooms[2:38, 2:30], rooms[2:38, 30:58] = 0, 1
+    inst = np.where(walk, rooms, -1)
+    return Scene("hand", GridMap(walk, 0.1, (0.0, 4.0)), rooms, inst, np.array([2, 5]), ["r0", "r1"])
+
+
+def test_figure_functions_on_arrays(tmp_path):
+    s = hand_scene()
+    raw = s.semantic.copy()
+    raw[10:15, 10:15] = 6
+    figure_postprocess(s, raw, s.semantic, tmp_path / "a" / "fig3.png")
+    png_ok(tmp_path / "a" / "fig3.png", s.grid.shape, [class_colors(s.classes)[k] for k in (2, 5, 6)])
+    poses = np.array([[1.0, 2.0, 0.0], [4.0, 2.0, 90.0]])
+    proba = np.eye(7)[[2, 5]]
+    figure_aggregators(s, poses, s.semantic, raw, tmp_path / "fig4.png", proba)
+    png_ok(tmp_path / "fig4.png", s.grid.shape)
+    figure_aggregators(s, np.zeros((0, 3)), s.semantic, raw, tmp_path / "empty.png")  # no views: still drawn
+    png_ok(tmp_path / "empty.png", s.grid.shape)
+
+
+def test_figure_size_follows_the_map_aspect():
+    wide, tall = figure_size((100, 300)), figure_size((300, 100))
+    assert wide[1] == tall[1] and wide[0] > tall[0]
+
+
+def test_bad_input(tmp_path, capsys):
+    s = hand_scene()
+    with pytest.raises(ValueError, match="shape"):
+        figure_postprocess(s, s.semantic[:5], s.semantic, tmp_path / "x.png")
+    with pytest.raises(ValueError, match="unknown|outside"):
+        figure_postprocess(s, np.full(s.grid.shape, 9), s.semantic, tmp_path / "x.png")
+    with pytest.raises(ValueError, match="one per pose"):
+        figure_aggregators(s, np.zeros((2, 3)), s.semantic, s.semantic, tmp_path / "x.png", np.ones((3, 7)))
+    gen = ["env=synthetic", "env.n_houses=2", f"run.results_dir={tmp_path}"]
+    assert main(["fig3", "--house-index", "5", "--out", str(tmp_path / "x.png"), *gen]) == 2
+    assert "out of range" in capsys.readouterr().out
+    assert main(["fig3", "--house-index", "0", "--out", str(tmp_path / "x.png"), "postprocess=none", *gen]) == 2
+    assert "postprocess=none" in capsys.readouterr().out
+    assert main(["fig4", "--house-index", "0", "--out", str(tmp_path / "x.png"), "aggregator=graph_knn", *gen]) == 2
+    assert "aggregator" in capsys.readouterr().out
+    assert main(["fig4", "--house-index", "0", "--out", str(tmp_path / "x.png"), "classifier"]) == 2
+    assert "key=value" in capsys.readouterr().out
+    assert not (tmp_path / "x.png").exists()
