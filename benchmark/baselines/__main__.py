@@ -86,10 +86,13 @@ def _match(a: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     houses = load_houses(a.houses, 0, a.limit)
     t1 = time.perf_counter()
-    df = pd.DataFrame(match_maps(maps, a.map_resolution or SELROS_RESOLUTION, houses, resolution=a.resolution))
+    df = pd.DataFrame(match_maps(maps, a.map_resolution or SELROS_RESOLUTION, houses, resolution=a.resolution,
+                                 min_iou=a.min_iou))
     t2 = time.perf_counter()
     print(df.to_markdown(index=False, floatfmt=".3f"))
-    print(f"\n{len(maps)} maps x {len(houses)} houses at {a.resolution} m/px: loading {t1 - t0:.1f} s, "
+    print(f"\n{int(df['matched'].sum())} of {len(df)} maps matched (walkable-mask IoU >= {a.min_iou}, "
+          f"ahead of the runner-up by 0.05); best IoU {df['iou'].min():.2f}-{df['iou'].max():.2f}")
+    print(f"{len(maps)} maps x {len(houses)} houses at {a.resolution} m/px: loading {t1 - t0:.1f} s, "
           f"rasterising + matching {t2 - t1:.1f} s")
     if a.out:
         atomic_write_text(a.out, df.to_csv(index=False))
@@ -113,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     m.add_argument("--maps", type=Path, default=None, help="folder of *_ground_truth.png (default: SeLRoS)")
     m.add_argument("--map-resolution", type=float, default=None, help="metres/pixel of the maps (default 0.02)")
     m.add_argument("--resolution", type=float, default=0.1, help="metres/pixel at which masks are compared")
+    m.add_argument("--min-iou", type=float, default=0.8, help="walkable-mask IoU of a credible match")
     m.add_argument("--limit", type=int, default=None, help="first N houses")
     m.add_argument("--out", type=Path, default=None, help="CSV of the matches")
     a = ap.parse_args(argv)
