@@ -1,27 +1,39 @@
 """Table I: macro precision, recall, accuracy and F1 of a classifier on the Places-2 test
-split, and its confusion matrix.
+split, and its confusion matrix. The classifier is built from ``conf/classifier/<model>.yaml``
+exactly as the runner builds it; ``key=value`` arguments override that config.
 
-``python -m benchmark.classifiers.evaluate --model cnn --checkpoint ckpt/cnn.pt --data PLACES_ROOT --places365 --out results/table1``
+``python -m benchmark.classifiers.evaluate --model cnn --data PLACES_ROOT --places365``
+``python -m benchmark.classifiers.evaluate --model vlm --data PLACES_ROOT --places365 mode=text``
+``python -m benchmark.classifiers.evaluate --model cnn --throughput 64 checkpoint=null +allow_untrained=true pretrained=false``
+
+Writes ``<out>/table1_<model>.json``, ``<out>/confusion_<model>.png`` and
+``<out>/table1.md`` with a row for every model evaluated into ``<out>`` so far.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from envs.classes import PAPER_CLASSES
+MODELS = ("cnn", "dinov2", "vlm")
+CHECKPOINT_KEY = {"cnn": "checkpoint", "dinov2": "head_checkpoint"}
 
 
-def table1_metrics(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> dict[str, float]:
-    """Macro precision, recall and F1 over classes, accuracy over images, and the confusion
-    matrix (rows: true class, columns: predicted)."""
+def table1_metrics(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> dict:
+    """Macro precision, recall and F1 over the classes present in ``y_true``, accuracy over
+    images, and the (C, C) confusion matrix (rows: true class, columns: predicted)."""
     t = np.asarray(y_true, int)
     p = np.asarray(y_pred, int)
-    if t.shape != p.shape or t.size == 0:
-        raise ValueError(f"need equal, non-empty label arrays, got {t.shape} and {p.shape}")
+    if t.shape != p.shape or t.ndim != 1 or t.size == 0:
+        raise ValueError(f"need equal, non-empty 1-D label arrays, got {t.shape} and {p.shape}")
+    if min(t.min(), p.min()) < 0 or max(t.max(), p.max()) >= n_classes:
+        raise ValueError(f"labels must lie in 0..{n_classes - 1}")
     cm = np.bincount(t * n_classes + p, minlength=n_classes * n_classes).reshape(n_classes, n_classes)
     tp = np.diag(cm).astype(float)
     prec = np.divide(tp, cm.sum(0), out=np.zeros(n_classes), where=cm.sum(0) > 0)
@@ -33,6 +45,7 @@ def table1_metrics(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int)
 
 
 def confusion_figure(cm: np.ndarray, classes: Sequence[str], path: Path, title: str = "") -> None:
+    """Row-normalised confusion matrix (true class rows) as a PNG."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -56,53 +69,161 @@ def confusion_figure(cm: np.ndarray, classes: Sequence[str], path: Path, title: 
     save(fig, path)
 
 
-def build(model: str, classes: Sequence[str], checkpoint: str | None, device: str, arch: str = "resnet50",
-          batch_size: int = 32):
-    if model == "cnn":
-        from benchmark.classifiers.cnn import CNNClassifier  # noqa: PLC0415
+def _scoped(override: str) -> str:
+    """``key=value`` -> ``classifier.key=value`` (also ``+key``/``~key``); ``classes=...``
+    and ``classifier.*`` pass unchanged."""
+    prefix = override[0] if override[:1] in ("+", "~") else ""
+    body = override[len(prefix):]
+    if body.startswith(("classifier.", "classes=", "classes.", "run.")):
+        return override
+    return f"{prefix}classifier.{body}"
 
-        return CNNClassifier(classes, checkpoint=checkpoint, arch=arch, device=device, batch_size=batch_size)
-    if model == "dinov2":
-        from benchmark.classifiers.dinov2 import DinoV2Classifier  # noqa: PLC0415
 
-        return DinoV2Classifier(classes, head_checkpoint=checkpoint, device=device, batch_size=batch_size)
-    if model == "vlm":
-        from benchmark.classifiers.vlm import VLMClassifier  # noqa: PLC0415
+def classifier_config(model: str, overrides: Sequence[str] = ()):
+    """The root config composed with ``classifier=<model>`` and the overrides (keys of the
+    classifier config, e.g. ``device=cpu``); ``cfg.classifier`` is what the runner builds."""
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    from hydra import compose, initialize_config_dir  # noqa: PLC0415
 
-        return VLMClassifier(classes, device=device)
-    raise ValueError(f"unknown model {model!r}; expected cnn, dinov2 or vlm")
+    from benchmark.run import CONF_DIR  # noqa: PLC0415
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=[f"classifier={model}", *(_scoped(o) for o in overrides)])
+
+
+def build_classifier(model: str, overrides: Sequence[str] = ()):
+    """(classifier, root config) for ``model`` with the overrides."""
+    from hydra.utils import instantiate  # noqa: PLC0415
+
+    cfg = classifier_config(model, overrides)
+    return instantiate(cfg.classifier), cfg
+
+
+def one_line(e: BaseException) -> str:
+    """The innermost cause of an error (Hydra wraps constructor errors) as one line."""
+    while e.__cause__ is not None:
+        e = e.__cause__
+    text = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {text[0] if text else ''}"
+
+
+def cli_errors():
+    """The errors a command reports as one line instead of a traceback."""
+    from hydra.errors import HydraException  # noqa: PLC0415
+
+    return (ImportError, RuntimeError, OSError, ValueError, KeyError, HydraException)
+
+
+def parse_split_sizes(text: str) -> tuple[int, int, int]:
+    """``"4000,500,500"`` -> per-class train, val, test sizes."""
+    try:
+        a, b, c = (int(x) for x in text.split(","))
+    except ValueError:
+        raise ValueError(f"--split-sizes must be three integers train,val,test, got {text!r}") from None
+    return a, b, c
+
+
+def predict_items(clf, items: Sequence, workers: int = 0, chunk: int = 256, progress: bool = False) -> np.ndarray:
+    """(N, C) probabilities of (image path or array, label) items, ``chunk`` images in memory at a time."""
+    from benchmark.classifiers.torch_common import image_chunks  # noqa: PLC0415
+
+    out = []
+    it = image_chunks(items, chunk, workers)
+    if progress:
+        from tqdm.auto import tqdm  # noqa: PLC0415
+
+        it = tqdm(it, total=-(-len(items) // chunk), unit="chunk", file=sys.stderr)
+    for imgs in it:
+        out.append(np.asarray(clf.predict_images(imgs)))
+    return np.concatenate(out) if out else np.zeros((0, len(clf.classes)))
+
+
+def write_table(out: Path) -> str:
+    """``table1.md`` from every ``table1_<model>.json`` in ``out``; returns the text."""
+    from envs.atomic import atomic_write_text  # noqa: PLC0415
+
+    rows = ["| model | precision | recall | accuracy | F1 | images | split |", "|---|---|---|---|---|---|---|"]
+    for p in sorted(out.glob("table1_*.json")):
+        r = json.loads(p.read_text())
+        rows.append(f"| {r['model']} | {100 * r['precision']:.2f} | {100 * r['recall']:.2f} | "
+                    f"{100 * r['accuracy']:.2f} | {100 * r['f1']:.2f} | {r['n_images']} | {r['split']} |")
+    text = "\n".join(rows) + "\n"
+    atomic_write_text(out / "table1.md", text)
+    return text
+
+
+def throughput(clf, n: int, size: int = 256, seed: int = 0) -> dict:
+    """Images per second of ``clf.predict_images`` on ``n`` random size x size images (after a warm-up batch)."""
+    rng = np.random.default_rng(seed)
+    imgs = [rng.integers(0, 256, (size, size, 3), dtype=np.uint8) for _ in range(n)]
+    clf.predict_images(imgs[: max(1, getattr(clf, "batch_size", 1))])
+    t = time.perf_counter()
+    clf.predict_images(imgs)
+    dt = time.perf_counter() - t
+    return {"n_images": n, "seconds": dt, "images_per_s": n / dt}
 
 
 def main(argv: list[str] | None = None) -> int:
-    from benchmark.classifiers.places import list_images, load_rgb, split  # noqa: PLC0415
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 epilog="extra key=value arguments override conf/classifier/<model>.yaml")
+    ap.add_argument("--model", required=True, choices=MODELS)
+    ap.add_argument("--data", type=Path, help="Places365 root / image folder, or an ImageFolder of class folders")
+    ap.add_argument("--places365", action="store_true", help="--data is Places365 (torchvision root or image folder)")
+    ap.add_argument("--split", default="test", choices=["train", "val", "test"])
+    ap.add_argument("--split-sizes", default="4000,500,500", help="per-class train,val,test sizes")
+    ap.add_argument("--seed", type=int, default=0, help="split seed")
+    ap.add_argument("--checkpoint", default=None, help="shortcut for the config's checkpoint / head_checkpoint")
+    ap.add_argument("--workers", type=int, default=4, help="image decoding processes")
+    ap.add_argument("--out", type=Path, default=Path("results/table1"))
+    ap.add_argument("--throughput", type=int, default=0, metavar="N",
+                    help="only time the classifier on N random 256 px images (no data needed)")
+    ap.add_argument("overrides", nargs="*", help="classifier config overrides, key=value")
+    a = ap.parse_args(argv)
+    try:
+        return _main(a)
+    except cli_errors() as e:
+        print(f"error: {one_line(e)}", file=sys.stderr)
+        return 2
+
+
+def _main(a) -> int:
+    from benchmark.classifiers.places import list_images, split  # noqa: PLC0415
     from envs.atomic import atomic_write_text  # noqa: PLC0415
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", required=True, choices=["cnn", "dinov2", "vlm"])
-    ap.add_argument("--checkpoint", default=None)
-    ap.add_argument("--data", type=Path, required=True)
-    ap.add_argument("--places365", action="store_true", help="--data is a Places365 image root")
-    ap.add_argument("--split", default="test", choices=["train", "val", "test"])
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--device", default="auto")
-    ap.add_argument("--arch", default="resnet50")
-    ap.add_argument("--batch-size", type=int, default=32)
-    ap.add_argument("--out", type=Path, default=Path("results/table1"))
-    a = ap.parse_args(argv)
-    classes = list(PAPER_CLASSES)
-    items = split(list_images(a.data, classes, a.places365), classes, seed=a.seed)[a.split]
-    clf = build(a.model, classes, a.checkpoint, a.device, a.arch, a.batch_size)
-    preds = []
-    for i in range(0, len(items), 256):
-        chunk = items[i:i + 256]
-        preds += clf.predict_images([load_rgb(p) for p, _ in chunk]).argmax(1).tolist()
-    m = table1_metrics([k for _, k in items], preds, len(classes))
-    line = (f"| {a.model} | {100 * m['precision']:.2f} | {100 * m['recall']:.2f} | {100 * m['accuracy']:.2f} | "
-            f"{100 * m['f1']:.2f} | {len(items)} |")
-    text = "| model | precision | recall | accuracy | F1 | images |\n|---|---|---|---|---|---|\n" + line + "\n"
-    print(text)
-    atomic_write_text(a.out / f"table1_{a.model}.md", text)
-    confusion_figure(m["confusion"], classes, a.out / f"confusion_{a.model}.png", f"{a.model}, Places-2 {a.split}")
+    overrides = list(a.overrides)
+    if a.checkpoint is not None:
+        if a.model not in CHECKPOINT_KEY:
+            raise ValueError(f"--checkpoint does not apply to {a.model}")
+        overrides.append(f"{CHECKPOINT_KEY[a.model]}={a.checkpoint}")
+    if a.throughput:
+        clf, _ = build_classifier(a.model, overrides)
+        r = throughput(clf, a.throughput)
+        print(f"{a.model} on {getattr(clf, 'device', '?')}: {r['n_images']} images in {r['seconds']:.2f} s = "
+              f"{r['images_per_s']:.2f} images/s")
+        return 0
+    if a.data is None:
+        raise ValueError("--data is required (unless --throughput)")
+    cfg = classifier_config(a.model, overrides)
+    classes = list(cfg.classes)
+    n_train, n_val, n_test = parse_split_sizes(a.split_sizes)
+    items = split(list_images(a.data, classes, a.places365), classes, n_train, n_val, n_test, seed=a.seed)[a.split]
+    clf, _ = build_classifier(a.model, overrides)
+    t = time.perf_counter()
+    proba = predict_items(clf, items, a.workers, progress=True)
+    seconds = time.perf_counter() - t
+    m = table1_metrics([k for _, k in items], proba.argmax(1), len(classes))
+    record = {"model": a.model, "split": a.split, "seed": a.seed, "split_sizes": a.split_sizes, "data": str(a.data),
+              "n_images": len(items), "seconds": round(seconds, 2), "classes": classes,
+              "overrides": overrides, **{k: m[k] for k in ("precision", "recall", "accuracy", "f1")},
+              "confusion": m["confusion"].tolist()}
+    if getattr(clf, "last_flags", None) is not None and a.model == "vlm":
+        record["n_unparsed"] = int(getattr(clf, "n_unparsed", 0))
+    atomic_write_text(a.out / f"table1_{a.model}.json", json.dumps(record, indent=1))
+    confusion_figure(m["confusion"], classes, a.out / f"confusion_{a.model}.png",
+                     f"{a.model}, Places-2 {a.split} ({len(items)} images)")
+    print(write_table(a.out))
+    print(f"{a.model}: {len(items)} images in {seconds:.1f} s; confusion matrix {a.out / f'confusion_{a.model}.png'}")
     return 0
 
 
