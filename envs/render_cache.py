@@ -9,7 +9,11 @@ One folder per house (so a cache rendered on a GPU box can be copied to a laptop
     <folder>/COMPLETE            written last; a folder without it is ignored
 
 Floats are written with ``repr`` precision, so a round trip gives equal observations.
-Writes go to a temporary sibling folder that is renamed into place.
+Paths inside are relative, so a folder can be copied anywhere (a cache rendered on a GPU
+box is swept on a laptop by copying it into the same place under ``results/cache/render``).
+Writes go to a temporary sibling folder that is renamed into place; an older render is
+moved aside first and removed last, so an interrupted write never leaves a half folder
+that looks complete. Refused views (``meta["refused"]``) are kept, with no image.
 """
 
 from __future__ import annotations
@@ -58,9 +62,13 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
                                     "meta": o.meta}, default=_plain) + "\n")
         (tmp / "poses.csv").write_text("\n".join(lines) + "\n")
         (tmp / MARKER).write_text(f"{len(observations)}\n")
+        old = None
         if folder.exists():
-            shutil.rmtree(folder)
+            old = Path(tempfile.mkdtemp(prefix="." + folder.name + ".old.", dir=folder.parent))
+            os.replace(folder, old / "render")
         os.rename(tmp, folder)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -82,8 +90,10 @@ def read_observations(folder: str | Path, images: bool = True) -> list[Observati
     rows = (folder / "poses.csv").read_text().splitlines()[1:]
     with open(folder / "observations.jsonl", encoding="utf-8") as f:
         recs = [json.loads(line) for line in f]
-    if len(rows) != len(recs):
-        raise ValueError(f"{folder}: poses.csv has {len(rows)} views but observations.jsonl has {len(recs)}")
+    n = (folder / MARKER).read_text().strip()
+    if len(rows) != len(recs) or (n.isdigit() and int(n) != len(rows)):
+        raise ValueError(f"{folder}: poses.csv has {len(rows)} views, observations.jsonl {len(recs)}, "
+                         f"{MARKER} says {n}: the render is damaged, delete the folder to render it again")
     out = []
     for row, rec in zip(rows, recs):
         _, x, z, yaw, _, image = row.split(",", 5)
@@ -94,3 +104,13 @@ def read_observations(folder: str | Path, images: bool = True) -> list[Observati
                                visible_classes=None if vis is None else np.asarray(vis, dtype=np.float64),
                                meta=rec.get("meta", {})))
     return out
+
+
+def read_poses(folder: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """The poses table of a render: poses (N, 3) [x, z, yaw_deg] and refused (N,) bool."""
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise FileNotFoundError(f"no complete render in {folder}")
+    rows = [r.split(",", 5) for r in (folder / "poses.csv").read_text().splitlines()[1:]]
+    poses = np.array([[float(r[1]), float(r[2]), float(r[3])] for r in rows], dtype=float).reshape(-1, 3)
+    return poses, np.array([r[4] == "1" for r in rows], dtype=bool)

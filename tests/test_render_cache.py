@@ -1,40 +1,82 @@
+import shutil
+
 import numpy as np
 import pytest
 
 from envs.observation import Observation
-from envs.render_cache import is_complete, read_observations, write_observations
+from envs.render_cache import is_complete, read_observations, read_poses, write_observations
 
 
-def test_round_trip_with_and_without_images(tmp_path):
-    rng = np.random.default_rng(0)
-    obs = [
+def _obs(rng):
+    return [
         Observation(pose=(1.0 / 3, -2.5, 359.99), objects=[("Bed", 0.125), ("Pillow", 1 / 7)],
                     visible_classes=rng.random(7), meta={"n_visible_cells": 12}),
         Observation(pose=(0.1, 0.2, 0.3), image=rng.integers(0, 256, (8, 6, 3), dtype=np.uint8),
-                    meta={"refused": True, "error": "teleport failed"}),
+                    objects=[("Sofa", 0.5)]),
+        Observation(pose=(4.0, 5.0, 90.0), meta={"refused": True, "error": "teleport failed"}),
     ]
+
+
+def _same(a, b):
+    assert a.pose == b.pose and a.objects == b.objects and a.meta == b.meta
+    assert (a.visible_classes is None) == (b.visible_classes is None)
+    if a.visible_classes is not None:
+        assert np.array_equal(a.visible_classes, b.visible_classes)
+    assert (a.image is None and b.image is None) or np.array_equal(a.image, b.image)
+
+
+def test_round_trip_with_images_objects_and_refused_views(tmp_path):
+    obs = _obs(np.random.default_rng(0))
     folder = tmp_path / "house-1"
     assert not is_complete(folder)
     write_observations(folder, obs)
     assert is_complete(folder)
     back = read_observations(folder)
-    assert len(back) == 2
+    assert len(back) == 3
     for a, b in zip(obs, back):
-        assert a.pose == b.pose and a.objects == b.objects and a.meta == b.meta
-        assert (a.visible_classes is None) == (b.visible_classes is None)
-        if a.visible_classes is not None:
-            assert np.array_equal(a.visible_classes, b.visible_classes)
-        assert (a.image is None and b.image is None) or np.array_equal(a.image, b.image)
-    assert (folder / "images" / "000001.png").exists()
-    # rewriting replaces the old render
+        _same(a, b)
+    assert sorted(p.name for p in (folder / "images").iterdir()) == ["000001.png"]
+    lines = (folder / "poses.csv").read_text().splitlines()
+    assert lines[0] == "index,x,z,yaw,refused,image"
+    assert lines[2] == "1,0.1,0.2,0.3,0,images/000001.png" and lines[3] == "2,4.0,5.0,90.0,1,"
+    poses, refused = read_poses(folder)
+    assert np.array_equal(poses, [[1.0 / 3, -2.5, 359.99], [0.1, 0.2, 0.3], [4.0, 5.0, 90.0]])
+    assert refused.tolist() == [False, False, True]
+    assert read_observations(folder, images=False)[1].image is None
+
+
+def test_a_copied_cache_reads_the_same(tmp_path):
+    obs = _obs(np.random.default_rng(1))
+    write_observations(tmp_path / "gpu-box" / "h", obs)
+    shutil.copytree(tmp_path / "gpu-box" / "h", tmp_path / "laptop" / "cache" / "h")
+    shutil.rmtree(tmp_path / "gpu-box")
+    for a, b in zip(obs, read_observations(tmp_path / "laptop" / "cache" / "h")):
+        _same(a, b)
+
+
+def test_rewrite_replaces_and_a_failed_rewrite_keeps_the_old_render(tmp_path):
+    obs = _obs(np.random.default_rng(2))
+    folder = tmp_path / "h"
+    write_observations(folder, obs)
     write_observations(folder, obs[:1])
     assert len(read_observations(folder)) == 1 and not (folder / "images").exists()
+    bad = obs + [Observation(pose=(0, 0, 0), image=np.zeros((2, 2), np.uint8))]
+    with pytest.raises(ValueError, match=r"observation 3: image must be \(H, W, 3\) uint8"):
+        write_observations(folder, bad)
+    assert len(read_observations(folder)) == 1  # the old render is untouched
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["h"]  # no temporary folders left
 
 
-def test_incomplete_and_bad(tmp_path):
+def test_incomplete_and_damaged(tmp_path):
     (tmp_path / "x").mkdir()
     with pytest.raises(FileNotFoundError, match="no complete render"):
         read_observations(tmp_path / "x")
-    with pytest.raises(ValueError, match="uint8"):
-        write_observations(tmp_path / "y", [Observation(pose=(0, 0, 0), image=np.zeros((2, 2)))])
-    assert not (tmp_path / "y").exists() and len(list(tmp_path.iterdir())) == 1
+    with pytest.raises(FileNotFoundError, match="no complete render"):
+        read_poses(tmp_path / "x")
+    write_observations(tmp_path / "y", _obs(np.random.default_rng(3)))
+    (tmp_path / "y" / "COMPLETE").write_text("5\n")
+    with pytest.raises(ValueError, match="damaged"):
+        read_observations(tmp_path / "y")
+    with pytest.raises(TypeError, match="not JSON serialisable"):
+        write_observations(tmp_path / "z", [Observation(pose=(0, 0, 0), meta={"x": object()})])
+    assert not (tmp_path / "z").exists()

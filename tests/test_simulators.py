@@ -1,114 +1,273 @@
-"""Simulator adapters: everything that does not need the simulator process."""
+"""Simulator adapters without the simulator process.
 
+AI2-THOR: the real ``ai2thor.controller.Controller`` runs (its __init__, reset, step) with
+only the Unity side replaced: ``find_build`` returns a build that needs no download and
+``start`` connects a stand-in server that answers actions with real ``ai2thor.server.Event``
+objects (frames and instance-segmentation buffers decoded by ai2thor's own code).
+Habitat-Sim (not installable here): the pure parts by hand, and the adapter against a
+stand-in module with the documented API surface.
+"""
+
+import builtins
 import inspect
 import json
+import sys
+import types
 
 import numpy as np
 import pytest
 
-from envs.poses import (
-    habitat_forward,
-    habitat_quat_to_thor_yaw,
-    habitat_to_thor_position,
-    pose_to_thor_teleport,
-    thor_forward,
-    thor_to_habitat_position,
-    thor_yaw_to_habitat_quat,
-)
+from envs.house import House
+from envs.poses import pose_to_habitat, vertical_fov
+
+# ---------------------------------------------------------------------------- AI2-THOR
+
+W, H = 8, 6
+COLOURS = {"Bed|1": [10, 20, 30], "Sofa|2": [40, 50, 60], "Chair|3": [70, 80, 90], "Chair|4": [91, 92, 93],
+           "wall|1|0|0": [1, 2, 3]}
+OBJECTS = [{"objectId": "Bed|1", "objectType": "Bed", "visible": True},
+           {"objectId": "Sofa|2", "objectType": "Sofa", "visible": True},
+           {"objectId": "Chair|3", "objectType": "Chair", "visible": True},
+           {"objectId": "Chair|4", "objectType": "Chair", "visible": True}]
+REACHABLE = [{"x": 0.0, "y": 0.9, "z": 0.0}, {"x": 0.25, "y": 0.9, "z": 0.0}, {"x": 0.5, "y": 0.9, "z": 0.0}]
 
 
-@pytest.mark.parametrize("yaw,thor_fwd,hab_fwd", [
-    (0, (0, 0, 1), (0, 0, -1)),     # THOR +z is Habitat -z
-    (90, (1, 0, 0), (1, 0, 0)),     # THOR +x stays +x
-    (180, (0, 0, -1), (0, 0, 1)),
-    (270, (-1, 0, 0), (-1, 0, 0)),
-])
-def test_heading_conversion_by_hand(yaw, thor_fwd, hab_fwd):
-    assert np.allclose(thor_forward(yaw), thor_fwd, atol=1e-12)
-    q = thor_yaw_to_habitat_quat(yaw)
-    assert np.isclose(np.linalg.norm(q), 1.0)
-    assert np.allclose(habitat_forward(q), hab_fwd, atol=1e-12)
-    # the Habitat forward is the mirrored THOR forward
-    assert np.allclose(habitat_forward(q), thor_to_habitat_position(*thor_forward(yaw)), atol=1e-12)
+def segmentation(yaw):
+    """(H, W) object id per pixel of the view at ``yaw`` (None = no object)."""
+    seg = np.full((H, W), None, dtype=object)
+    if yaw == 0:  # bed on the top half, wall below
+        seg[: H // 2] = "Bed|1"
+        seg[H // 2:] = "wall|1|0|0"
+    elif yaw == 90:  # a sofa on all but one pixel
+        seg[:] = "Sofa|2"
+        seg[0, 0] = None
+    else:  # two chairs: 12 + 6 pixels
+        seg[:, :2] = "Chair|3"
+        seg[:, 7] = "Chair|4"
+    return seg
 
 
-def test_round_trips():
-    rng = np.random.default_rng(0)
-    for _ in range(50):
-        x, y, z, yaw = rng.uniform(-10, 10), rng.uniform(0, 2), rng.uniform(-10, 10), rng.uniform(0, 360)
-        assert np.allclose(habitat_to_thor_position(thor_to_habitat_position(x, y, z)), (x, y, z))
-        assert np.isclose(habitat_quat_to_thor_yaw(thor_yaw_to_habitat_quat(yaw)), yaw % 360)
-    assert thor_to_habitat_position(1.0, 0.9, 2.0).tolist() == [1.0, 0.9, -2.0]
-    with pytest.raises(ValueError, match="vertical axis"):
-        habitat_quat_to_thor_yaw([0.7, 0.7, 0.0, 0.0])
+def frame(yaw):
+    return np.full((H, W, 3), int(yaw) % 256, np.uint8)
 
 
-def test_teleport_arguments_match_the_real_api():
-    ai2thor = pytest.importorskip("ai2thor.controller")
-    args = pose_to_thor_teleport((1.5, -2.0, 90.0), 0.95, 30.0)
-    assert args == {"action": "TeleportFull", "position": {"x": 1.5, "y": 0.95, "z": -2.0},
-                    "rotation": {"x": 0.0, "y": 90.0, "z": 0.0}, "horizon": 30.0, "standing": True}
-    from envs.ai2thor_renderer import controller_kwargs
-
-    kw = controller_kwargs({"rooms": []}, width=64, height=48, fov=90, platform="CloudRendering")
-    params = inspect.signature(ai2thor.Controller.__init__).parameters
-    named = {k for k in kw if k in params}
-    assert {"scene", "platform", "width", "height"} <= named
-    # the rest are Unity initialisation parameters, accepted through **unity_initialization_parameters
-    assert any(p.kind == p.VAR_KEYWORD for p in params.values())
-    import ai2thor.platform
-
-    assert kw["platform"] is ai2thor.platform.CloudRendering and kw["renderInstanceSegmentation"] is True
-    with pytest.raises(ValueError, match="unknown AI2-THOR platform"):
-        controller_kwargs("FloorPlan1", platform="Windows95")
-
-
-def _event(objects, masks, success=True, error=""):
+def event(metadata, yaw=None):
+    """A real ai2thor Event, with frame and segmentation decoded by ai2thor from Unity-style buffers."""
     from ai2thor.server import Event
 
-    ev = Event({"objects": objects, "lastActionSuccess": success, "errorMessage": error, "screenWidth": 4,
-                "screenHeight": 4, "colors": [], "colorBounds": []})
-    ev.instance_masks = masks
-    ev.frame = np.full((4, 4, 3), 7, np.uint8)
+    md = {"screenWidth": W, "screenHeight": H, "lastActionSuccess": True, "errorMessage": "", "errorCode": "",
+          "objects": [dict(o) for o in OBJECTS], "sceneName": "Procedural", "actionReturn": None,
+          "colors": [{"name": k, "color": v} for k, v in COLOURS.items()], **metadata}
+    ev = Event(md)
+    if yaw is not None:
+        seg = segmentation(yaw)
+        rgba = np.zeros((H, W, 4), np.uint8)
+        rgba[..., 3] = 255
+        for k, c in COLOURS.items():
+            rgba[seg == k, :3] = c
+        ev.add_image(np.flip(frame(yaw), axis=0).tobytes())  # Unity sends rows bottom-up
+        ev.add_image_ids(np.flip(rgba, axis=0).tobytes())
     return ev
 
 
-def test_visible_objects_from_real_events():
+class StandInUnity:
+    """Answers the actions ai2thor's Controller sends, as Unity would for a tiny house."""
+
+    unity_proc = None
+    started = True
+
+    def __init__(self):
+        self.sent = []
+        self.stopped = False
+
+    def send(self, action):
+        self.sent.append(action)
+
+    def receive(self, timeout=None):
+        a = self.sent[-1] if self.sent else {"action": "Start"}
+        name = a.get("action")
+        if name == "TeleportFull":
+            p, yaw = a["position"], a["rotation"]["y"]
+            if p["z"] > 50:
+                return event({"lastActionSuccess": False, "errorCode": "InvalidArgument",
+                              "errorMessage": "position out of the scene bounds"})
+            if not any(abs(q["x"] - p["x"]) < 1e-6 and abs(q["z"] - p["z"]) < 1e-6 for q in REACHABLE):
+                return event({"lastActionSuccess": False, "errorMessage": f"{p} is not a valid position"})
+            return event({"lastAction": name}, yaw=yaw)
+        if name == "GetScenesInBuild":
+            return event({"lastAction": name, "actionReturn": ["ArchitecTHOR-Val-00", "FloorPlan1_physics"]})
+        if name == "GetReachablePositions":
+            return event({"lastAction": name, "actionReturn": [dict(q) for q in REACHABLE]})
+        return event({"lastAction": name})
+
+    def set_init_params(self, params):
+        pass
+
+    def stop(self):
+        self.stopped = True
+
+
+class StandInBuild:
+    server_types = ["FIFO", "WSGI"]
+    url = None
+
+    def __init__(self, platform):
+        self.platform = platform
+        self.unlocked = False
+
+    def download(self):
+        pass
+
+    def unlock(self):
+        self.unlocked = True
+
+
+@pytest.fixture
+def thor(monkeypatch):
+    """The real Controller with the Unity side stood in; yields the record of what it was asked."""
+    pytest.importorskip("ai2thor.controller")
+    from ai2thor.controller import Controller
+
+    seen = {}
+
+    def find_build(self, local_build, commit_id, branch, platform):
+        seen["commit_id"], seen["platform"] = commit_id, platform
+        seen["build"] = StandInBuild(platform)
+        return seen["build"]
+
+    def start(self, port=0, start_unity=True, width=300, height=300, x_display=None, host="127.0.0.1", **kw):
+        seen["size"] = (width, height)
+        self.server = seen["server"] = StandInUnity()
+        self.last_event = self.server.receive()
+        return self.last_event
+
+    monkeypatch.setattr(Controller, "find_build", find_build)
+    monkeypatch.setattr(Controller, "start", start)
+    return seen
+
+
+def _house():
+    return House("house-1", {"rooms": [{"id": "room|1", "roomType": "Bedroom", "floorPolygon": []}],
+                             "metadata": {"agent": {"position": {"x": 0, "y": 0.9, "z": 0}}}})
+
+
+def test_renderer_through_the_real_controller(thor):
+    import ai2thor.platform
+
+    from envs.ai2thor_renderer import AI2THORRenderer
+
+    r = AI2THORRenderer(width=W, height=H, fov=90, horizon=10, platform="CloudRendering", commit_id="a" * 40)
+    poses = np.array([[0.0, 0.0, 0.0], [0.25, 0.0, 90.0], [1.0, 1.0, 0.0], [0.5, 0.0, 180.0], [0.5, 99.0, 0.0]])
+    obs = r.render(_house(), None, poses)
+    assert thor["commit_id"] == "a" * 40 and thor["platform"] is ai2thor.platform.CloudRendering
+    assert thor["size"] == (W, H)
+    sent = thor["server"].sent
+    init = next(a for a in sent if a["action"] == "Initialize")
+    assert init["fieldOfView"] == pytest.approx(vertical_fov(90, W, H)) and init["renderInstanceSegmentation"]
+    assert init["gridSize"] == 0.25 and init["snapToGrid"] is False
+    assert next(a for a in sent if a["action"] == "CreateHouse")["house"] == _house().data
+    tele = [a for a in sent if a["action"] == "TeleportFull"]
+    assert len(tele) == 5 and all(a["position"]["y"] == 0.9 and a["horizon"] == 10.0 for a in tele)
+    assert [a["rotation"]["y"] for a in tele] == [0.0, 90.0, 0.0, 180.0, 0.0]
+    # what came back
+    assert [o.meta.get("refused", False) for o in obs] == [False, False, True, False, True]
+    assert "not a valid position" in obs[2].meta["error"] and obs[2].image is None
+    assert "out of the scene bounds" in obs[4].meta["error"]  # ai2thor raised ValueError: recorded too
+    assert obs[0].objects == [("Bed", 0.5)]  # the wall is structure, not an object
+    assert obs[1].objects == [("Sofa", pytest.approx(47 / 48))]
+    assert obs[3].objects == [("Chair", pytest.approx(18 / 48))]  # two chairs add up
+    assert np.array_equal(obs[1].image, frame(90)) and obs[1].image.flags.c_contiguous
+    assert obs[0].pose == (0.0, 0.0, 0.0) and obs[4].pose == (0.5, 99.0, 0.0)
+    # reachable positions through the same controller, then shut down
+    assert r.reachable_positions(_house()) == REACHABLE
+    r.close()
+    assert thor["server"].stopped and thor["build"].unlocked and r._controller is None
+
+
+def test_a_scene_name_is_loaded_by_name(thor):
+    from envs.ai2thor_renderer import AI2THORRenderer
+
+    r = AI2THORRenderer(width=W, height=H, agent_y=0.95)
+    obs = r.render(House("ArchitecTHOR-Val-00", {"scene": "ArchitecTHOR-Val-00"}), None, np.array([[0.0, 0.0, 90.0]]))
+    resets = [a for a in thor["server"].sent if a["action"] == "Reset"]
+    assert resets[-1]["sceneName"] == "ArchitecTHOR-Val-00"
+    assert not any(a["action"] == "CreateHouse" for a in thor["server"].sent)
+    assert obs[0].objects == [("Sofa", pytest.approx(47 / 48))]
+    assert [a for a in thor["server"].sent if a["action"] == "TeleportFull"][0]["position"]["y"] == 0.95
+
+
+def test_a_controller_that_cannot_start_says_so_in_one_line(monkeypatch):
+    pytest.importorskip("ai2thor.controller")
+    from ai2thor.controller import Controller
+
+    from envs.ai2thor_renderer import AI2THORRenderer
+
+    def no_build(self, *a, **k):
+        raise ValueError("Invalid commit_id: abc - no build exists for arch=Linux platforms=CloudRendering\nmore")
+
+    monkeypatch.setattr(Controller, "find_build", no_build)
+    with pytest.raises(RuntimeError, match="AI2-THOR could not start .*Invalid commit_id.*benchmark.doctor") as e:
+        AI2THORRenderer(commit_id="abc").render(_house(), None, np.zeros((1, 3)))
+    assert "\n" not in str(e.value)
+
+
+def test_controller_kwargs_match_the_real_signature():
+    pytest.importorskip("ai2thor.controller")
+    import ai2thor.controller
+    import ai2thor.platform
+
+    from envs.ai2thor_renderer import controller_kwargs
+
+    kw = controller_kwargs({"rooms": []}, width=64, height=48, fov=90, platform="CloudRendering", commit_id="c" * 40,
+                           quality="Ultra", gpu_device=0, local_executable_path="/opt/thor/thor.x86_64")
+    params = inspect.signature(ai2thor.controller.Controller.__init__).parameters
+    named = {k for k in kw if k in params}
+    assert named == {"scene", "platform", "width", "height", "commit_id", "quality", "gpu_device",
+                     "local_executable_path"}
+    assert any(p.kind == p.VAR_KEYWORD for p in params.values())  # the rest go to Unity's Initialize
+    assert set(kw) - named == {"fieldOfView", "renderInstanceSegmentation", "gridSize", "snapToGrid",
+                               "visibilityDistance"}
+    assert kw["platform"] is ai2thor.platform.CloudRendering
+    assert kw["fieldOfView"] == pytest.approx(2 * np.rad2deg(np.arctan(48 / 64)))
+    assert controller_kwargs("FloorPlan1", width=32, height=32, fov=90)["fieldOfView"] == pytest.approx(90)
+    with pytest.raises(ValueError, match="unknown AI2-THOR platform"):
+        controller_kwargs("FloorPlan1", platform="Windows95")
+    with pytest.raises(ValueError, match="house dict or a scene name"):
+        controller_kwargs(3)
+
+
+def test_platforms_and_build_folder():
+    pytest.importorskip("ai2thor.build")
+    import ai2thor.build
+
+    from envs.ai2thor_renderer import resolve_platform, thor_build_dir
+
+    assert resolve_platform("auto", display=":0") == "Linux64"
+    assert resolve_platform("auto", display="") == "CloudRendering"
+    assert resolve_platform("Linux64", display="") == "Linux64"
+    d = thor_build_dir("CloudRendering", "f" * 40)
+    assert d.parts[-3:] == (".ai2thor", "releases", "thor-CloudRendering-" + "f" * 40)
+    assert thor_build_dir("CloudRendering").name.endswith(ai2thor.build.COMMIT_ID)
+
+
+def test_renderer_arguments_are_checked():
+    from envs.ai2thor_renderer import AI2THORRenderer
+
+    for bad, match in [({"fov": 180}, "fov"), ({"width": 0}, "image size"), ({"horizon": 120}, "horizon"),
+                       ({"platform": "Win"}, "platform"), ({"grid_size": 0}, "grid_size"), ({"min_share": 1}, "min_share")]:
+        with pytest.raises(ValueError, match=match):
+            AI2THORRenderer(**bad)
+
+
+def test_visible_objects_options():
     pytest.importorskip("ai2thor.server")
     from envs.ai2thor_renderer import visible_objects
 
-    m1 = np.zeros((4, 4), bool)
-    m1[:2, :2] = True  # 4 of 16 pixels
-    m2 = np.zeros((4, 4), bool)
-    m2[3, 3] = True
-    m3 = np.zeros((4, 4), bool)
-    m3[0, 3] = True
-    ev = _event([{"objectId": "Bed|1|2", "objectType": "Bed"}, {"objectId": "Chair|3", "objectType": "Chair"},
-                 {"objectId": "Chair|4", "objectType": "Chair"}], {"Bed|1|2": m1, "Chair|3": m2, "Chair|4": m3,
-                                                                   "Pillow|9": m2})
-    assert visible_objects(ev) == [("Bed", 0.25), ("Chair", 0.125), ("Pillow", 0.0625)]
-
-
-def test_refused_teleport_is_recorded_and_skipped():
-    pytest.importorskip("ai2thor.server")
-    from envs.ai2thor_renderer import AI2THORRenderer
-
-    class StandIn:  # plays the controller: refuses the second pose
-        def __init__(self):
-            self.calls = []
-
-        def step(self, **kw):
-            self.calls.append(kw)
-            ok = len(self.calls) != 2
-            return _event([{"objectId": "Sofa|1", "objectType": "Sofa"}], {"Sofa|1": np.ones((4, 4), bool)},
-                          success=ok, error="" if ok else "position not reachable")
-
-    c = StandIn()
-    obs = AI2THORRenderer(horizon=10).render_with(c, np.array([[0, 0, 0], [1, 1, 90], [2, 2, 180]]), 0.9)
-    assert [o.meta.get("refused", False) for o in obs] == [False, True, False]
-    assert obs[1].meta["error"] == "position not reachable" and obs[1].image is None
-    assert obs[0].objects == [("Sofa", 1.0)] and obs[2].image.shape == (4, 4, 3)
-    assert c.calls[1]["rotation"]["y"] == 90.0 and c.calls[1]["horizon"] == 10
+    ev = event({}, yaw=0)
+    assert visible_objects(ev) == [("Bed", 0.5)]
+    assert visible_objects(ev, include_structure=True) == [("Bed", 0.5), ("wall", 0.5)]
+    assert visible_objects(event({}, yaw=180), min_share=0.2) == [("Chair", 0.25)]  # the 6-pixel chair is dropped
+    assert visible_objects(event({})) == []  # no segmentation rendered
 
 
 def test_reachable_positions_to_map():
@@ -117,84 +276,241 @@ def test_reachable_positions_to_map():
     pts = [{"x": 0.0, "y": 0.9, "z": 0.0}, {"x": 0.25, "y": 0.9, "z": 0.0}, {"x": 0.25, "y": 0.9, "z": 0.25}]
     g = reachable_grid(pts, 0.25, resolution=0.05, margin=0.0)
     assert g.walkable.sum() == 3 * 25  # three 5 x 5 px squares
-    r, c = g.world_to_cell(0.25, 0.25)
-    assert g.walkable[r, c]
+    assert g.shape == (10, 10) and g.origin == (-0.125, 0.375)
+    assert g.walkable[g.world_to_cell(0.25, 0.25)] and not g.walkable[g.world_to_cell(0.0, 0.25)]
     with pytest.raises(ValueError, match="no reachable"):
         reachable_grid([], 0.25)
 
 
-def test_missing_simulator_gives_one_line(monkeypatch):
-    import builtins
-
+def _block_import(monkeypatch, prefix):
     real = builtins.__import__
 
     def fake(name, *a, **k):
-        if name.startswith("habitat_sim"):
-            raise ImportError("no habitat")
+        if name == prefix or name.startswith(prefix + "."):
+            raise ImportError(f"no {name}")
         return real(name, *a, **k)
 
     monkeypatch.setattr(builtins, "__import__", fake)
-    from envs.habitat_renderer import require_habitat
-
-    with pytest.raises(ImportError, match="conda install habitat-sim") as e:
-        require_habitat()
-    assert "\n" not in str(e.value)
 
 
-def test_annotation_import_and_architecthor_env(tmp_path):
-    from PIL import Image
+@pytest.mark.parametrize("module,func,install", [
+    ("habitat_sim", "envs.habitat_renderer:require_habitat", "conda install habitat-sim"),
+    ("ai2thor", "envs.ai2thor_renderer:require_ai2thor", "pip install 'roomseg-bench[thor]'"),
+])
+def test_a_missing_simulator_gives_one_line(monkeypatch, module, func, install):
+    import importlib
 
-    from envs.annotations import import_instance_map
-    from envs.architecthor import ArchitecTHOREnv
-
-    img = np.zeros((20, 30, 3), np.uint8)
-    img[2:18, 2:14] = (255, 0, 0)
-    img[2:18, 16:28] = (0, 0, 255)
-    img[8:12, 14:16] = (0, 0, 255)  # a doorway, part of the right room
-    Image.fromarray(img).save(tmp_path / "inst.png")
-    (tmp_path / "cls.json").write_text(json.dumps({"#ff0000": "kitchen", "#0000ff": "living_room"}))
-    import_instance_map(tmp_path / "inst.png", json.loads((tmp_path / "cls.json").read_text()), 0.05, (1.0, 2.0),
-                        tmp_path / "ann" / "ArchitecTHOR-Val-00")
-    env = ArchitecTHOREnv(str(tmp_path / "ann"))
-    assert len(env.house_ids()) == 10 and env.house("ArchitecTHOR-Val-00").data == {"scene": "ArchitecTHOR-Val-00"}
-    s = env.scene("ArchitecTHOR-Val-00")
-    assert s.grid.resolution == 0.05 and s.grid.origin == (1.0, 2.0)
-    assert sorted(s.classes[k] for k in s.instance_classes) == ["kitchen", "living_room"]
-    assert s.grid.walkable.sum() == 16 * 12 * 2 + 8
-    with pytest.raises(FileNotFoundError, match="no annotation"):
-        env.scene("ArchitecTHOR-Test-04")
-    (tmp_path / "bad.json").write_text(json.dumps({"#ff0000": "kitchen"}))
-    with pytest.raises(ValueError, match="has no class"):
-        import_instance_map(tmp_path / "inst.png", {"#ff0000": "kitchen"}, 0.05, (0, 0), tmp_path / "x")
+    mod, name = func.split(":")
+    f = getattr(importlib.import_module(mod), name)
+    _block_import(monkeypatch, module)
+    with pytest.raises(ImportError, match="needs") as e:
+        f()
+    assert install in str(e.value) and "\n" not in str(e.value)
 
 
-def test_doctor_runs_and_names_what_is_missing(capsys):
-    from benchmark.doctor import checks, main
+# ---------------------------------------------------------------------------- Habitat-Sim
 
-    rows = checks(hab_dataset="/nonexistent/x.json")
-    hab = [r for r in rows if r[0] == "ai2thor-hab scenes"][0]
-    assert hab[1] == "optional-MISSING" and "/nonexistent/x.json" in hab[2]
-    assert all(r[1] == "OK" for r in rows if r[0].startswith("core:"))
-    assert main(["--hab-dataset", "/nonexistent/x.json"]) == 0
-    assert "core OK" in capsys.readouterr().out
+def test_habitat_sensor_settings_by_hand():
+    from envs.habitat_renderer import sensor_settings
+
+    s = sensor_settings(320, 240, 90.0, 1.5, horizon=30.0, semantic=True)
+    assert [x["uuid"] for x in s] == ["color", "semantic"] and [x["type"] for x in s] == ["COLOR", "SEMANTIC"]
+    assert s[0]["resolution"] == [240, 320] and s[0]["position"] == [0.0, 1.5, 0.0] and s[0]["hfov"] == 90.0
+    assert s[0]["orientation"] == pytest.approx([-np.pi / 6, 0.0, 0.0])  # 30 degrees down
+    assert len(sensor_settings(8, 8, 60, 1.0, semantic=False)) == 1
+    with pytest.raises(ValueError, match="fov"):
+        sensor_settings(8, 8, 0, 1.0)
 
 
-def test_navmesh_topdown_orientation():
+@pytest.mark.parametrize("mirror", ["z", "x"])
+def test_navmesh_topdown_orientation(mirror):
+    """A navmesh pixel lands on the map pixel of the same world point, for both mirrors."""
     from envs.habitat_renderer import topdown_to_gridmap
     from envs.poses import habitat_to_thor_position
 
     top = np.zeros((4, 6), bool)
-    top[0, 5] = True  # Habitat: x = x_min + 5.5 * res, z_hab = z_min + 0.5 * res
-    g = topdown_to_gridmap(top, lower_bound=(2.0, 0.0, -3.0), resolution=0.5)
-    x_hab, z_hab = 2.0 + 5.5 * 0.5, -3.0 + 0.5 * 0.5
-    x, _, z = habitat_to_thor_position((x_hab, 0.0, z_hab))
+    top[0, 5] = True  # Habitat x = x_min + 5.5 res, z = z_min + 0.5 res
+    lb, res = (2.0, 0.0, -3.0), 0.5
+    g = topdown_to_gridmap(top, lower_bound=lb, resolution=res, mirror=mirror)
+    x, _, z = habitat_to_thor_position((lb[0] + 5.5 * res, 0.0, lb[2] + 0.5 * res), mirror)
     r, c = g.world_to_cell(x, z)
-    assert (int(r), int(c)) == (0, 5) and g.walkable[r, c]
-    assert g.origin == (2.0, 3.0)
+    assert g.walkable[r, c] and g.walkable.sum() == 1
+    if mirror == "z":  # by hand: rows follow Habitat z = -our z, no flip
+        assert (int(r), int(c)) == (0, 5) and g.origin == (2.0, 3.0)
+    else:  # Habitat x = -our x, Habitat z = our z: both flipped
+        assert (int(r), int(c)) == (3, 0) and g.origin == (-5.0, -1.0)
+
+
+def test_semantic_objects_and_names(tmp_path):
+    from envs.habitat_renderer import load_semantic_names, semantic_objects
+
+    sem = np.zeros((4, 5), np.int32)
+    sem[:2, :] = 12  # 10 px bed
+    sem[3, :2] = 7  # 2 px chair
+    sem[3, 4] = 99  # unknown id
+    names = {12: "Bed", 7: "Chair", 8: "Chair"}
+    assert semantic_objects(sem, names) == [("Bed", 0.5), ("Chair", 0.1)]
+    assert semantic_objects(sem[..., None], names, min_share=0.2) == [("Bed", 0.5)]
+    cfg = tmp_path / "ai2thor-hab" / "ai2thor-hab.scene_dataset_config.json"
+    (cfg.parent / "configs").mkdir(parents=True)
+    cfg.write_text("{}")
+    assert load_semantic_names(cfg) == {}
+    (cfg.parent / "configs" / "object_semantic_id_mapping.json").write_text(json.dumps({"Bed": 12, "Chair": 7}))
+    assert load_semantic_names(cfg) == {12: "Bed", 7: "Chair"}
+
+
+def test_missing_dataset_gives_one_line(tmp_path):
+    from envs.habitat_renderer import check_dataset
+
+    with pytest.raises(FileNotFoundError, match="hssd/ai2thor-hab.*ROOMSEG_HAB_DATASET") as e:
+        check_dataset(tmp_path / "nope.json")
+    assert "\n" not in str(e.value)
+
+
+def _stand_in_habitat(navigable, recorded):
+    """A module with habitat_sim's documented names: configuration objects record what is set."""
+    hs = types.ModuleType("habitat_sim")
+
+    class Obj:
+        def __init__(self, *a):
+            self.args = a
+
+    class SensorType:
+        COLOR, SEMANTIC = "COLOR", "SEMANTIC"
+
+    class PathFinder:
+        is_loaded = False
+
+        def get_bounds(self):
+            return np.array([0.0, 0.0, -2.0]), np.array([2.0, 1.0, 0.0])
+
+        def get_topdown_view(self, res, height):
+            recorded["topdown"] = (res, height)
+            return np.ones((4, 4), bool)
+
+        def is_navigable(self, p):
+            return navigable(p)
+
+    class Agent:
+        def set_state(self, state):
+            recorded.setdefault("states", []).append((np.array(state.position), state.rotation))
+
+    class Simulator:
+        def __init__(self, cfg):
+            recorded["config"] = cfg
+            self.pathfinder = PathFinder()
+
+        def recompute_navmesh(self, pathfinder, settings):
+            recorded["navmesh"] = settings
+            pathfinder.is_loaded = True
+
+        def initialize_agent(self, i):
+            return Agent()
+
+        def get_sensor_observations(self):
+            sem = np.zeros((4, 4, 1), np.int32)
+            sem[:2] = 12
+            return {"color": np.full((4, 4, 4), 200, np.uint8), "semantic": sem}
+
+        def close(self):
+            recorded["closed"] = True
+
+    class NavMeshSettings(Obj):
+        def set_defaults(self):
+            self.defaults = True
+
+    for name, cls in [("SimulatorConfiguration", Obj), ("CameraSensorSpec", Obj), ("AgentState", Obj),
+                      ("NavMeshSettings", NavMeshSettings), ("Simulator", Simulator)]:
+        setattr(hs, name, cls)
+    hs.SensorType = SensorType
+    hs.Configuration = lambda sim_cfg, agents: Obj(sim_cfg, agents)
+    hs.agent = types.SimpleNamespace(AgentConfiguration=Obj)
+    common = types.ModuleType("habitat_sim.utils.common")
+    common.quat_from_coeffs = lambda c: ("quat_xyzw", tuple(float(v) for v in c))
+    utils = types.ModuleType("habitat_sim.utils")
+    utils.common = common
+    hs.utils = utils
+    return {"habitat_sim": hs, "habitat_sim.utils": utils, "habitat_sim.utils.common": common}
+
+
+def test_habitat_renderer_against_a_stand_in(monkeypatch, tmp_path):
+    from envs.habitat_renderer import HabitatRenderer
+
+    cfg = tmp_path / "ai2thor-hab" / "ai2thor-hab.scene_dataset_config.json"
+    (cfg.parent / "configs").mkdir(parents=True)
+    cfg.write_text("{}")
+    (cfg.parent / "configs" / "object_semantic_id_mapping.json").write_text(json.dumps({"Bed": 12}))
+    rec = {}
+    mods = _stand_in_habitat(lambda p: p[0] < 5.0, rec)
+    for k, v in mods.items():
+        monkeypatch.setitem(sys.modules, k, v)
+    r = HabitatRenderer(str(cfg), width=4, height=4, fov=80, camera_y=1.4, horizon=20, mirror="z")
+    poses = np.array([[1.0, 2.0, 90.0], [9.0, 0.0, 0.0]])
+    obs = r.render(House("ArchitecTHOR-Val-01", {"scene": "ArchitecTHOR-Val-01"}), None, poses)
+    sim_cfg, agents = rec["config"].args
+    assert sim_cfg.scene_id == "ArchitecTHOR-Val-01" and sim_cfg.scene_dataset_config_file == str(cfg)
+    specs = agents[0].sensor_specifications
+    assert [s.uuid for s in specs] == ["color", "semantic"] and specs[1].sensor_type == "SEMANTIC"
+    assert specs[0].hfov == 80 and specs[0].resolution == [4, 4] and specs[0].position == [0.0, 1.4, 0.0]
+    assert specs[0].orientation == pytest.approx([-np.deg2rad(20), 0, 0])
+    assert rec["navmesh"].defaults and rec["navmesh"].agent_radius == 0.2  # the dataset had no navmesh
+    # pose 0 set as Habitat state; pose 1 is off the navmesh and refused
+    (pos, rot), = rec["states"]
+    want_pos, want_q = pose_to_habitat(poses[0], 0.0, "z")
+    assert np.allclose(pos, want_pos) and pos.tolist() == [1.0, 0.0, -2.0]
+    assert rot[0] == "quat_xyzw" and np.allclose(rot[1], [want_q[1], want_q[2], want_q[3], want_q[0]])
+    assert obs[1].meta == {"refused": True, "error": "pose is not on the navmesh"} and obs[1].image is None
+    assert obs[0].image.shape == (4, 4, 3) and obs[0].objects == [("Bed", 0.5)]
+    g = r.navmesh_grid("ArchitecTHOR-Val-01", resolution=0.5)
+    assert rec["topdown"] == (0.5, 0.0) and g.origin == (0.0, 2.0) and g.walkable.all()
+    r.close()
+    assert rec["closed"]
+
+
+def test_habitat_arguments_are_checked():
+    from envs.habitat_renderer import HabitatRenderer
+
+    for bad, match in [({"fov": 0}, "fov"), ({"mirror": "y"}, "mirror"), ({"horizon": -100}, "horizon"),
+                       ({"agent_radius": 0}, "agent_radius")]:
+        with pytest.raises(ValueError, match=match):
+            HabitatRenderer("x.json", **bad)
+
+
+# ---------------------------------------------------------------------------- doctor
+
+def test_doctor_names_what_is_missing(capsys, tmp_path):
+    from benchmark.doctor import checks, main
+
+    rows = {r[0]: r for r in checks(hab_dataset=str(tmp_path / "x.json"), annotations=str(tmp_path),
+                                    shared=str(tmp_path))}
+    assert rows["ai2thor-hab scenes"][1] == "optional" and str(tmp_path / "x.json") in rows["ai2thor-hab scenes"][2]
+    assert rows["ArchitecTHOR annotations"][2].startswith(f"0/10 houses under {tmp_path}")
+    assert rows["shared ProcTHOR/SeLRoS data"][1] == "optional"
+    assert all(r[1] == "OK" for k, r in rows.items() if k.startswith("core:"))
+    for k, r in rows.items():
+        if r[1] != "OK":
+            assert r[2] and "\n" not in r[2], k  # one line of what to do
+    (tmp_path / "ArchitecTHOR-Val-00").mkdir()
+    (tmp_path / "ArchitecTHOR-Val-00" / "labels.png").write_bytes(b"")
+    (tmp_path / "x.json").write_text("{}")
+    rows = {r[0]: r for r in checks(hab_dataset=str(tmp_path / "x.json"), annotations=str(tmp_path))}
+    assert rows["ai2thor-hab scenes"][1] == "OK" and rows["ArchitecTHOR annotations"][2].startswith("1/10")
+    assert main(["--hab-dataset", str(tmp_path / "x.json")]) == 0
+    out = capsys.readouterr().out
+    assert "core OK" in out and "ai2thor-hab scenes" in out
+
+
+def test_doctor_fails_when_a_core_package_is_missing(monkeypatch, capsys):
+    import benchmark.doctor as doctor
+
+    monkeypatch.setattr(doctor, "CORE", doctor.CORE + ("no_such_package_xyz",))
+    assert doctor.main([]) == 1
+    assert "1 core piece(s) missing: core: no_such_package_xyz" in capsys.readouterr().out
 
 
 def test_ground_truth_carried_onto_a_reachable_positions_map(shared_houses):
     from envs.ai2thor_renderer import reachable_grid
+    from envs.procthor import ProcTHOREnv
     from envs.scene import rasterise_house, scene_on_grid
 
     scene = rasterise_house(shared_houses[0])
@@ -211,7 +527,15 @@ def test_ground_truth_carried_onto_a_reachable_positions_map(shared_houses):
     wx, wz = grid.pixel_to_world(r, c)
     sr, sc = scene.grid.world_to_cell(wx, wz)
     assert np.array_equal(scene.rooms[sr, sc], moved.instances[r, c])
-    from envs.procthor import ProcTHOREnv
-
     with pytest.raises(ValueError, match="occupancy"):
         ProcTHOREnv(path=None, occupancy="lidar")
+
+
+def test_procthor_occupancy_from_the_renderer(thor, procthor_file):
+    """env.occupancy=ai2thor asks the (stood-in) simulator for reachable positions."""
+    from envs.procthor import ProcTHOREnv
+
+    env = ProcTHOREnv(path=str(procthor_file), stop=1, occupancy="ai2thor", thor={"width": W, "height": H})
+    s = env.scene(env.house_ids()[0])
+    assert s.grid.walkable.sum() == 3 * 25 and s.grid.resolution == 0.05
+    assert any(a["action"] == "GetReachablePositions" for a in thor["server"].sent)
