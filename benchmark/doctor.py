@@ -53,8 +53,8 @@ def _thor_build(platform: str, commit_id: str | None) -> tuple[str, str]:
     d = thor_build_dir(platform, commit_id)
     if d.is_dir():
         return OK, str(d)
-    return OPTIONAL_MISSING, (f"not at {d}: ai2thor downloads it on the first Controller start (network), or copy "
-                              "a build there / set renderer.local_executable_path")
+    return OPTIONAL_MISSING, (f"not at {d}: ai2thor downloads it on the first Controller start (network), "
+                              "or copy that folder there from another machine")
 
 
 def checks(hab_dataset: str | None = None, shared: str | None = None, annotations: str | None = None,

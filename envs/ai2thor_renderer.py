@@ -3,7 +3,7 @@ dict or an AI2-THOR scene name (e.g. ``ArchitecTHOR-Val-00``).
 
 Needs ``pip install 'roomseg-bench[thor]'`` and a machine that can run the Unity build:
 AI2-THOR downloads the build for ``commit_id`` into ``~/.ai2thor/releases/`` on first start
-(or runs one you copied there, or ``local_executable_path``). Headless GPU machines use
+(or uses one copied there from another machine). Headless GPU machines use
 ``platform=CloudRendering`` (Vulkan); desktops with an X display can use ``Linux64``;
 ``auto`` picks Linux64 when ``$DISPLAY`` is set, else CloudRendering.
 
@@ -162,7 +162,8 @@ class AI2THORRenderer:
         visibility_distance: metres.
         quality: AI2-THOR quality setting name, None for its default.
         gpu_device: GPU index for CloudRendering, None for the default.
-        local_executable_path: a Unity build you already have (no download).
+        local_executable_path: a Unity build executable of your own (no download; ai2thor's
+            ExternalBuild runs it as Linux64, so it needs an X display).
         min_share: an object covering no more than this share of the image is not listed.
     """
 
@@ -260,3 +261,36 @@ class AI2THORRenderer:
         if self._controller is not None:
             self._controller.stop()
             self._controller = None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m envs.ai2thor_renderer reachable --scene NAME --out POINTS.json``: AI2-THOR's
+    reachable positions of a scene (a name, or a ProcTHOR house JSON file) as a JSON list."""
+    import argparse  # noqa: PLC0415
+    import json  # noqa: PLC0415
+
+    from envs.house import House  # noqa: PLC0415
+
+    ap = argparse.ArgumentParser(description="AI2-THOR reachable positions of a scene")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("reachable")
+    r.add_argument("--scene", required=True, help="scene name (e.g. ArchitecTHOR-Val-00) or a house .json file")
+    r.add_argument("--out", type=Path, required=True)
+    r.add_argument("--platform", default="CloudRendering", choices=PLATFORMS)
+    r.add_argument("--commit-id", default=None)
+    a = ap.parse_args(argv)
+    p = Path(a.scene)
+    house = House(p.stem, json.loads(p.read_text())) if p.suffix == ".json" else House(a.scene, {"scene": a.scene})
+    renderer = AI2THORRenderer(platform=a.platform, commit_id=a.commit_id)
+    try:
+        points = renderer.reachable_positions(house)
+    finally:
+        renderer.close()
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(points))
+    print(f"{a.out}: {len(points)} reachable positions of {house.id}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

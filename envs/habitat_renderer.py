@@ -89,6 +89,22 @@ def topdown_to_gridmap(topdown: np.ndarray, lower_bound: Sequence[float], resolu
                    (float(-(lb[0] + w * resolution)), float(lb[2] + h * resolution)))
 
 
+def mirror_agreement(topdown: np.ndarray, lower_bound: Sequence[float], resolution: float,
+                     points: Sequence[Mapping[str, float]]) -> dict[str, float]:
+    """Share of AI2-THOR reachable positions (dicts with x, z metres) that land on the
+    walkable navmesh for each mirror convention: the right ``mirror`` is the one near 1."""
+    if not points:
+        raise ValueError("no reachable positions to compare with the navmesh")
+    x = np.array([p["x"] for p in points], float)
+    z = np.array([p["z"] for p in points], float)
+    out = {}
+    for m in ("z", "x"):
+        g = topdown_to_gridmap(topdown, lower_bound, resolution, m)
+        r, c = g.world_to_cell(x, z)
+        out[m] = float(np.mean(g.is_walkable(r, c)))
+    return out
+
+
 def load_semantic_names(scene_dataset: str | Path) -> dict[int, str]:
     """semantic id -> object type from ai2thor-hab's ``configs/object_semantic_id_mapping.json``
     (beside the scene dataset config); {} when the file is absent."""
@@ -240,7 +256,10 @@ class HabitatRenderer:
 def main(argv: list[str] | None = None) -> int:
     """``python -m envs.habitat_renderer navmesh --scene NAME --out ROOT/NAME [--resolution 0.05]``:
     write a scene's navmesh top-down view into an annotation folder as ``walkable.png`` +
-    ``walkable.json`` (its grid; the labels are carried onto it, see :mod:`envs.annotations`)."""
+    ``walkable.json`` (its grid; the labels are carried onto it, see :mod:`envs.annotations`).
+    ``python -m envs.habitat_renderer mirror --scene NAME --reachable POINTS.json``: the
+    share of AI2-THOR's reachable positions (``python -m envs.ai2thor_renderer reachable``)
+    on the navmesh for each ``mirror``."""
     import argparse  # noqa: PLC0415
     import os  # noqa: PLC0415
 
@@ -254,7 +273,20 @@ def main(argv: list[str] | None = None) -> int:
     n.add_argument("--resolution", type=float, default=0.05, help="metres per pixel")
     n.add_argument("--mirror", choices=("z", "x"), default="z", help="axis mirrored between AI2-THOR and Habitat")
     n.add_argument("--dataset", default=os.environ.get("ROOMSEG_HAB_DATASET", DEFAULT_DATASET))
+    m = sub.add_parser("mirror")
+    m.add_argument("--scene", required=True)
+    m.add_argument("--reachable", type=Path, required=True, help="JSON list of {x, y, z} from AI2-THOR")
+    m.add_argument("--resolution", type=float, default=0.05, help="metres per pixel")
+    m.add_argument("--dataset", default=os.environ.get("ROOMSEG_HAB_DATASET", DEFAULT_DATASET))
     a = ap.parse_args(argv)
+    if a.cmd == "mirror":
+        r = HabitatRenderer(a.dataset)
+        sim = r._sim_for(a.scene)
+        lower, _ = sim.pathfinder.get_bounds()
+        top = sim.pathfinder.get_topdown_view(a.resolution, r.floor_y)
+        for k, v in mirror_agreement(top, lower, a.resolution, json.loads(a.reachable.read_text())).items():
+            print(f"mirror={k}: {v:.1%} of AI2-THOR's reachable positions on the navmesh")
+        return 0
     g = HabitatRenderer(a.dataset, mirror=a.mirror).navmesh_grid(a.scene, a.resolution)
     path = write_walkable(a.out, g)
     print(f"{path}: {g.shape[1]} x {g.shape[0]} px at {g.resolution} m/px, origin (x, z) = {g.origin}")

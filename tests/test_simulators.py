@@ -539,3 +539,28 @@ def test_procthor_occupancy_from_the_renderer(thor, procthor_file):
     s = env.scene(env.house_ids()[0])
     assert s.grid.walkable.sum() == 3 * 25 and s.grid.resolution == 0.05
     assert any(a["action"] == "GetReachablePositions" for a in thor["server"].sent)
+
+
+def test_mirror_agreement_finds_the_convention():
+    """An L-shaped navmesh built with mirror=z: AI2-THOR points agree with z, not with x."""
+    from envs.habitat_renderer import mirror_agreement
+
+    res, lb = 0.1, (0.0, 0.0, -4.0)  # Habitat x in [0, 3], z in [-4, 0]
+    top = np.zeros((40, 30), bool)
+    top[:, :10] = True  # a strip along Habitat x in [0, 1]
+    top[30:, :] = True  # and along Habitat z in [-1, 0]
+    rows, cols = np.nonzero(top)
+    hab_x, hab_z = lb[0] + (cols + 0.5) * res, lb[2] + (rows + 0.5) * res
+    pts = [{"x": float(a), "y": 0.9, "z": float(-b)} for a, b in zip(hab_x[::7], hab_z[::7])]  # z mirrored
+    share = mirror_agreement(top, lb, res, pts)
+    assert share["z"] == 1.0 and share["x"] < 0.5
+    with pytest.raises(ValueError, match="no reachable"):
+        mirror_agreement(top, lb, res, [])
+
+
+def test_reachable_command_through_the_real_controller(thor, tmp_path, capsys):
+    from envs.ai2thor_renderer import main
+
+    assert main(["reachable", "--scene", "ArchitecTHOR-Val-00", "--out", str(tmp_path / "p.json")]) == 0
+    assert json.loads((tmp_path / "p.json").read_text()) == REACHABLE
+    assert thor["server"].stopped and "3 reachable positions of ArchitecTHOR-Val-00" in capsys.readouterr().out
