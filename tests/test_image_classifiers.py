@@ -165,6 +165,10 @@ def test_dinov2_features_cache_batching_and_head(tmp_path, monkeypatch):
     p = clf.predict_images(imgs)
     assert p.shape == (5, 3) and np.allclose(p.sum(1), 1)
     assert np.allclose(np.concatenate([clf.predict_images([im]) for im in imgs]), p, atol=1e-5)
+    from benchmark.classifiers.evaluate import throughput
+
+    n0 = len(clf._mem)
+    assert throughput(clf, 2)["n_images"] == 2 and len(clf._mem) == n0 + 2 + 3  # timed images never cached before
     # a fresh classifier reads the disk cache and never runs the backbone on those images
     again = DinoV2Classifier(CLASSES, allow_untrained=True, **kw)
     monkeypatch.setattr(again, "backbone", lambda **_: pytest.fail("backbone ran on a cached image"))

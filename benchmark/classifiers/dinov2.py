@@ -46,7 +46,7 @@ def build_backbone(backbone: str, backbone_config: dict | None = None):
         return transformers.Dinov2Model.from_pretrained(backbone), "hf"
     except Exception as e:
         raise RuntimeError(f"could not load DINOv2 {backbone!r} ({type(e).__name__}); download it once on a machine "
-                           "with network access (Hugging Face cache) or point classifier.backbone at a local folder"
+                           "with network access (Hugging Face cache; HF_HUB_OFFLINE=1 skips the network) or point classifier.backbone at a local folder"
                            ) from None
 
 

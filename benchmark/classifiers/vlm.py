@@ -87,7 +87,7 @@ def load_vlm(model_id: str, load_in_4bit: bool, device: str, dtype: str, max_pix
             model_id, **({"max_pixels": int(max_pixels)} if max_pixels else {}))
     except Exception as e:
         raise RuntimeError(f"could not load {model_id!r} ({type(e).__name__}); download it once on a machine with "
-                           "network access (Hugging Face cache) or point classifier.model_id at a local folder"
+                           "network access (Hugging Face cache; HF_HUB_OFFLINE=1 skips the network) or point classifier.model_id at a local folder"
                            ) from None
     if "device_map" not in kw:
         model.to(device)
