@@ -39,15 +39,15 @@ BENCH_ENVS := synthetic$(if $(wildcard $(SHARED)/procthor/*.jsonl.gz),$(comma)pr
 BENCH_OUT ?= results/bench
 
 bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench, tables + figures -> results/bench
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.run experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES)
-	$(PY) -m benchmark.tables results/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
-	$(PY) -m benchmark.figures from-run results/runs/bench --out $(BENCH_OUT)/figures
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES)
+	$(PY) -m benchmark.commands.tables results/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
+	$(PY) -m benchmark.commands.figures from-run results/runs/bench --out $(BENCH_OUT)/figures
 
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.perf
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf
 
 tables: setup  ## paper tables from every run under results/runs -> results/tables
-	$(PY) -m benchmark.tables results/runs --out results/tables
+	$(PY) -m benchmark.commands.tables results/runs --out results/tables
 
 clean:  ## remove caches (keeps .venv and results/)
 	rm -rf .pytest_cache .ruff_cache .hypothesis build *.egg-info

@@ -22,8 +22,9 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage
 
-from envs.gridmap import GridMap, pixel_direction_to_yaw
-from envs.scene import Scene
+from benchmark.interfaces import Viewpoints
+from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
+from envs.maps.scene import Scene
 
 
 def trace_path(walkable: np.ndarray, offset_px: float) -> list[np.ndarray]:
@@ -48,7 +49,7 @@ def sample_along(contour: np.ndarray, spacing_px: float) -> np.ndarray:
     return np.unique(np.clip(np.searchsorted(arc, targets), 0, n - 1))
 
 
-class Autotrace:
+class Autotrace(Viewpoints):
     """Wall-following autotrace viewpoints.
 
     Args:
@@ -124,7 +125,7 @@ def load_poses(path: str | Path) -> np.ndarray:
     return arr
 
 
-class FromFile:
+class FromFile(Viewpoints):
     """Poses from a file (``path`` may contain ``{house_id}``); every pose must be on a
     walkable cell of the map, or ``off_map="drop"`` drops the others."""
 
@@ -157,39 +158,3 @@ def room_coverage(scene: Scene, poses: np.ndarray) -> tuple[int, int, list[tuple
     rooms = [k for k in range(len(scene.instance_classes)) if (scene.instances == k).any()]
     missed = [(k, float(dist[scene.instances == k].max())) for k in rooms if k not in visited]
     return len(rooms) - len(missed), len(rooms), missed
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Autotrace on a house file: poses per house and how many rooms get at least one pose."""
-    import argparse
-    import os
-
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
-
-    default = Path(os.environ.get("ROOMSEG_SHARED_DATA", "../shared/data")) / "procthor/procthor-10k-uniform-hard-val.jsonl.gz"
-    ap = argparse.ArgumentParser(description="autotrace room coverage on a house file")
-    ap.add_argument("--houses", type=Path, default=default)
-    ap.add_argument("--range", default="0:150", help="house index range a:b")
-    ap.add_argument("--offset", type=float, default=0.5, help="metres")
-    ap.add_argument("--spacing", type=float, default=1.0, help="metres")
-    a = ap.parse_args(argv)
-    start, stop = map(int, a.range.split(":"))
-    at = Autotrace(offset=a.offset, spacing=a.spacing)
-    n_poses, covered, total = [], 0, 0
-    for house in load_houses(a.houses, start, stop):
-        scene = rasterise_house(house)
-        poses = at.generate(scene)
-        n_poses.append(len(poses))
-        got, n, missed = room_coverage(scene, poses)
-        covered, total = covered + got, total + n
-        for k, clearance in missed:
-            print(f"{house.id}: room {k} ({scene.classes[scene.instance_classes[k]]}) has no pose; "
-                  f"largest clearance {clearance:.2f} m (offset {a.offset} m)")
-    print(f"{len(n_poses)} houses: {np.mean(n_poses):.0f} poses per house (min {min(n_poses)}, max {max(n_poses)}); "
-          f"{covered} of {total} rooms have at least one pose")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -31,13 +31,13 @@ def selros_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def shared_houses(procthor_file):
-    from envs.house import load_houses
+    from envs.world.house import load_houses
 
     return load_houses(procthor_file)
 
 
 @pytest.fixture(scope="session")
 def shared_scenes(shared_houses):
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
 
     return [rasterise_house(h) for h in shared_houses]

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from envs.gridmap import GridMap
-from envs.scene import Scene
+from envs.maps.gridmap import GridMap
+from envs.maps.scene import Scene
 
 
 def rect_grid(h=40, w=60, res=0.05):

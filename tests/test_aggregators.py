@@ -10,7 +10,7 @@ from benchmark.aggregators.reference import (
     vision_cone_reference,
 )
 from benchmark.aggregators.vision_cone import VisionCone
-from envs.gridmap import GridMap
+from envs.maps.gridmap import GridMap
 
 
 def random_case(seed, n=None, c=4):

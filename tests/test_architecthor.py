@@ -6,16 +6,16 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from envs.annotations import (
+from benchmark.commands.annotations import main
+from envs.datasets.architecthor import ARCHITECTHOR_SCENES, ArchitecTHOREnv
+from envs.maps.annotations import (
     components_as_rooms,
     import_room_map,
     load_annotation,
-    main,
     write_walkable,
 )
-from envs.architecthor import ARCHITECTHOR_SCENES, ArchitecTHOREnv
-from envs.classes import PAPER_CLASSES
-from envs.gridmap import GridMap
+from envs.maps.gridmap import GridMap
+from envs.world.classes import PAPER_CLASSES
 
 RED, BLUE, GREEN = (255, 0, 0), (0, 0, 255), (0, 255, 0)
 
@@ -91,7 +91,7 @@ def test_walkable_on_its_own_grid(tmp_path):
 
 
 def test_bad_annotations(tmp_path):
-    with pytest.raises(FileNotFoundError, match="no annotation at .*python -m envs.annotations import"):
+    with pytest.raises(FileNotFoundError, match="no annotation at .*python -m benchmark.commands.annotations import"):
         load_annotation(tmp_path / "none")
     with pytest.raises(ValueError, match="has no class in the colour JSON"):
         import_room_map(_room_map(tmp_path), {"#ff0000": "kitchen"}, 0.05, (0, 0), tmp_path / "x")
@@ -150,7 +150,7 @@ def test_configs_compose_and_instantiate(overrides, target, tmp_path, monkeypatc
     from hydra import compose, initialize_config_dir
     from hydra.utils import instantiate
 
-    from benchmark.run import CONF_DIR
+    from benchmark.harness.runner import CONF_DIR
 
     monkeypatch.setenv("ROOMSEG_ARCHITECTHOR_ANNOTATIONS", str(tmp_path))
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):

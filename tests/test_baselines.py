@@ -20,9 +20,11 @@ from benchmark.baselines.external import (
     score_pairs,
     summary_table,
 )
-from benchmark.baselines.geometric import DistanceTransform, Morphological, Voronoi
 from benchmark.metrics import MetricParams, score_instances
-from envs.gridmap import GridMap
+from benchmark.segmenters.distance import DistanceTransform
+from benchmark.segmenters.morphological import Morphological
+from benchmark.segmenters.voronoi import Voronoi
+from envs.maps.gridmap import GridMap
 
 RED, GREEN, BLUE, YELLOW = (200, 30, 30), (30, 200, 30), (30, 30, 200), (220, 220, 0)
 
@@ -86,7 +88,7 @@ def test_external_scores_on_handmade_maps(handmade):
 
 
 def test_manifest_label_png_and_resolution(handmade, tmp_path):
-    from envs.mapio import write_label_png
+    from envs.maps.label_png import write_label_png
 
     gt_dir, pred_dir = handmade
     # a label PNG: segments are connected regions of one class -> same scores as the instance map
@@ -118,7 +120,7 @@ def test_manifest_label_png_and_resolution(handmade, tmp_path):
 
 
 def test_score_cli_without_preset_lists_missing(handmade, tmp_path, capsys):
-    from benchmark.baselines.__main__ import main
+    from benchmark.commands.baselines import main
 
     gt_dir, pred_dir = handmade
     out = tmp_path / "out"
@@ -135,7 +137,7 @@ def test_score_cli_without_preset_lists_missing(handmade, tmp_path, capsys):
 
 
 def test_selros_and_vrf_presets_over_30_maps(selros_dir, tmp_path):
-    from benchmark.baselines.__main__ import main
+    from benchmark.commands.baselines import main
 
     for preset, method in (("selros", "SeLRoS"), ("vrf", "VRF")):
         assert main(["score", "--preset", preset, "--out", str(tmp_path / preset)]) == 0
@@ -147,7 +149,7 @@ def test_selros_and_vrf_presets_over_30_maps(selros_dir, tmp_path):
 
 def test_table5_cli_on_a_partial_copy(selros_dir, tmp_path):
     """The table5 command on three SeLRoS maps, one VRF output removed: five methods, the gap listed."""
-    from benchmark.baselines.__main__ import main
+    from benchmark.commands.baselines import main
 
     for sub, pattern in (("ground_truth", "{}_ground_truth.png"), ("selros", "{}_output.png"),
                          ("vrf", "{}_segmented.png")):
@@ -248,7 +250,7 @@ def test_bad_input():
 
 
 def test_geometric_on_shared_maps(shared_scenes, selros_dir):
-    from envs.mapio import read_instance_png
+    from envs.maps.label_png import read_instance_png
 
     maps = [(s.grid, s.instances) for s in shared_scenes[:4]]
     for mid in ("01", "12", "27"):
@@ -300,7 +302,7 @@ def test_best_overlap_matches_brute_force():
 
 def test_match_finds_the_house_behind_a_rotated_map(shared_houses):
     from benchmark.baselines.match import match_maps
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
 
     houses = shared_houses[:6]
     target = rasterise_house(houses[4], resolution=0.02).grid.walkable
@@ -314,7 +316,7 @@ def test_carry_house_ground_truth_onto_a_matched_map(shared_houses):
     """A 0.02 m/px map made from a house (turned, flipped, padded) is matched, and the house's
     own 0.1 m/px room instances carried onto it agree with the map's ground truth."""
     from benchmark.baselines.match import carry_to_map, match_maps
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
 
     house = shared_houses[7]
     fine = rasterise_house(house, resolution=0.02)
@@ -334,8 +336,8 @@ def test_carry_house_ground_truth_onto_a_matched_map(shared_houses):
 
 
 def test_match_cli_reports_the_house(procthor_file, shared_houses, tmp_path, capsys):
-    from benchmark.baselines.__main__ import main
-    from envs.scene import rasterise_house
+    from benchmark.commands.baselines import main
+    from envs.maps.scene import rasterise_house
 
     scene = rasterise_house(shared_houses[3], resolution=0.02)
     inst = np.rot90(scene.instances, 2)

@@ -14,7 +14,7 @@ def test_bench_sweep_tables_and_figures(tmp_path):
     """Runs on generated houses only: no shared data needed."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     res = tmp_path / "results"
-    run = subprocess.run([sys.executable, "-m", "benchmark.run", "experiment=bench", "run.limit=2",
+    run = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "experiment=bench", "run.limit=2",
                           f"run.results_dir={res}", "run.progress=false", "env.resolution=0.1"],
                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stderr[-3000:]
@@ -23,13 +23,13 @@ def test_bench_sweep_tables_and_figures(tmp_path):
     df = pd.concat(pd.read_csv(c) for c in csvs)
     assert len(df) == 24 and (df["status"] == "ok").all()
     out = tmp_path / "tables"
-    t = subprocess.run([sys.executable, "-m", "benchmark.tables", str(res / "runs" / "bench"), "--out", str(out),
+    t = subprocess.run([sys.executable, "-m", "benchmark.commands.tables", str(res / "runs" / "bench"), "--out", str(out),
                         "--table", "table3", "--table", "table4"], cwd=ROOT, env=env, capture_output=True, text=True)
     assert t.returncode == 0, t.stderr
     assert "Table IV" in t.stdout and (out / "table4.tex").exists()
     t4 = pd.read_csv(out / "table4.csv")
     assert len(t4) == 6 and (t4["n"] == 2).all()
-    f = subprocess.run([sys.executable, "-m", "benchmark.figures", "from-run", str(res / "runs" / "bench"),
+    f = subprocess.run([sys.executable, "-m", "benchmark.commands.figures", "from-run", str(res / "runs" / "bench"),
                         "--out", str(tmp_path / "figs")], cwd=ROOT, env=env, capture_output=True, text=True,
                        timeout=300)
     assert f.returncode == 0, f.stderr[-2000:]

@@ -9,10 +9,10 @@ torch = pytest.importorskip("torch")
 from hydra import compose, initialize_config_dir  # noqa: E402
 from hydra.utils import instantiate  # noqa: E402
 
-from benchmark.cache import safe_name  # noqa: E402
-from benchmark.run import CONF_DIR, run, stage_keys  # noqa: E402
-from envs.observation import Observation  # noqa: E402
-from envs.render_cache import write_observations  # noqa: E402
+from benchmark.harness.cache import safe_name  # noqa: E402
+from benchmark.harness.runner import CONF_DIR, run, stage_keys  # noqa: E402
+from envs.render.cache import write_observations  # noqa: E402
+from envs.render.observation import Observation  # noqa: E402
 
 
 def test_sweep_from_a_copied_ai2thor_render_cache(tmp_path):

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from benchmark.figures import DPI, figure_aggregators, figure_postprocess, figure_size, main
-from envs.classes import class_colors
-from envs.gridmap import GridMap
-from envs.scene import Scene
+from benchmark.commands.figures import main
+from benchmark.reports.figures import DPI, figure_aggregators, figure_postprocess, figure_size
+from envs.maps.gridmap import GridMap
+from envs.maps.scene import Scene
+from envs.world.classes import class_colors
 
 SMALLEST_SHARED = 71  # the shared house with the smallest map (fast)
 
@@ -25,8 +26,8 @@ def png_ok(path, map_shape, must_show=()):
 
 
 def test_fig3_and_fig4_commands_on_a_shared_house(procthor_file, tmp_path, capsys):
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
+    from envs.world.house import load_houses
 
     scene = rasterise_house(load_houses(procthor_file, SMALLEST_SHARED, SMALLEST_SHARED + 1)[0])
     present = np.unique(scene.semantic[scene.semantic >= 0])
@@ -53,7 +54,7 @@ def test_fig3_command_on_a_generated_house_with_overrides(tmp_path):
     assert rc == 0
     from hydra.utils import instantiate
 
-    from benchmark.figures import compose_config
+    from benchmark.reports.figures import compose_config
 
     cfg, _ = compose_config(["env=synthetic", "env.resolution=0.1"])
     env = instantiate(cfg.env)

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from maps import pose_at, two_rooms_scene
 
-from envs.floorplan import FloorplanRenderer, occluders, view_from
-from envs.scene import ObjectFootprint
+from envs.maps.scene import ObjectFootprint
+from envs.render.floorplan import FloorplanRenderer, occluders, view_from
 
 
 def _with_objects(scene):
@@ -61,7 +61,7 @@ def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
     rays (children with their parent)."""
     from test_raycast import reference_ray
 
-    from envs.raycast import cone_thetas
+    from envs.render.raycast import cone_thetas
 
     g = scene.grid
     h, w = g.shape
@@ -97,8 +97,8 @@ def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
 def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
     from benchmark.classifiers.oracle import OracleClassifier
     from benchmark.viewpoints import Autotrace
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
+    from envs.world.house import load_houses
 
     house = load_houses(procthor_file, 80, 81)[0]
     scene = rasterise_house(house, resolution=0.1)

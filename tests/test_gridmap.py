@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from envs.gridmap import GridMap, pixel_direction_to_yaw, yaw_to_pixel_direction
+from envs.maps.gridmap import GridMap, pixel_direction_to_yaw, yaw_to_pixel_direction
 
 
 def make(h=20, w=30, res=0.1, origin=(1.0, 5.0)):

@@ -4,8 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from envs.house import House, HouseError, iter_house_file, load_houses, validate_house
-from envs.scene import rasterise_house
+from envs.maps.scene import rasterise_house
+from envs.world.house import House, HouseError, iter_house_file, load_houses, validate_house
 
 
 def square_house():

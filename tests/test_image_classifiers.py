@@ -16,7 +16,7 @@ try:
 except ImportError:  # the core suite runs without torch: only the import test below runs
     torch = None
 
-from envs.observation import Observation
+from envs.render.observation import Observation
 
 needs_torch = pytest.mark.skipif(torch is None, reason="torch/torchvision not installed")
 REPO = Path(__file__).resolve().parents[1]
@@ -102,14 +102,16 @@ def test_cnn_shapes_batching_and_checkpoint_round_trip(tmp_path):
 
 @needs_torch
 def test_train_and_table1_commands_on_a_generated_image_folder(tmp_path, capsys):
-    from benchmark.classifiers import evaluate, train
+    from benchmark.classifiers import train
     from benchmark.classifiers.cnn import CNNClassifier
     from benchmark.classifiers.places import list_images, split
+    from benchmark.commands import evaluate
+    from benchmark.commands import train as train_cmd
 
     data = _image_folder(tmp_path / "data", 12)
     tiny = ["arch=resnet18", "pretrained=false", "image_size=32", "device=cpu", f"classes=[{','.join(CLASSES)}]"]
     ck = tmp_path / "cnn.pt"
-    rc = train.main(["--model", "cnn", "--data", str(data), "--out", str(ck), "--epochs", "3", "--batch-size", "8",
+    rc = train_cmd.main(["--model", "cnn", "--data", str(data), "--out", str(ck), "--epochs", "3", "--batch-size", "8",
                      "--lr", "1e-3", "--split-sizes", "8,2,2", "--workers", "0", *tiny])
     assert rc == 0 and ck.exists()
     hist = json.loads(train.history_path(ck).read_text())

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from envs.mapio import read_instance_png, read_label_png, write_label_png
+from envs.maps.label_png import read_instance_png, read_label_png, write_label_png
 
 CLASSES = ["balcony", "bathroom", "bedroom"]
 
@@ -48,10 +48,10 @@ def test_instance_png_with_blended_edge(tmp_path):
 
 
 def test_draw_house_shows_every_room_class(procthor_file, tmp_path):
-    from benchmark.draw_house import main
-    from envs.classes import class_colors
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+    from benchmark.commands.draw_house import main
+    from envs.maps.scene import rasterise_house
+    from envs.world.classes import class_colors
+    from envs.world.house import load_houses
 
     out = tmp_path / "house.png"
     assert main(["--houses", str(procthor_file), "--index", "3", "--out", str(out), "--resolution", "0.1"]) == 0

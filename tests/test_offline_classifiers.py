@@ -3,7 +3,7 @@ import pytest
 
 from benchmark.classifiers.objects import ObjectsClassifier
 from benchmark.classifiers.oracle import OracleClassifier, true_labels
-from envs.observation import Observation
+from envs.render.observation import Observation
 
 
 def _obs(n, rng):
@@ -75,7 +75,7 @@ def test_objects_classifier_table_is_naive_bayes_with_smoothing():
     assert clf.train_ids[0] == "synthetic-s100000" and len(clf.train_ids) == 10
     # recompute the table by hand from the room counts and check a prediction against it
     from benchmark.classifiers.objects import room_object_counts
-    from envs.synthetic import generate_house
+    from envs.datasets.synthetic import generate_house
 
     rooms, types = room_object_counts([generate_house(s) for s in range(100000, 100010)], clf.classes)
     seen = ["Bed", clf.types[0]]
@@ -95,9 +95,9 @@ def test_objects_classifier_table_is_naive_bayes_with_smoothing():
 
 def test_classifiers_on_rendered_views_share_the_interface(procthor_file):
     from benchmark.viewpoints import Autotrace
-    from envs.floorplan import FloorplanRenderer
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
+    from envs.render.floorplan import FloorplanRenderer
+    from envs.world.house import load_houses
 
     house = load_houses(procthor_file, 100, 101)[0]
     scene = rasterise_house(house, resolution=0.1)

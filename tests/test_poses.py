@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from envs.gridmap import GridMap, yaw_to_pixel_direction
-from envs.poses import (
+from envs.maps.gridmap import GridMap, yaw_to_pixel_direction
+from envs.maps.poses import (
     habitat_forward,
     habitat_phi_to_thor_yaw,
     habitat_quat_to_thor_yaw,
@@ -25,7 +25,7 @@ S = np.sqrt(0.5)
 
 
 def _rotate(q, v):
-    """v rotated by unit quaternion q = (w, x, y, z): q v q*, written out (independent of envs.poses)."""
+    """v rotated by unit quaternion q = (w, x, y, z): q v q*, written out (independent of envs.maps.poses)."""
     w, x, y, z = q
 
     def mul(a, b):

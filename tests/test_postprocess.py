@@ -18,7 +18,7 @@ from benchmark.postprocess import (
     remove_small_components,
     rescale,
 )
-from envs.gridmap import GridMap
+from envs.maps.gridmap import GridMap
 
 EIGHT = np.ones((3, 3), bool)
 
@@ -304,8 +304,8 @@ def test_label_orphan_components():
 
 
 def test_shared_houses_noisy_ground_truth(procthor_file):
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
+    from envs.world.house import load_houses
 
     pp = PostProcess()
     for i, h in enumerate(load_houses(procthor_file, 0, 4)):
@@ -369,7 +369,7 @@ def test_bad_input():
 
 
 def test_timing_helpers(procthor_file, tmp_path, capsys):
-    from benchmark.postprocess import main, time_postprocess, time_postprocess_job
+    from benchmark.commands.perf_postprocess import main, time_postprocess, time_postprocess_job
 
     rows = time_postprocess(procthor_file, houses=2, repeat=1)
     assert len(rows) == 2 and all(r["ms"] > 0 and r["agree_after"] > r["agree_before"] for r in rows)

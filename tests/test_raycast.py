@@ -1,4 +1,4 @@
-"""envs.raycast against a slow reference written from the definition of a digital line.
+"""envs.render.raycast against a slow reference written from the definition of a digital line.
 
 The reference does not share code or the error-term loop with the kernel: on every step
 along the line's major axis it takes the cell nearest the exact line (exact rational
@@ -13,7 +13,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from envs.raycast import cast_rays, cone_thetas, ray_end, trace_ray
+from envs.render.raycast import cast_rays, cone_thetas, ray_end, trace_ray
 
 
 def _nearest(exact: Fraction, step: int) -> int:

@@ -3,8 +3,8 @@ import shutil
 import numpy as np
 import pytest
 
-from envs.observation import Observation
-from envs.render_cache import is_complete, read_observations, read_poses, write_observations
+from envs.render.cache import is_complete, read_observations, read_poses, write_observations
+from envs.render.observation import Observation
 
 
 def _obs(rng):

@@ -16,8 +16,8 @@ import pandas as pd
 import pytest
 from hydra import compose, initialize_config_dir
 
-from benchmark.pipeline import expand_force
-from benchmark.run import CONF_DIR, run, select_houses
+from benchmark.harness.pipeline import expand_force
+from benchmark.harness.runner import CONF_DIR, run, select_houses
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["viewpoints.spacing=1.0", "env.resolution=0.1", "env.start=0"]
@@ -119,7 +119,7 @@ def test_killed_multirun_resumes_without_duplicates_or_losses(tmp_path, procthor
     """A real `-m` multirun from the shell, killed midway, then rerun to completion."""
     houses = _houses_file(tmp_path, procthor_file, n=4)
     res = tmp_path / "results"
-    cmd = [sys.executable, "-m", "benchmark.run", "-m", "env=procthor_shared", f"env.path={houses}",
+    cmd = [sys.executable, "-m", "benchmark.commands.bench", "-m", "env=procthor_shared", f"env.path={houses}",
            "classifier=oracle", "aggregator=graph_knn,euclidean_knn", "postprocess=none",
            f"run.results_dir={res}", "run.name=kill", "run.progress=false", "hydra/launcher=basic", *FAST]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -147,7 +147,7 @@ def test_killed_multirun_resumes_without_duplicates_or_losses(tmp_path, procthor
 
 
 def test_tables_match_hand_computed_means(tmp_path):
-    from benchmark.tables import render
+    from benchmark.reports.tables import render
 
     rows = pd.DataFrame({
         "house_id": ["h1", "h2", "h1", "h2", "h1", "h2"],

@@ -3,9 +3,9 @@
 import numpy as np
 
 from benchmark.baselines.external import score_directory, summary_table
+from benchmark.baselines.selros import selros_rows
 from benchmark.metrics import MetricParams
-from benchmark.selros_table import selros_rows
-from envs.mapio import read_instance_png
+from envs.maps.label_png import read_instance_png
 
 #: Room counts checked by eye on the ground-truth PNGs (viewed side by side: one flat colour
 #: region per room, thin blended edges ignored).

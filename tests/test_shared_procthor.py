@@ -5,7 +5,7 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
-from envs.house import floor_polygon
+from envs.world.house import floor_polygon
 
 
 def _door_graph(house, room_ids):

@@ -17,8 +17,8 @@ import types
 import numpy as np
 import pytest
 
-from envs.house import House
-from envs.poses import pose_to_habitat, vertical_fov
+from envs.maps.poses import pose_to_habitat, vertical_fov
+from envs.world.house import House
 
 # ---------------------------------------------------------------------------- AI2-THOR
 
@@ -154,7 +154,7 @@ def _house():
 def test_renderer_through_the_real_controller(thor):
     import ai2thor.platform
 
-    from envs.ai2thor_renderer import AI2THORRenderer
+    from envs.render.thor import AI2THORRenderer
 
     r = AI2THORRenderer(width=W, height=H, fov=90, horizon=10, platform="CloudRendering", commit_id="a" * 40)
     poses = np.array([[0.0, 0.0, 0.0], [0.25, 0.0, 90.0], [1.0, 1.0, 0.0], [0.5, 0.0, 180.0], [0.5, 99.0, 0.0]])
@@ -185,7 +185,7 @@ def test_renderer_through_the_real_controller(thor):
 
 
 def test_a_scene_name_is_loaded_by_name(thor):
-    from envs.ai2thor_renderer import AI2THORRenderer
+    from envs.render.thor import AI2THORRenderer
 
     r = AI2THORRenderer(width=W, height=H, agent_y=0.95)
     obs = r.render(House("ArchitecTHOR-Val-00", {"scene": "ArchitecTHOR-Val-00"}), None, np.array([[0.0, 0.0, 90.0]]))
@@ -200,13 +200,13 @@ def test_a_controller_that_cannot_start_says_so_in_one_line(monkeypatch):
     pytest.importorskip("ai2thor.controller")
     from ai2thor.controller import Controller
 
-    from envs.ai2thor_renderer import AI2THORRenderer
+    from envs.render.thor import AI2THORRenderer
 
     def no_build(self, *a, **k):
         raise ValueError("Invalid commit_id: abc - no build exists for arch=Linux platforms=CloudRendering\nmore")
 
     monkeypatch.setattr(Controller, "find_build", no_build)
-    with pytest.raises(RuntimeError, match="AI2-THOR could not start .*Invalid commit_id.*benchmark.doctor") as e:
+    with pytest.raises(RuntimeError, match="AI2-THOR could not start .*Invalid commit_id.*benchmark.commands.doctor") as e:
         AI2THORRenderer(commit_id="abc").render(_house(), None, np.zeros((1, 3)))
     assert "\n" not in str(e.value)
 
@@ -216,7 +216,7 @@ def test_controller_kwargs_match_the_real_signature():
     import ai2thor.controller
     import ai2thor.platform
 
-    from envs.ai2thor_renderer import controller_kwargs
+    from envs.render.thor import controller_kwargs
 
     kw = controller_kwargs({"rooms": []}, width=64, height=48, fov=90, platform="CloudRendering", commit_id="c" * 40,
                            quality="Ultra", gpu_device=0, local_executable_path="/opt/thor/thor.x86_64")
@@ -240,7 +240,7 @@ def test_platforms_and_build_folder():
     pytest.importorskip("ai2thor.build")
     import ai2thor.build
 
-    from envs.ai2thor_renderer import resolve_platform, thor_build_dir
+    from envs.render.thor import resolve_platform, thor_build_dir
 
     assert resolve_platform("auto", display=":0") == "Linux64"
     assert resolve_platform("auto", display="") == "CloudRendering"
@@ -251,7 +251,7 @@ def test_platforms_and_build_folder():
 
 
 def test_renderer_arguments_are_checked():
-    from envs.ai2thor_renderer import AI2THORRenderer
+    from envs.render.thor import AI2THORRenderer
 
     for bad, match in [({"fov": 180}, "fov"), ({"width": 0}, "image size"), ({"horizon": 120}, "horizon"),
                        ({"platform": "Win"}, "platform"), ({"grid_size": 0}, "grid_size"), ({"min_share": 1}, "min_share")]:
@@ -261,7 +261,7 @@ def test_renderer_arguments_are_checked():
 
 def test_visible_objects_options():
     pytest.importorskip("ai2thor.server")
-    from envs.ai2thor_renderer import visible_objects
+    from envs.render.thor import visible_objects
 
     ev = event({}, yaw=0)
     assert visible_objects(ev) == [("Bed", 0.5)]
@@ -271,7 +271,7 @@ def test_visible_objects_options():
 
 
 def test_reachable_positions_to_map():
-    from envs.ai2thor_renderer import reachable_grid
+    from envs.render.thor import reachable_grid
 
     pts = [{"x": 0.0, "y": 0.9, "z": 0.0}, {"x": 0.25, "y": 0.9, "z": 0.0}, {"x": 0.25, "y": 0.9, "z": 0.25}]
     g = reachable_grid(pts, 0.25, resolution=0.05, margin=0.0)
@@ -294,8 +294,8 @@ def _block_import(monkeypatch, prefix):
 
 
 @pytest.mark.parametrize("module,func,install", [
-    ("habitat_sim", "envs.habitat_renderer:require_habitat", "conda install habitat-sim"),
-    ("ai2thor", "envs.ai2thor_renderer:require_ai2thor", "pip install 'roomseg-bench[thor]'"),
+    ("habitat_sim", "envs.render.habitat:require_habitat", "conda install habitat-sim"),
+    ("ai2thor", "envs.render.thor:require_ai2thor", "pip install 'roomseg-bench[thor]'"),
 ])
 def test_a_missing_simulator_gives_one_line(monkeypatch, module, func, install):
     import importlib
@@ -311,7 +311,7 @@ def test_a_missing_simulator_gives_one_line(monkeypatch, module, func, install):
 # ---------------------------------------------------------------------------- Habitat-Sim
 
 def test_habitat_sensor_settings_by_hand():
-    from envs.habitat_renderer import sensor_settings
+    from envs.render.habitat import sensor_settings
 
     s = sensor_settings(320, 240, 90.0, 1.5, horizon=30.0, semantic=True)
     assert [x["uuid"] for x in s] == ["color", "semantic"] and [x["type"] for x in s] == ["COLOR", "SEMANTIC"]
@@ -325,8 +325,8 @@ def test_habitat_sensor_settings_by_hand():
 @pytest.mark.parametrize("mirror", ["z", "x"])
 def test_navmesh_topdown_orientation(mirror):
     """A navmesh pixel lands on the map pixel of the same world point, for both mirrors."""
-    from envs.habitat_renderer import topdown_to_gridmap
-    from envs.poses import habitat_to_thor_position
+    from envs.maps.poses import habitat_to_thor_position
+    from envs.render.habitat import topdown_to_gridmap
 
     top = np.zeros((4, 6), bool)
     top[0, 5] = True  # Habitat x = x_min + 5.5 res, z = z_min + 0.5 res
@@ -342,7 +342,7 @@ def test_navmesh_topdown_orientation(mirror):
 
 
 def test_semantic_objects_and_names(tmp_path):
-    from envs.habitat_renderer import load_semantic_names, semantic_objects
+    from envs.render.habitat import load_semantic_names, semantic_objects
 
     sem = np.zeros((4, 5), np.int32)
     sem[:2, :] = 12  # 10 px bed
@@ -360,7 +360,7 @@ def test_semantic_objects_and_names(tmp_path):
 
 
 def test_missing_dataset_gives_one_line(tmp_path):
-    from envs.habitat_renderer import check_dataset
+    from envs.render.habitat import check_dataset
 
     with pytest.raises(FileNotFoundError, match="hssd/ai2thor-hab.*ROOMSEG_HAB_DATASET") as e:
         check_dataset(tmp_path / "nope.json")
@@ -434,7 +434,7 @@ def _stand_in_habitat(navigable, recorded):
 
 
 def test_habitat_renderer_against_a_stand_in(monkeypatch, tmp_path):
-    from envs.habitat_renderer import HabitatRenderer
+    from envs.render.habitat import HabitatRenderer
 
     cfg = tmp_path / "ai2thor-hab" / "ai2thor-hab.scene_dataset_config.json"
     (cfg.parent / "configs").mkdir(parents=True)
@@ -468,7 +468,7 @@ def test_habitat_renderer_against_a_stand_in(monkeypatch, tmp_path):
 
 
 def test_habitat_arguments_are_checked():
-    from envs.habitat_renderer import HabitatRenderer
+    from envs.render.habitat import HabitatRenderer
 
     for bad, match in [({"fov": 0}, "fov"), ({"mirror": "y"}, "mirror"), ({"horizon": -100}, "horizon"),
                        ({"agent_radius": 0}, "agent_radius")]:
@@ -479,7 +479,7 @@ def test_habitat_arguments_are_checked():
 # ---------------------------------------------------------------------------- doctor
 
 def test_doctor_names_what_is_missing(capsys, tmp_path):
-    from benchmark.doctor import checks, main
+    from benchmark.commands.doctor import checks, main
 
     rows = {r[0]: r for r in checks(hab_dataset=str(tmp_path / "x.json"), annotations=str(tmp_path),
                                     shared=str(tmp_path))}
@@ -501,7 +501,7 @@ def test_doctor_names_what_is_missing(capsys, tmp_path):
 
 
 def test_doctor_fails_when_a_core_package_is_missing(monkeypatch, capsys):
-    import benchmark.doctor as doctor
+    import benchmark.commands.doctor as doctor
 
     monkeypatch.setattr(doctor, "CORE", doctor.CORE + ("no_such_package_xyz",))
     assert doctor.main([]) == 1
@@ -509,9 +509,9 @@ def test_doctor_fails_when_a_core_package_is_missing(monkeypatch, capsys):
 
 
 def test_ground_truth_carried_onto_a_reachable_positions_map(shared_houses):
-    from envs.ai2thor_renderer import reachable_grid
-    from envs.procthor import ProcTHOREnv
-    from envs.scene import rasterise_house, scene_on_grid
+    from envs.datasets.procthor import ProcTHOREnv
+    from envs.maps.scene import rasterise_house, scene_on_grid
+    from envs.render.thor import reachable_grid
 
     scene = rasterise_house(shared_houses[0])
     # reachable positions on a 0.25 m grid where the raster is walkable (as AI2-THOR would report)
@@ -533,7 +533,7 @@ def test_ground_truth_carried_onto_a_reachable_positions_map(shared_houses):
 
 def test_procthor_occupancy_from_the_renderer(thor, procthor_file):
     """env.occupancy=ai2thor asks the (stood-in) simulator for reachable positions."""
-    from envs.procthor import ProcTHOREnv
+    from envs.datasets.procthor import ProcTHOREnv
 
     env = ProcTHOREnv(path=str(procthor_file), stop=1, occupancy="ai2thor", thor={"width": W, "height": H})
     s = env.scene(env.house_ids()[0])
@@ -543,7 +543,7 @@ def test_procthor_occupancy_from_the_renderer(thor, procthor_file):
 
 def test_mirror_agreement_finds_the_convention():
     """An L-shaped navmesh built with mirror=z: AI2-THOR points agree with z, not with x."""
-    from envs.habitat_renderer import mirror_agreement
+    from envs.render.habitat import mirror_agreement
 
     res, lb = 0.1, (0.0, 0.0, -4.0)  # Habitat x in [0, 3], z in [-4, 0]
     top = np.zeros((40, 30), bool)
@@ -559,7 +559,7 @@ def test_mirror_agreement_finds_the_convention():
 
 
 def test_reachable_command_through_the_real_controller(thor, tmp_path, capsys):
-    from envs.ai2thor_renderer import main
+    from benchmark.commands.thor import main
 
     assert main(["reachable", "--scene", "ArchitecTHOR-Val-00", "--out", str(tmp_path / "p.json")]) == 0
     assert json.loads((tmp_path / "p.json").read_text()) == REACHABLE

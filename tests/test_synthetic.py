@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from envs.house import validate_house
-from envs.scene import ObjectFootprint, rasterise_house
-from envs.synthetic import SyntheticEnv, generate_house, house_id_for, seed_from_house_id
+from envs.datasets.synthetic import SyntheticEnv, generate_house, house_id_for, seed_from_house_id
+from envs.maps.scene import ObjectFootprint, rasterise_house
+from envs.world.house import validate_house
 
 SEEDS = range(500)
 
@@ -20,7 +20,7 @@ def houses():
 
 
 def _footprint(obj):
-    from envs.assets import asset_info
+    from envs.world.assets import asset_info
 
     a = asset_info(obj["assetId"])
     return ObjectFootprint(obj["id"], obj["assetId"], a.object_type, (obj["position"]["x"], obj["position"]["z"]),

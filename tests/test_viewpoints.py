@@ -6,7 +6,7 @@ from maps import l_grid, rect_grid, two_rooms_grid
 from scipy import ndimage
 
 from benchmark.viewpoints import Autotrace, FromFile, load_poses
-from envs.scene import Scene
+from envs.maps.scene import Scene
 
 
 @pytest.mark.parametrize("make", [rect_grid, l_grid, two_rooms_grid])
@@ -81,8 +81,8 @@ def test_autotrace_headings_spread_around_the_inward_normal():
 
 
 def test_autotrace_covers_every_room_of_shared_houses(procthor_file):
-    from envs.house import load_houses
-    from envs.scene import rasterise_house
+    from envs.maps.scene import rasterise_house
+    from envs.world.house import load_houses
 
     at = Autotrace(offset=0.5, spacing=1.0, n_headings=1)
     checked = 0

@@ -6,8 +6,8 @@ import logging
 
 import numpy as np
 
-from envs.gridmap import GridMap
-from envs.observation import poses_array
+from envs.maps.gridmap import GridMap
+from envs.render.observation import poses_array
 
 log = logging.getLogger(__name__)
 

@@ -16,7 +16,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from benchmark.aggregators.common import view_cells, vote_neighbours
-from envs.gridmap import GridMap
+from benchmark.interfaces import Aggregator
+from envs.maps.gridmap import GridMap
 
 
 def euclidean_neighbours(rows: np.ndarray, cols: np.ndarray, cells: np.ndarray, k: int) -> np.ndarray:
@@ -56,7 +57,7 @@ def euclidean_neighbours(rows: np.ndarray, cols: np.ndarray, cells: np.ndarray, 
     return out
 
 
-class EuclideanKNN:
+class EuclideanKNN(Aggregator):
     """Args: k: neighbours; weighting: "majority" or "probability"."""
 
     def __init__(self, k: int = 5, weighting: str = "majority"):

@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit
 
 from benchmark.aggregators.common import view_cells, vote_neighbours
-from envs.gridmap import GridMap
+from benchmark.interfaces import Aggregator
+from envs.maps.gridmap import GridMap
 
 _D4 = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
 _D8 = np.array([[-1, 0], [1, 0], [0, -1], [0, 1], [-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=np.int64)
@@ -99,7 +100,7 @@ def knn_neighbours(walkable: np.ndarray, rows: np.ndarray, cols: np.ndarray, k: 
                     np.asarray(cols, np.int64), int(k), offs, slots, cnt)
 
 
-class GraphKNN:
+class GraphKNN(Aggregator):
     """Graph KNN aggregator.
 
     Args:

@@ -17,8 +17,8 @@ from scipy.sparse import csgraph
 from benchmark.aggregators.common import view_cells, vote_neighbours
 from benchmark.aggregators.graph_knn import neighbour_offsets
 from benchmark.aggregators.vision_cone import window_mode
-from envs.gridmap import GridMap
-from envs.raycast import cone_thetas
+from envs.maps.gridmap import GridMap
+from envs.render.raycast import cone_thetas
 
 
 def grid_graph(walkable: np.ndarray, connectivity: int) -> tuple[sp.csr_matrix, np.ndarray]:

@@ -9,8 +9,8 @@ prediction gives a ``failed`` row naming the file, so no map is silently dropped
 predictions with no ground truth are reported as unpaired.
 
 **Formats.** ``"instance"``: one colour per room, black not walkable, read with
-:func:`envs.mapio.read_instance_png` (the SeLRoS release, VRF, ROSE²); ``"label"``: a
-class-coloured label PNG with its sidecar, read with :func:`envs.mapio.read_label_png` (its
+:func:`envs.maps.label_png.read_instance_png` (the SeLRoS release, VRF, ROSE²); ``"label"``: a
+class-coloured label PNG with its sidecar, read with :func:`envs.maps.label_png.read_label_png` (its
 segments are the connected regions of one class, as for our own label maps).
 
 **Resolution.** ``resolution`` is the ground truth's metres per pixel. A prediction at
@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.metrics import MetricParams, describe, resample_nearest, score_instances, segments
-from envs.mapio import DEFAULT_MIN_PIXELS, read_instance_png, read_label_png
+from envs.maps.label_png import DEFAULT_MIN_PIXELS, read_instance_png, read_label_png
 
 #: Metric columns every row has (NaN on a failed row).
 METRIC_COLUMNS = ("iou", "precision", "recall", "accuracy", "n_pred_segments", "n_gt_segments")
@@ -108,7 +108,7 @@ def read_map(path: str | Path, fmt: str = "instance", min_pixels: int = DEFAULT_
 
     Args:
         fmt: ``"instance"`` (colour per room) or ``"label"`` (class colours with sidecar).
-        min_pixels: instance maps only: colours on fewer pixels are anti-aliasing (envs.mapio).
+        min_pixels: instance maps only: colours on fewer pixels are anti-aliasing (envs.maps.label_png).
     """
     if fmt == "instance":
         return read_instance_png(path, min_pixels=min_pixels)
@@ -185,7 +185,7 @@ def score_directory(
         method: method name for the ``method`` column.
         params: metric parameters.
         dataset: value of the ``dataset`` column.
-        min_pixels: colours on fewer pixels are anti-aliasing (see envs.mapio).
+        min_pixels: colours on fewer pixels are anti-aliasing (see envs.maps.label_png).
         resolution, pred_resolution: metres per pixel of the ground truth and predictions.
         gt_format, pred_format: ``"instance"`` or ``"label"``.
     Predictions whose id has no ground truth are listed in ``df.attrs["unpaired"]``.

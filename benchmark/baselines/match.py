@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import fftconvolve
 
-from envs.house import House
-from envs.scene import rasterise_house
+from envs.maps.scene import rasterise_house
+from envs.world.house import House
 
 
 def downsample_mask(mask: np.ndarray, factor: int) -> np.ndarray:

@@ -16,7 +16,8 @@ from benchmark.classifiers.torch_common import (
     pick_device,
     require_torch,
 )
-from envs.classes import PAPER_CLASSES
+from benchmark.interfaces import Classifier
+from envs.world.classes import PAPER_CLASSES
 
 
 def build_resnet(arch: str, n_classes: int, pretrained: bool):
@@ -44,7 +45,7 @@ def build_resnet(arch: str, n_classes: int, pretrained: bool):
     return model
 
 
-class CNNClassifier:
+class CNNClassifier(Classifier):
     """Args:
         classes: ordered class names (the head's outputs).
         checkpoint: fine-tuned weights (``train --model cnn``); required unless
@@ -65,7 +66,7 @@ class CNNClassifier:
         self.batch_size, self.image_size = int(batch_size), int(image_size)
         if checkpoint is None and not allow_untrained:
             raise ValueError("classifier.checkpoint is not set: fine-tune first with "
-                             "python -m benchmark.classifiers.train --model cnn ...")
+                             "python -m benchmark.commands.train --model cnn ...")
         self.model = build_resnet(arch, len(self.classes), pretrained and checkpoint is None)
         if checkpoint is not None:
             load_checkpoint(checkpoint, self.model, self.classes, expect={"arch": arch})

@@ -23,7 +23,8 @@ from benchmark.classifiers.torch_common import (
     require_torch,
     require_transformers,
 )
-from envs.classes import PAPER_CLASSES
+from benchmark.interfaces import Classifier
+from envs.world.classes import PAPER_CLASSES
 
 
 def build_backbone(backbone: str, backbone_config: dict | None = None):
@@ -65,7 +66,7 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "backbone"
 
 
-class DinoV2Classifier:
+class DinoV2Classifier(Classifier):
     """Args:
         classes: ordered class names (the head's outputs).
         head_checkpoint: trained MLP head (``train --model dinov2``); required unless
@@ -87,7 +88,7 @@ class DinoV2Classifier:
         self.hidden = [int(h) for h in hidden]
         if head_checkpoint is None and not allow_untrained:
             raise ValueError("classifier.head_checkpoint is not set: train the MLP head first with "
-                             "python -m benchmark.classifiers.train --model dinov2 ...")
+                             "python -m benchmark.commands.train --model dinov2 ...")
         cfg = dict(backbone_config) if backbone_config else None
         self.backbone_name = backbone if cfg is None else "config-" + hashlib.sha1(
             json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:12]

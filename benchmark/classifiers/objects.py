@@ -10,20 +10,20 @@ that sees no known object gets the prior and is flagged in ``last_flags``.
 The training houses are named in the config and must not overlap the evaluated houses:
 :meth:`ObjectsClassifier.setup` refuses to run when they do.
 
-``python -m benchmark.classifiers.objects --train 0:75 --eval 75:150`` reports per-view
+``python -m benchmark.commands.objects_accuracy --train 0:75 --eval 75:150`` reports per-view
 accuracy against the oracle's true label on the shared ProcTHOR houses.
 """
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
 
 import numpy as np
 
-from envs.classes import PAPER_CLASSES
-from envs.house import House, iter_house_file
-from envs.scene import ObjectFootprint, rasterise_house
+from benchmark.interfaces import Classifier
+from envs.maps.scene import ObjectFootprint, rasterise_house
+from envs.world.classes import PAPER_CLASSES
+from envs.world.house import House, iter_house_file
 
 
 def room_object_counts(houses: Sequence[House], classes: Sequence[str], resolution: float = 0.1):
@@ -49,13 +49,13 @@ def _types(o: ObjectFootprint) -> tuple[str, ...]:
     return (o.object_type, *o.children)
 
 
-class ObjectsClassifier:
+class ObjectsClassifier(Classifier):
     """Naive Bayes over visible object types.
 
     Args:
         train_path: house file (.json/.jsonl/.jsonl.gz) with training houses, or None.
         train_start, train_stop: index range of the training houses in that file.
-        train_synthetic: [first, last) seeds of generated training houses (envs.synthetic),
+        train_synthetic: [first, last) seeds of generated training houses (envs.datasets.synthetic),
             or None. At least one source must be given; both are combined.
         alpha: Laplace smoothing.
         classes: the ordered class names.
@@ -74,7 +74,7 @@ class ObjectsClassifier:
                 if i >= train_start:
                     houses.append(h)
         if train_synthetic:
-            from envs.synthetic import generate_house
+            from envs.datasets.synthetic import generate_house
 
             houses += [generate_house(s) for s in range(int(train_synthetic[0]), int(train_synthetic[1]))]
         if not houses:
@@ -108,50 +108,6 @@ class ObjectsClassifier:
         scores -= scores.max(axis=1, keepdims=True)
         p = np.exp(scores)
         return p / p.sum(axis=1, keepdims=True)
-
-
-def main(argv: list[str] | None = None) -> int:
-    import os
-    from pathlib import Path
-
-    from benchmark.classifiers.oracle import true_labels
-    from benchmark.viewpoints import Autotrace
-    from envs.floorplan import FloorplanRenderer
-    from envs.house import load_houses
-
-    default = Path(os.environ.get("ROOMSEG_SHARED_DATA", "../shared/data")) / "procthor/procthor-10k-uniform-hard-val.jsonl.gz"
-    ap = argparse.ArgumentParser(description="objects classifier per-view accuracy vs the oracle's true label")
-    ap.add_argument("--houses", type=Path, default=default)
-    ap.add_argument("--train", default="0:75", help="training index range a:b")
-    ap.add_argument("--eval", default="75:150", help="evaluation index range a:b")
-    ap.add_argument("--synthetic", type=int, nargs=2, default=None, metavar=("FIRST", "LAST"),
-                    help="also train on generated houses with seeds [FIRST, LAST)")
-    a = ap.parse_args(argv)
-    t0, t1 = map(int, a.train.split(":"))
-    e0, e1 = map(int, a.eval.split(":"))
-    clf = ObjectsClassifier(str(a.houses), t0, t1, train_synthetic=a.synthetic)
-    houses = load_houses(a.houses, e0, e1)
-    clf.setup([h.id for h in houses])
-    renderer, vp = FloorplanRenderer(), Autotrace()
-    correct = total = prior_only = 0
-    for h in houses:
-        scene = rasterise_house(h)
-        obs = renderer.render(h, scene, vp.generate(scene))
-        truth = true_labels(obs)
-        pred = clf.predict_proba(obs).argmax(1)
-        m = truth >= 0
-        correct += int((pred[m] == truth[m]).sum())
-        total += int(m.sum())
-        prior_only += int(clf.last_flags.sum())
-    src = f"houses [{a.train}]" + (f" + generated seeds [{a.synthetic[0]}, {a.synthetic[1]})" if a.synthetic else "")
-    print(f"objects classifier trained on {src}, evaluated on [{a.eval}] ({len(houses)} houses): "
-          f"per-view accuracy {correct / max(total, 1):.4f} over {total} views; {prior_only} views saw no "
-          f"known object (prior only)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
 
 
 __all__ = ["ObjectsClassifier", "room_object_counts"]

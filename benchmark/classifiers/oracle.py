@@ -16,7 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from envs.classes import PAPER_CLASSES
+from benchmark.interfaces import Classifier
+from envs.world.classes import PAPER_CLASSES
 
 
 def true_labels(observations: Sequence) -> np.ndarray:
@@ -32,7 +33,7 @@ def true_labels(observations: Sequence) -> np.ndarray:
     return out
 
 
-class OracleClassifier:
+class OracleClassifier(Classifier):
     """Ground-truth labels with a controlled error rate.
 
     Args:

@@ -177,7 +177,7 @@ def load_checkpoint(path: str | Path, model, classes: Sequence[str], expect: dic
     torch = require_torch()
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"checkpoint not found: {path} (train one with python -m benchmark.classifiers.train)")
+        raise FileNotFoundError(f"checkpoint not found: {path} (train one with python -m benchmark.commands.train)")
     try:
         ck = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:

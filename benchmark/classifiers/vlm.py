@@ -37,7 +37,8 @@ from benchmark.classifiers.torch_common import (
     require_transformers,
     resolve_dtype,
 )
-from envs.classes import PAPER_CLASSES
+from benchmark.interfaces import Classifier
+from envs.world.classes import PAPER_CLASSES
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +95,7 @@ def load_vlm(model_id: str, load_in_4bit: bool, device: str, dtype: str, max_pix
     return model.eval(), processor
 
 
-class VLMClassifier:
+class VLMClassifier(Classifier):
     """Args:
         classes: the ordered class names (their display names go into the prompt).
         model_id: Hugging Face id or local folder of the VLM.

@@ -1,0 +1,29 @@
+"""``python -m benchmark.commands.draw_house``: the command-line front of :mod:`benchmark.reports.draw_house`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from benchmark.reports.draw_house import draw_scene
+from envs.maps.scene import rasterise_house
+from envs.world.house import load_houses
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="draw one house's map and ground truth")
+    ap.add_argument("--houses", type=Path, required=True, help=".json/.jsonl/.jsonl.gz house file")
+    ap.add_argument("--index", type=int, default=0)
+    ap.add_argument("--resolution", type=float, default=0.05, help="metres per pixel")
+    ap.add_argument("--out", type=Path, default=Path("house.png"))
+    a = ap.parse_args(argv)
+    houses = load_houses(a.houses, a.index, a.index + 1)
+    if not houses:
+        ap.error(f"{a.houses} has no house at index {a.index}")
+    draw_scene(rasterise_house(houses[0], resolution=a.resolution), a.out)
+    print(a.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

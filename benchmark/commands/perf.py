@@ -1,0 +1,139 @@
+"""``make perf``: time the aggregators and post-processing against their references.
+
+For each shared ProcTHOR house (first ``--houses``), each generated house (first
+``--synthetic`` of :class:`envs.datasets.synthetic.SyntheticEnv`) and each resolution, autotrace poses
+with random class probabilities are aggregated by the fast implementation and by its
+slow reference (graph KNN: one SciPy csgraph BFS per viewpoint; vision cone: a per-ray
+Python loop), on the *same* views, in the same process; the labels must be identical.
+The per-ray Python reference is very slow, so it runs on the first ``--cone-ref-views``
+views only and the fast version is timed again on exactly those views for the ratio.
+Euclidean KNN (no reference) is timed alongside. Prints per-house medians, the speed-up
+ratios, and peak traced memory (tracemalloc: Python and NumPy allocations, including the
+map-sized work arrays the numba kernels fill), also as bytes per map pixel: constant across
+resolutions means linear in the map size.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmark.paths import procthor_houses
+
+
+def _timed(fn, *args, repeat: int = 3):
+    """(result, best wall time in seconds over ``repeat`` calls)."""
+    best = float("inf")
+    out = None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn(*args)
+        best = min(best, time.perf_counter() - t)
+    return out, best
+
+
+def _peak(fn, *args) -> int:
+    tracemalloc.start()
+    fn(*args)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return peak
+
+
+def _scenes(path: Path, houses: int, synthetic: int, res: float):
+    """(dataset, house id, Scene) for the shared ProcTHOR houses and the generated ones."""
+    from envs.datasets.synthetic import SyntheticEnv
+    from envs.maps.scene import rasterise_house
+    from envs.world.house import load_houses
+
+    if houses > 0:
+        for h in load_houses(path, 0, houses):
+            yield "procthor shared", h.id, rasterise_house(h, resolution=res)
+    if synthetic > 0:
+        env = SyntheticEnv(n_houses=synthetic, resolution=res)
+        for hid in env.house_ids():
+            yield "synthetic", hid, env.scene(hid)
+
+
+def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: int, path: Path) -> pd.DataFrame:
+    from benchmark.aggregators.euclidean_knn import EuclideanKNN
+    from benchmark.aggregators.graph_knn import GraphKNN
+    from benchmark.aggregators.reference import graph_knn_reference, vision_cone_reference
+    from benchmark.aggregators.vision_cone import VisionCone
+    from benchmark.postprocess import PostProcess
+    from benchmark.viewpoints import Autotrace
+
+    rows = []
+    knn, cone, eu, pp = GraphKNN(k=5), VisionCone(), EuclideanKNN(k=5), PostProcess()
+    for res in resolutions:
+        for dataset, hid, s in _scenes(path, houses, synthetic, res):
+            poses = Autotrace().generate(s)
+            proba = np.random.default_rng(0).dirichlet(np.ones(7), len(poses))
+            knn(s.grid, poses[:5], proba[:5])  # compile once
+            lab, t_knn = _timed(knn, s.grid, poses, proba)
+            ref, t_knn_ref = _timed(graph_knn_reference, s.grid, poses, proba, 5, repeat=1)
+            cone_lab, t_cone = _timed(cone, s.grid, poses, proba)
+            sub = slice(0, cone_ref_views)
+            small, t_cone_sub = _timed(cone, s.grid, poses[sub], proba[sub])
+            cref, t_cone_ref = _timed(vision_cone_reference, s.grid, poses[sub], proba[sub], repeat=1)
+            _, t_eu = _timed(eu, s.grid, poses, proba)
+            post, t_pp = _timed(pp, cone_lab, s.grid)
+            h_, w_ = s.grid.shape
+            knn_peak, cone_peak = _peak(knn, s.grid, poses, proba), _peak(cone, s.grid, poses, proba)
+            rows.append({
+                "dataset": dataset, "resolution": res, "house": hid, "pixels": h_ * w_, "views": len(poses),
+                "knn_ms": 1e3 * t_knn, "knn_ref_ms": 1e3 * t_knn_ref, "knn_speedup": t_knn_ref / t_knn,
+                "knn_equal": bool(np.array_equal(lab, ref)),
+                "cone_ms": 1e3 * t_cone, "cone_speedup": t_cone_ref / t_cone_sub,
+                "cone_equal": bool(np.array_equal(small, cref)), "eu_ms": 1e3 * t_eu, "postprocess_ms": 1e3 * t_pp,
+                "knn_peak_MB": knn_peak / 2**20, "cone_peak_MB": cone_peak / 2**20,
+                "knn_B_px": knn_peak / (h_ * w_), "cone_B_px": cone_peak / (h_ * w_),
+                "pp_peak_MB": _peak(pp, cone_lab, s.grid) / 2**20,
+            })
+            print(f"{res} m/px {hid}: knn {1e3 * t_knn:.1f} ms (x{t_knn_ref / t_knn:.0f}), "
+                  f"cone {1e3 * t_cone:.1f} ms (x{t_cone_ref / t_cone_sub:.0f}), euclidean {1e3 * t_eu:.1f} ms, "
+                  f"post {1e3 * t_pp:.1f} ms", flush=True)
+    return pd.DataFrame(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    default = procthor_houses()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--houses", type=int, default=5, help="shared ProcTHOR houses (0: none)")
+    ap.add_argument("--synthetic", type=int, default=3, help="generated houses (0: none)")
+    ap.add_argument("--resolutions", type=float, nargs="+", default=[0.05, 0.02])
+    ap.add_argument("--cone-ref-views", type=int, default=20)
+    ap.add_argument("--data", type=Path, default=default)
+    a = ap.parse_args(argv)
+    if a.houses > 0 and not a.data.exists():
+        print(f"error: shared ProcTHOR houses not found at {a.data} (pass --houses 0 for generated houses only)")
+        return 2
+    df = run(a.houses, a.synthetic, a.resolutions, a.cone_ref_views, a.data)
+    g = df.groupby(["dataset", "resolution"])
+    table = pd.DataFrame({
+        "houses": g.size(), "median pixels": g["pixels"].median(), "median views": g["views"].median(),
+        "graph KNN ms": g["knn_ms"].median(), "csgraph BFS ref ms": g["knn_ref_ms"].median(),
+        "KNN speed-up": g["knn_speedup"].median(), "KNN identical": g["knn_equal"].all(),
+        "vision cone ms": g["cone_ms"].median(), "cone speed-up": g["cone_speedup"].median(),
+        "cone identical": g["cone_equal"].all(), "Euclidean KNN ms": g["eu_ms"].median(),
+        "post-process ms": g["postprocess_ms"].median(),
+        "KNN peak MB": g["knn_peak_MB"].median(), "cone peak MB": g["cone_peak_MB"].median(),
+        "KNN B/px": g["knn_B_px"].median(), "cone B/px": g["cone_B_px"].median(),
+        "post peak MB": g["pp_peak_MB"].median(),
+    }).reset_index()
+    table["resolution"] = table["resolution"].map(lambda r: f"{r:g} m/px")
+    print()
+    print(table.to_markdown(index=False, floatfmt=".1f"))
+    print(f"\nMedians over houses. Speed-ups measured in this run on the same inputs (cone: the first "
+          f"{a.cone_ref_views} views). Times: best of 3 calls per house. Peak: tracemalloc (Python/NumPy "
+          f"allocations, incl. the numba kernels' work arrays).")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

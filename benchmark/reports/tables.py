@@ -1,0 +1,216 @@
+"""Per-house metrics tables -> the paper's tables (Markdown, CSV, LaTeX) and the sensitivity plot.
+
+``python -m benchmark.commands.tables RUN_DIR [RUN_DIR ...] [--table table4] [--out DIR]``
+
+Reads every ``metrics.csv`` under the given folders (runs of :mod:`benchmark.harness.runner`, or
+per-map tables of the baselines), keeps successful rows, and reports mean and standard
+deviation over houses per table cell, with the number of houses and of failed houses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmark.harness.cache import atomic_write_text
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """How to group a per-house table into one of the paper's tables.
+
+    ``rows``/``cols`` are row columns grouped into table rows and table columns; ``metrics``
+    are averaged over houses; ``where`` keeps rows whose column equals (or is in) a value;
+    ``exclude`` drops rows whose column equals a value.
+    """
+
+    title: str
+    rows: tuple[str, ...]
+    cols: tuple[str, ...] = ()
+    metrics: tuple[str, ...] = ("iou", "accuracy")
+    where: dict = field(default_factory=dict)
+    exclude: dict = field(default_factory=dict)
+
+
+TABLES: dict[str, TableSpec] = {
+    "table2": TableSpec("Table II: viewpoint strategies (no post-processing)",
+                        rows=("dataset", "classifier", "aggregator"), cols=("viewpoints",),
+                        where={"postprocess": "none"}, exclude={"segmenter_row": True}),
+    "table3": TableSpec("Table III: post-processing, mean over all classifier x aggregator combinations",
+                        rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True}),
+    "table4": TableSpec("Table IV: classifier x aggregator per dataset (with post-processing)",
+                        rows=("classifier", "aggregator"), cols=("dataset",),
+                        exclude={"postprocess": "none", "segmenter_row": True}),
+    "table5": TableSpec("Table V: comparison with baselines", rows=("dataset", "method"),
+                        metrics=("iou", "precision", "recall", "accuracy")),
+    "sensitivity": TableSpec("Sensitivity to classifier accuracy (oracle)",
+                             rows=("oracle_accuracy",), cols=("aggregator", "postprocess"),
+                             exclude={"segmenter_row": True}),
+    "all": TableSpec("Every configuration", rows=("dataset", "method"),
+                     metrics=("iou", "precision", "recall", "accuracy")),
+}
+
+
+def find_metric_files(paths: Sequence[str | Path]) -> list[Path]:
+    """Every ``metrics.csv`` at or under ``paths`` (a path may also be a CSV file itself)."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_file():
+            out.append(p)
+        elif p.is_dir():
+            out.extend(sorted(p.rglob("metrics.csv")))
+        else:
+            raise FileNotFoundError(f"no run folder or metrics file at {p}")
+    if not out:
+        raise FileNotFoundError(f"no metrics.csv under {[str(p) for p in paths]}")
+    return out
+
+
+def method_label(row: pd.Series) -> str:
+    """A row's method name: an explicit ``method``, a segmenter, or classifier+aggregator+post."""
+    if isinstance(row.get("method"), str) and row.get("method"):
+        return row["method"]
+    if isinstance(row.get("segmenter"), str) and row.get("segmenter"):
+        return row["segmenter"]
+    parts = [str(row.get(k, "")) for k in ("classifier", "aggregator")]
+    acc = row.get("oracle_accuracy")
+    if isinstance(acc, float) and not np.isnan(acc):
+        parts[0] += f"@{acc:g}"
+    post = str(row.get("postprocess", ""))
+    return "+".join(p for p in parts if p) + (" +post" if post and post != "none" else "")
+
+
+def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
+    """All rows of all metrics files, with a ``method`` and a ``segmenter_row`` column."""
+    frames = []
+    for f in find_metric_files(paths):
+        df = pd.read_csv(f, keep_default_na=True)
+        df["source"] = str(f)
+        frames.append(df)
+    df = pd.concat(frames, ignore_index=True)
+    for col in ("classifier", "aggregator", "postprocess", "viewpoints", "segmenter", "dataset"):
+        if col not in df:
+            df[col] = ""
+        df[col] = df[col].astype("string").fillna("").astype(str)
+    if "status" not in df:
+        df["status"] = "ok"
+    df["method"] = df.apply(method_label, axis=1)
+    df["segmenter_row"] = df["segmenter"].str.len() > 0
+    return df
+
+
+def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
+    """Mean, std and count over houses per (rows, cols) cell; ``n_failed`` per cell too."""
+    sel = df
+    for k, v in spec.where.items():
+        if k in sel:
+            sel = sel[sel[k].isin(v if isinstance(v, list | tuple) else [v])]
+    for k, v in spec.exclude.items():
+        if k in sel:
+            sel = sel[sel[k] != v]
+    keys = [c for c in (*spec.rows, *spec.cols) if c in sel]
+    if sel.empty or not keys:
+        return pd.DataFrame()
+    ok = sel[sel["status"] == "ok"]
+    metrics = [m for m in spec.metrics if m in ok]
+    g = ok.groupby(keys, dropna=False)[metrics]
+    out = pd.concat({"mean": g.mean(), "std": g.std(ddof=1), }, axis=1)
+    out.columns = [f"{m}_{s}" for s, m in out.columns]
+    out["n"] = ok.groupby(keys, dropna=False).size()
+    out["n_failed"] = sel[sel["status"] != "ok"].groupby(keys, dropna=False).size()
+    out["n_failed"] = out["n_failed"].fillna(0).astype(int)
+    return out.reset_index()
+
+
+def format_cells(summary: pd.DataFrame, spec: TableSpec, percent: bool = True) -> pd.DataFrame:
+    """Wide display table: one cell per (row, col, metric) as ``mean ± std`` (percent)."""
+    if summary.empty:
+        return summary
+    scale = 100.0 if percent else 1.0
+    metrics = [m for m in spec.metrics if f"{m}_mean" in summary]
+    disp = summary.copy()
+    for m in metrics:
+        mean, std = disp[f"{m}_mean"] * scale, disp[f"{m}_std"] * scale
+        disp[m] = [("–" if np.isnan(a) else (f"{a:.2f}" if np.isnan(s) else f"{a:.2f} ± {s:.2f}"))
+                   for a, s in zip(mean, std)]
+    disp["houses"] = [f"{n}" + (f" ({f} failed)" if f else "") for n, f in zip(disp["n"], disp["n_failed"])]
+    rows = [c for c in spec.rows if c in disp]
+    cols = [c for c in spec.cols if c in disp]
+    value_cols = [*metrics, "houses"]
+    if not cols:
+        return disp[rows + value_cols]
+    wide = disp.pivot_table(index=rows, columns=cols, values=value_cols, aggfunc="first")
+    wide.columns = [" | ".join(str(x) for x in (c[1:] if len(c) > 1 else ()) ) + f" {c[0]}" for c in wide.columns]
+    wide = wide[sorted(wide.columns)]
+    return wide.reset_index()
+
+
+def metric_notes(df: pd.DataFrame) -> list[str]:
+    """The metric parameter lines of the rows (printed beside every table)."""
+    if "metric_params" not in df:
+        return []
+    return sorted({str(v) for v in df["metric_params"].dropna().unique()})
+
+
+def render(paths: Sequence[str | Path], tables: Sequence[str], out_dir: Path | None = None,
+           percent: bool = True) -> str:
+    """Markdown text of the requested tables; with ``out_dir`` also write .md/.csv/.tex each."""
+    df = load_rows(paths)
+    chunks = []
+    for name in tables:
+        if name not in TABLES:
+            raise ValueError(f"unknown table {name!r}; expected one of {sorted(TABLES)}")
+        spec = TABLES[name]
+        summ = summarise(df, spec)
+        if summ.empty:
+            chunks.append(f"### {spec.title}\n\n(no rows for this table in {len(df)} rows read)\n")
+            continue
+        disp = format_cells(summ, spec, percent)
+        notes = metric_notes(df)
+        md = f"### {spec.title}\n\n" + disp.to_markdown(index=False) + "\n\n" + (
+            "Mean ± std over houses, in percent. " if percent else "Mean ± std over houses. ") + (
+            "Metrics: " + "; ".join(notes) if notes else "") + "\n"
+        chunks.append(md)
+        if out_dir is not None:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(out_dir / f"{name}.md", md)
+            atomic_write_text(out_dir / f"{name}.csv", summ.to_csv(index=False))
+            atomic_write_text(out_dir / f"{name}.tex", disp.to_latex(index=False, escape=True))
+        if name == "sensitivity" and out_dir is not None:
+            plot_sensitivity(summ, out_dir / "sensitivity.png")
+    failed = df[df["status"] != "ok"]
+    if len(failed):
+        reasons = failed["error"].fillna("").str.split(":").str[0].value_counts()
+        chunks.append(f"{len(failed)} of {len(df)} rows failed: " +
+                      ", ".join(f"{k} x{v}" for k, v in reasons.items()) + "\n")
+    return "\n".join(chunks)
+
+
+def plot_sensitivity(summary: pd.DataFrame, path: Path) -> None:
+    """IoU and pixel accuracy (mean ± std over houses) against the oracle's accuracy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
+    groups = [c for c in ("aggregator", "postprocess") if c in summary]
+    for key, g in summary.groupby(groups):
+        g = g.sort_values("oracle_accuracy")
+        label = " + ".join(str(k) for k in (key if isinstance(key, tuple) else (key,)))
+        for ax, m in zip(axes, ("iou", "accuracy")):
+            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=g[f"{m}_std"] * 100,
+                        marker="o", capsize=3, label=label)
+    for ax, m in zip(axes, ("IoU (%)", "pixel accuracy (%)")):
+        ax.set_xlabel("classifier (oracle) accuracy (%)")
+        ax.set_ylabel(m)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

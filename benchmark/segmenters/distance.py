@@ -1,0 +1,38 @@
+"""Distance-transform segmentation (``segmenter=distance``): sweep a threshold over the
+distance-to-obstacle map, keep the one with the most room-sized parts as seeds."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from benchmark.interfaces import Segmenter
+from benchmark.segmenters.common import FOUR, check_area_limits, grow_seeds
+from envs.maps.gridmap import GridMap
+
+
+class DistanceTransform(Segmenter):
+    """Threshold sweep on the distance map.
+
+    Args: min_area: smallest seed, square metres; max_area: largest room (seeds above it are
+    still kept: no smaller split exists at that threshold); step: threshold step, metres.
+    """
+
+    def __init__(self, min_area: float = 0.5, max_area: float = 60.0, step: float = 0.05):
+        self.min_area, self.max_area, self.step = min_area, max_area, step
+
+    def __call__(self, grid: GridMap) -> np.ndarray:
+        lo, _ = check_area_limits(grid, self.min_area, self.max_area)
+        dist = ndimage.distance_transform_edt(grid.walkable) * grid.resolution
+        best, best_seeds = -1, None
+        for t in np.arange(0.0, dist.max(), max(self.step, grid.resolution)):
+            lab, n = ndimage.label(dist > t, FOUR)
+            sizes = np.bincount(lab.ravel())
+            keep = np.nonzero(sizes[1:] >= lo)[0] + 1
+            if len(keep) > best:
+                best = len(keep)
+                seeds = np.zeros(grid.shape, np.int32)
+                for j, i in enumerate(keep):
+                    seeds[lab == i] = j + 1
+                best_seeds = seeds
+        return grow_seeds(best_seeds, grid.walkable)

@@ -1,0 +1,48 @@
+"""Morphological segmentation (``segmenter=morphological``): erode the free space until rooms
+break off, record them as seeds, grow them back (see :mod:`benchmark.segmenters.common`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from benchmark.interfaces import Segmenter
+from benchmark.segmenters.common import FOUR, check_area_limits, grow_seeds
+from envs.maps.gridmap import GridMap
+
+
+class Morphological(Segmenter):
+    """Erode until rooms break off, then grow back.
+
+    Args: min_area, max_area: room seed area limits, square metres (measured on the eroded map).
+    """
+
+    def __init__(self, min_area: float = 0.5, max_area: float = 60.0):
+        self.min_area, self.max_area = min_area, max_area
+
+    def __call__(self, grid: GridMap) -> np.ndarray:
+        lo, hi = check_area_limits(grid, self.min_area, self.max_area)
+        work = grid.walkable.copy()
+        prev, _ = ndimage.label(work, FOUR)
+        seeds = np.zeros(grid.shape, np.int32)
+        k = 0
+        while work.any():
+            lab, n = ndimage.label(work, FOUR)
+            ids, first = np.unique(lab.ravel(), return_index=True)
+            parent = np.zeros(n + 1, np.int64)
+            parent[ids] = prev.ravel()[first]
+            sizes = np.bincount(lab.ravel(), minlength=n + 1)
+            # a real split: at least two parts of room size (>= min_area) from one parent
+            big = np.nonzero(sizes[1:] >= lo)[0] + 1
+            siblings = np.bincount(parent[big], minlength=prev.max() + 1)
+            nxt = ndimage.binary_erosion(work, np.ones((3, 3), bool))
+            alive = np.bincount(lab[nxt], minlength=n + 1) > 0
+            for i in range(1, n + 1):
+                broke_off = siblings[parent[i]] >= 2 or not alive[i]
+                if broke_off and lo <= sizes[i] <= hi:
+                    k += 1
+                    part = lab == i
+                    seeds[part] = k
+                    nxt &= ~part
+            prev, work = lab, nxt
+        return grow_seeds(seeds, grid.walkable)

@@ -1,0 +1,97 @@
+"""Voronoi segmentation, simplified (``segmenter=voronoi``): cut the free space with the
+critical lines at the narrowings of its skeleton (details: :mod:`benchmark.segmenters.common`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+from skimage.draw import line as draw_line
+from skimage.morphology import skeletonize
+
+from benchmark.interfaces import Segmenter
+from benchmark.segmenters.common import FOUR, check_area_limits, grow_seeds
+from envs.maps.gridmap import GridMap
+
+
+class Voronoi(Segmenter):
+    """Cut the free space at the critical points of its skeleton (simplified, see module doc).
+
+    Args:
+        min_area: smallest room, square metres (smaller parts join their neighbours).
+        max_area: largest room, square metres (a larger part is kept whole: the method has
+            no finer split; recorded for symmetry with the other baselines).
+        max_door: widest passage treated as a door, metres.
+        window: neighbourhood in which a critical point's clearance is the smallest, metres.
+        widening: a critical point needs skeleton clearance at least ``widening`` times its
+            own within ``2 * window`` (ratio), i.e. wider space beyond the narrowing.
+    """
+
+    def __init__(self, min_area: float = 0.5, max_area: float = 60.0, max_door: float = 1.2, window: float = 0.6,
+                 widening: float = 1.25):
+        if max_door <= 0 or window <= 0 or widening < 1:
+            raise ValueError(f"Voronoi needs max_door > 0 m, window > 0 m and widening >= 1, got "
+                             f"{max_door}, {window}, {widening}")
+        self.min_area, self.max_area, self.max_door = min_area, max_area, max_door
+        self.window, self.widening = window, widening
+
+    def critical_points(self, grid: GridMap) -> np.ndarray:
+        """(M, 3) float rows of (row, col, clearance px) of the critical points."""
+        walk = grid.walkable
+        dist = ndimage.distance_transform_edt(np.pad(walk, 1))[1:-1, 1:-1]  # the map edge is an obstacle
+        skel = skeletonize(walk) & (dist > 1)
+        nbrs = ndimage.convolve(skel.astype(np.uint8), np.ones((3, 3), np.uint8), mode="constant") - 1
+        win = max(int(round(self.window / grid.resolution)), 1) * 2 + 1
+        local_min = ndimage.minimum_filter(np.where(skel, dist, np.inf), size=win, mode="constant", cval=np.inf)
+        local_max = ndimage.maximum_filter(np.where(skel, dist, 0), size=win * 2 + 1)
+        # a narrowing on a plain stretch of the skeleton (two neighbours: not a junction or a tip)
+        cand = (skel & (nbrs == 2) & (dist <= local_min) & (dist * grid.resolution <= self.max_door / 2)
+                & (local_max >= dist * self.widening))
+        lab, n = ndimage.label(cand, np.ones((3, 3), bool))
+        pts = []
+        for sl, i in zip(ndimage.find_objects(lab), range(1, n + 1)):
+            rr, cc = np.nonzero(lab[sl] == i)
+            j = np.argmin(dist[sl][rr, cc])
+            r, c = rr[j] + sl[0].start, cc[j] + sl[1].start
+            pts.append((r, c, dist[r, c]))
+        return np.array(pts, dtype=float).reshape(-1, 3)
+
+    def critical_lines(self, grid: GridMap) -> list[tuple[tuple[int, int], tuple[int, int], tuple[int, int]]]:
+        """For each critical point, (basis point 1, critical point, basis point 2) as (row, col):
+        the nearest obstacle pixel, and the nearest obstacle pixel on the opposite side
+        (more than 105 degrees away from the first, seen from the critical point)."""
+        obst = ~np.pad(grid.walkable, 1)  # padded: the map edge is an obstacle
+        _, (ir, ic) = ndimage.distance_transform_edt(~obst, return_indices=True)
+        lines = []
+        for r, c, d in self.critical_points(grid):
+            r, c = int(r) + 1, int(c) + 1
+            b1 = np.array([ir[r, c], ic[r, c]])
+            u = b1 - (r, c)
+            rad = int(np.ceil(2 * d)) + 2
+            r0, c0 = max(r - rad, 0), max(c - rad, 0)
+            qr, qc = np.nonzero(obst[r0:r + rad + 1, c0:c + rad + 1])
+            v = np.stack([qr + r0 - r, qc + c0 - c], axis=1).astype(float)
+            norm = np.hypot(v[:, 0], v[:, 1])
+            opposite = v @ u < np.cos(np.deg2rad(105)) * norm * np.hypot(*u)
+            if opposite.any():
+                k = np.nonzero(opposite)[0][np.argmin(norm[opposite])]
+                b2 = (int(v[k, 0]) + r, int(v[k, 1]) + c)
+            else:  # no obstacle found on the other side: mirror the first basis point
+                b2 = (r - int(u[0]), c - int(u[1]))
+            lines.append(((int(b1[0]) - 1, int(b1[1]) - 1), (r - 1, c - 1), (b2[0] - 1, b2[1] - 1)))
+        return lines
+
+    def __call__(self, grid: GridMap) -> np.ndarray:
+        lo, _ = check_area_limits(grid, self.min_area, self.max_area)
+        cut = grid.walkable.copy()
+        h, w = grid.shape
+        for b1, p, b2 in self.critical_lines(grid):
+            for a, b in ((b1, p), (p, b2)):  # 8-connected lines: they separate 4-connected regions
+                rr, cc = draw_line(*a, *b)
+                ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+                cut[rr[ok], cc[ok]] = False
+        lab, n = ndimage.label(cut, FOUR)
+        sizes = np.bincount(lab.ravel())
+        seeds = np.zeros(grid.shape, np.int32)
+        for j, i in enumerate(np.nonzero(sizes[1:] >= lo)[0] + 1):
+            seeds[lab == i] = j + 1
+        return grow_seeds(seeds, grid.walkable)

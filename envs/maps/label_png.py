@@ -1,0 +1,175 @@
+"""Label maps and instance maps as PNG images.
+
+* Label maps (class index per pixel) are written as colour PNGs in the fixed class colours
+  of :mod:`envs.world.classes`, with a sidecar ``<name>.json`` (class names, colours, resolution,
+  origin) so that :func:`read_label_png` gives back the exact array.
+* Instance-coloured maps (one colour per room, black = not walkable), like the SeLRoS
+  release, are read with :func:`read_instance_png`. Their edges are anti-aliased: blends of
+  two room colours, or of a room and black, appear on thin lines of pixels. **Rule:** a colour
+  covering fewer than ``min_pixels`` pixels is not a room; with ``assign="neighbour"``
+  (default) each of its pixels joins the nearest pixel of a kept room colour (Euclidean
+  distance in pixels), with ``assign="drop"`` it becomes unlabelled (-1).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+from envs.atomic import atomic_write_text
+from envs.world.classes import BACKGROUND_COLOR, UNLABELLED_COLOR, class_colors
+
+#: Default minimum colour count (pixels) for a colour of an instance PNG to be a room.
+DEFAULT_MIN_PIXELS = 500
+
+
+def _atomic_save(img: Image.Image, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix="." + path.name, suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        img.save(tmp, format="PNG")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _sidecar(path: Path) -> Path:
+    return path.with_suffix(".json")
+
+
+def label_colors_rgb(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) labels -> (H, W, 3) uint8 in class colours; -1 is grey on walkable pixels
+    (when ``walkable`` is given) and black elsewhere."""
+    labels = np.asarray(labels)
+    n = len(classes)
+    bad = (labels < -1) | (labels >= n)
+    if bad.any():
+        raise ValueError(f"label map has values outside [-1, {n}): {np.unique(labels[bad])[:5].tolist()}")
+    lut = np.array([*class_colors(classes), BACKGROUND_COLOR], dtype=np.uint8)  # index -1 -> last
+    rgb = lut[labels]
+    if walkable is not None:
+        if walkable.shape != labels.shape:
+            raise ValueError(f"walkable mask shape {walkable.shape} differs from label map shape {labels.shape}")
+        rgb[(labels < 0) & walkable] = UNLABELLED_COLOR
+    return rgb
+
+
+def write_label_png(path: str | Path, labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None = None,
+                    resolution: float | None = None, origin: tuple[float, float] | None = None,
+                    legend: bool = True) -> Path:
+    """Write a label map as a colour PNG plus a JSON sidecar (classes, colours, legend, grid).
+
+    With ``legend=True`` a separate ``<name>_legend.png`` (class colour swatches and names)
+    is written beside it, so the map PNG itself stays pixel-exact.
+    """
+    path = Path(path)
+    labels = np.asarray(labels)
+    if labels.ndim != 2 or labels.size == 0:
+        raise ValueError(f"label map must be a non-empty (H, W) array, got shape {labels.shape}")
+    rgb = label_colors_rgb(labels, classes, walkable)
+    _atomic_save(Image.fromarray(rgb), path)
+    meta = {
+        "classes": list(classes), "colors": [list(c) for c in class_colors(classes)],
+        "unlabelled_color": list(UNLABELLED_COLOR), "background_color": list(BACKGROUND_COLOR),
+        "resolution": resolution, "origin": list(origin) if origin else None, "shape": list(labels.shape),
+    }
+    atomic_write_text(_sidecar(path), json.dumps(meta, indent=1))
+    if legend:
+        _write_legend(path.with_name(path.stem + "_legend.png"), classes)
+    return path
+
+
+def _write_legend(path: Path, classes: Sequence[str]) -> None:
+    """A small legend image: one colour swatch and name per class."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    fig = plt.figure(figsize=(2.6, 0.28 * (len(classes) + 1)))
+    handles = [Patch(color=np.array(c) / 255, label=n) for c, n in zip(class_colors(classes), classes)]
+    handles.append(Patch(color=np.array(UNLABELLED_COLOR) / 255, label="unlabelled"))
+    fig.legend(handles=handles, loc="center", frameon=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def read_label_png(path: str | Path) -> tuple[np.ndarray, list[str]]:
+    """Read a label PNG written by :func:`write_label_png` -> (labels (H, W) int32, classes).
+
+    Colours are matched exactly against the sidecar's class colours; unlabelled and
+    background colours become -1; any other colour is an error naming it.
+    """
+    path = Path(path)
+    side = _sidecar(path)
+    if not side.exists():
+        raise FileNotFoundError(f"{path}: no sidecar {side.name} with the class list; write maps with write_label_png")
+    meta = json.loads(side.read_text())
+    rgb = np.asarray(Image.open(path).convert("RGB"))
+    key = _pack(rgb)
+    labels = np.full(key.shape, -2, dtype=np.int32)
+    for i, c in enumerate(meta["colors"]):
+        labels[key == _pack(np.array(c))] = i
+    for c in (meta["unlabelled_color"], meta["background_color"]):
+        labels[key == _pack(np.array(c))] = -1
+    if (labels == -2).any():
+        bad = np.unique(key[labels == -2])[:3]
+        raise ValueError(f"{path}: colours not in its legend: {[f'#{int(b):06x}' for b in bad]}")
+    return labels, list(meta["classes"])
+
+
+def _pack(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.asarray(rgb).astype(np.int64)
+    return (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+
+
+def read_instance_png(path: str | Path, min_pixels: int = DEFAULT_MIN_PIXELS, assign: str = "neighbour",
+                      return_colors: bool = False):
+    """Read an instance-coloured map -> (H, W) int32 instance ids (0..K-1), -1 not walkable.
+
+    Black (0, 0, 0) is not walkable. Instances are numbered by decreasing pixel count.
+    Colours on fewer than ``min_pixels`` pixels are anti-aliasing, not rooms: ``assign``
+    ``"neighbour"`` gives each such pixel the instance of the nearest kept pixel,
+    ``"drop"`` leaves it -1. With ``return_colors`` also returns the (K, 3) RGB colours.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"instance map not found: {path}")
+    if assign not in ("neighbour", "drop"):
+        raise ValueError(f"assign must be 'neighbour' or 'drop', got {assign!r}")
+    rgb = np.asarray(Image.open(path).convert("RGB"))
+    if rgb.size == 0:
+        raise ValueError(f"{path}: empty image")
+    key = _pack(rgb)
+    colors, inverse, counts = np.unique(key.ravel(), return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(key.shape)
+    order = np.argsort(-counts, kind="stable")
+    ids = np.full(len(colors), -1, dtype=np.int32)
+    k = 0
+    kept = []
+    for ci in order:
+        if colors[ci] == 0 or counts[ci] < min_pixels:
+            continue
+        ids[ci] = k
+        kept.append(colors[ci])
+        k += 1
+    inst = ids[inverse]
+    stray = (key != 0) & (inst < 0)
+    if assign == "neighbour" and stray.any() and k > 0:
+        _, (rr, cc) = ndimage.distance_transform_edt(inst < 0, return_indices=True)
+        inst[stray] = inst[rr[stray], cc[stray]]
+    if return_colors:
+        kc = np.array(kept, dtype=np.int64)
+        return inst, np.stack([(kc >> 16) & 255, (kc >> 8) & 255, kc & 255], axis=-1).astype(np.uint8)
+    return inst

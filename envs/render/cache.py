@@ -1,0 +1,116 @@
+"""The render cache: observations of one house on disk, in a layout any renderer shares.
+
+One folder per house (so a cache rendered on a GPU box can be copied to a laptop)::
+
+    <folder>/poses.csv           index, x, z, yaw (metres, degrees), refused, image
+    <folder>/observations.jsonl  one JSON object per view: objects [[type, amount], ...],
+                                 visible_classes [...] or null, meta {...}
+    <folder>/images/000123.png   RGB frames (simulators only)
+    <folder>/COMPLETE            written last; a folder without it is ignored
+
+Floats are written with ``repr`` precision, so a round trip gives equal observations.
+Paths inside are relative, so a folder can be copied anywhere (a cache rendered on a GPU
+box is swept on a laptop by copying it into the same place under ``results/cache/render``).
+Writes go to a temporary sibling folder that is renamed into place; an older render is
+moved aside first and removed last, so an interrupted write never leaves a half folder
+that looks complete. Refused views (``meta["refused"]``) are kept, with no image.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from envs.render.observation import Observation
+
+MARKER = "COMPLETE"
+
+
+def is_complete(folder: str | Path) -> bool:
+    """True if ``folder`` holds a finished render."""
+    return (Path(folder) / MARKER).exists()
+
+
+def write_observations(folder: str | Path, observations: Sequence[Observation]) -> None:
+    """Write ``observations`` to ``folder`` atomically (replacing an older render)."""
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix="." + folder.name + ".", dir=folder.parent))
+    try:
+        lines = ["index,x,z,yaw,refused,image"]
+        with open(tmp / "observations.jsonl", "w", encoding="utf-8") as f:
+            for i, o in enumerate(observations):
+                image = ""
+                if o.image is not None:
+                    img = np.asarray(o.image)
+                    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+                        raise ValueError(f"observation {i}: image must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
+                    (tmp / "images").mkdir(exist_ok=True)
+                    image = f"images/{i:06d}.png"
+                    Image.fromarray(img).save(tmp / image)
+                x, z, yaw = (float(v) for v in o.pose)
+                lines.append(f"{i},{x!r},{z!r},{yaw!r},{int(bool(o.meta.get('refused', False)))},{image}")
+                vis = None if o.visible_classes is None else [float(v) for v in np.asarray(o.visible_classes)]
+                f.write(json.dumps({"objects": [[str(t), float(a)] for t, a in o.objects], "visible_classes": vis,
+                                    "meta": o.meta}, default=_plain) + "\n")
+        (tmp / "poses.csv").write_text("\n".join(lines) + "\n")
+        (tmp / MARKER).write_text(f"{len(observations)}\n")
+        old = None
+        if folder.exists():
+            old = Path(tempfile.mkdtemp(prefix="." + folder.name + ".old.", dir=folder.parent))
+            os.replace(folder, old / "render")
+        os.rename(tmp, folder)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _plain(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"observation meta value of type {type(o).__name__} is not JSON serialisable")
+
+
+def read_observations(folder: str | Path, images: bool = True) -> list[Observation]:
+    """Observations written by :func:`write_observations` (``images=False`` skips frames)."""
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise FileNotFoundError(f"no complete render in {folder}")
+    rows = (folder / "poses.csv").read_text().splitlines()[1:]
+    with open(folder / "observations.jsonl", encoding="utf-8") as f:
+        recs = [json.loads(line) for line in f]
+    n = (folder / MARKER).read_text().strip()
+    if len(rows) != len(recs) or (n.isdigit() and int(n) != len(rows)):
+        raise ValueError(f"{folder}: poses.csv has {len(rows)} views, observations.jsonl {len(recs)}, "
+                         f"{MARKER} says {n}: the render is damaged, delete the folder to render it again")
+    out = []
+    for row, rec in zip(rows, recs):
+        _, x, z, yaw, _, image = row.split(",", 5)
+        img = np.array(Image.open(folder / image).convert("RGB")) if (image and images) else None
+        vis = rec.get("visible_classes")
+        out.append(Observation(pose=(float(x), float(z), float(yaw)), image=img,
+                               objects=[(str(t), float(a)) for t, a in rec.get("objects", [])],
+                               visible_classes=None if vis is None else np.asarray(vis, dtype=np.float64),
+                               meta=rec.get("meta", {})))
+    return out
+
+
+def read_poses(folder: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """The poses table of a render: poses (N, 3) [x, z, yaw_deg] and refused (N,) bool."""
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise FileNotFoundError(f"no complete render in {folder}")
+    rows = [r.split(",", 5) for r in (folder / "poses.csv").read_text().splitlines()[1:]]
+    poses = np.array([[float(r[1]), float(r[2]), float(r[3])] for r in rows], dtype=float).reshape(-1, 3)
+    return poses, np.array([r[4] == "1" for r in rows], dtype=bool)

@@ -1,0 +1,159 @@
+"""The floorplan renderer: what a camera at a pose would see, from the house's floor plan.
+
+For each pose, rays spanning the camera's horizontal field of view are cast over the map
+with the shared routine (:mod:`envs.render.raycast`). Rays stop at walls, at the edge of the
+floor, and at objects whose top is at least ``occluder_height`` metres (tall furniture);
+lower objects are seen and the rays pass over them. The observation lists every object
+type seen with the share of rays that touched it (objects resting on a seen object count
+with it), and the share of the visible floor cells that belongs to each ground-truth class.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from envs.maps.scene import Scene
+from envs.render.base import Renderer
+from envs.render.observation import Observation, poses_array
+from envs.render.raycast import cast_rays, cone_thetas, ray_end, trace_ray
+
+
+@dataclass
+class View:
+    """What one camera pose sees: visible floor cells and, per object index, the rays that hit it."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    object_rays: dict[int, int]
+    n_rays: int
+
+
+def occluders(scene: Scene, occluder_height: float) -> np.ndarray:
+    """(H, W) bool cells that stop a ray: walls, outside the floor, tall objects."""
+    block = (scene.rooms < 0) | (scene.walls if scene.walls is not None else False)
+    if scene.objects and scene.object_map is not None:
+        tall = np.array([o.top >= occluder_height for o in scene.objects] + [False])
+        block = block | tall[scene.object_map]
+    return block
+
+
+def view_from(scene: Scene, blocked: np.ndarray, pose: Sequence[float], fov: float, max_range_px: float) -> View:
+    """Cast the camera's rays from ``pose`` (x, z, yaw degrees) and collect what they see."""
+    grid = scene.grid
+    r, c = grid.world_to_cell(pose[0], pose[1])
+    r, c = int(r), int(c)
+    if not grid.in_bounds(r, c):
+        return View(np.zeros(0, np.int64), np.zeros(0, np.int64), {}, 0)
+    thetas = cone_thetas(pose[2], fov, max_range_px)
+    rows, cols, offsets, hits = cast_rays(blocked, r, c, thetas, max_range_px)
+    omap = scene.object_map
+    object_rays: dict[int, int] = {}
+    if omap is not None:
+        ray_of = np.repeat(np.arange(len(thetas)), np.diff(offsets))
+        seen = omap[rows, cols]
+        pairs = [np.stack([ray_of[seen >= 0], seen[seen >= 0]], 1)]
+        hit_ok = hits[:, 0] >= 0
+        hit_obj = np.full(len(thetas), -1)
+        hit_obj[hit_ok] = omap[hits[hit_ok, 0], hits[hit_ok, 1]]
+        m = hit_obj >= 0
+        pairs.append(np.stack([np.arange(len(thetas))[m], hit_obj[m]], 1))
+        allp = np.unique(np.vstack(pairs), axis=0)
+        if len(allp):
+            objs, counts = np.unique(allp[:, 1], return_counts=True)
+            object_rays = {int(o): int(n) for o, n in zip(objs, counts)}
+    lin = np.unique(rows.astype(np.int64) * grid.shape[1] + cols)
+    return View(lin // grid.shape[1], lin % grid.shape[1], object_rays, len(thetas))
+
+
+@njit(cache=True)
+def _render_views(blocked, rooms, room_cls, object_map, rows, cols, thetas, max_range, n_cls, n_obj):
+    """Per view: visible floor cells per class (each cell once) and rays touching each object."""
+    h, w = blocked.shape
+    n_views, n_rays = thetas.shape
+    vis = np.zeros((n_views, n_cls), np.int64)
+    obj_rays = np.zeros((n_views, max(n_obj, 1)), np.int64)
+    n_cells = np.zeros(n_views, np.int64)
+    stamp = np.full((h, w), -1, np.int64)
+    ostamp = np.full(max(n_obj, 1), -1, np.int64)
+    cap = int(np.ceil(max_range)) + 2
+    buf_r = np.empty(cap, np.int32)
+    buf_c = np.empty(cap, np.int32)
+    ray_id = 0
+    for v in range(n_views):
+        r0 = rows[v]
+        c0 = cols[v]
+        if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
+            continue
+        for t in range(n_rays):
+            r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
+            n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
+            for j in range(n):
+                rr = buf_r[j]
+                cc = buf_c[j]
+                if stamp[rr, cc] != v:
+                    stamp[rr, cc] = v
+                    n_cells[v] += 1
+                    k = rooms[rr, cc]
+                    if k >= 0 and room_cls[k] >= 0:
+                        vis[v, room_cls[k]] += 1
+                o = object_map[rr, cc]
+                if o >= 0 and ostamp[o] != ray_id:
+                    ostamp[o] = ray_id
+                    obj_rays[v, o] += 1
+            if hr >= 0:
+                o = object_map[hr, hc]
+                if o >= 0 and ostamp[o] != ray_id:
+                    ostamp[o] = ray_id
+                    obj_rays[v, o] += 1
+            ray_id += 1
+    return vis, obj_rays, n_cells
+
+
+class FloorplanRenderer(Renderer):
+    """Offline observations for any ProcTHOR-schema house (no simulator, no GPU).
+
+    Args:
+        fov: horizontal field of view, degrees.
+        max_range: how far the camera sees, metres.
+        occluder_height: objects at least this tall (metres) block the view.
+        include_children: objects resting on a seen object are seen too.
+    """
+
+    def __init__(self, fov: float = 90.0, max_range: float = 6.0, occluder_height: float = 1.2,
+                 include_children: bool = True):
+        if not (0 < fov <= 360) or max_range <= 0:
+            raise ValueError(f"FloorplanRenderer needs 0 < fov <= 360 degrees and max_range > 0 m; got {fov}, {max_range}")
+        self.fov, self.max_range = fov, max_range
+        self.occluder_height, self.include_children = occluder_height, include_children
+
+    def render(self, house, scene: Scene, poses: np.ndarray) -> list[Observation]:
+        poses = poses_array(poses)
+        blocked = occluders(scene, self.occluder_height)
+        n_cls = len(scene.classes)
+        max_px = self.max_range / scene.grid.resolution
+        r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
+        thetas = np.stack([cone_thetas(y, self.fov, max_px) for y in poses[:, 2]]) if len(poses) else np.zeros((0, 2))
+        omap = scene.object_map if scene.object_map is not None else np.full(scene.grid.shape, -1, np.int32)
+        vis, obj_rays, n_cells = _render_views(
+            np.ascontiguousarray(blocked), scene.rooms, np.asarray(scene.instance_classes, np.int64), omap,
+            r.astype(np.int64), c.astype(np.int64), thetas, float(max_px), n_cls, len(scene.objects))
+        n_rays = thetas.shape[1]
+        out = []
+        for i, p in enumerate(poses):
+            objects: dict[str, float] = {}
+            for k in np.nonzero(obj_rays[i])[0] if scene.objects else []:
+                o = scene.objects[k]
+                share = obj_rays[i, k] / n_rays
+                types = (o.object_type, *o.children) if self.include_children else (o.object_type,)
+                for t in types:
+                    objects[t] = max(objects.get(t, 0.0), float(share))
+            total = vis[i].sum()
+            out.append(Observation(pose=(float(p[0]), float(p[1]), float(p[2])),
+                                   objects=sorted(objects.items()),
+                                   visible_classes=vis[i] / total if total > 0 else vis[i].astype(np.float64),
+                                   meta={"n_visible_cells": int(n_cells[i])}))
+        return out
