@@ -9,7 +9,7 @@ torch = pytest.importorskip("torch")
 from hydra import compose, initialize_config_dir  # noqa: E402
 from hydra.utils import instantiate  # noqa: E402
 
-from benchmark.harness.cache import safe_name  # noqa: E402
+from benchmark.harness.store import safe_name  # noqa: E402
 from benchmark.harness.runner import CONF_DIR, run, stage_keys  # noqa: E402
 from envs.render.cache import write_observations  # noqa: E402
 from envs.render.observation import Observation  # noqa: E402

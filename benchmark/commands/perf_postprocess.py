@@ -44,19 +44,17 @@ def time_postprocess_job(job_dir: str | Path, repeat: int = 3) -> list[dict]:
     (``run.save_maps``; e.g. a ``postprocess=none`` job of ``benchmark.harness.runner``). One row per
     house: id, pixels, best-of-``repeat`` milliseconds."""
     from hydra.utils import instantiate
-    from omegaconf import OmegaConf
 
-    from benchmark.harness.cache import load_npz, read_json, safe_name
+    from benchmark.harness.cache import load_npz
+    from benchmark.harness.store import Job
 
-    job_dir = Path(job_dir)
-    if not (job_dir / "summary.json").exists() or not (job_dir / "resolved_config.yaml").exists():
+    job = Job(Path(job_dir))
+    if not job.summary_path.exists() or not job.config_path.exists():
         raise FileNotFoundError(f"{job_dir} is not a finished runner job (summary.json + resolved_config.yaml)")
-    cfg = OmegaConf.load(job_dir / "resolved_config.yaml")
-    summary = read_json(job_dir / "summary.json")
-    maps = Path(cfg.run.cache_dir) / "maps" / summary["keys"]["score"]
+    cfg = job.config()
     env, pp, rows = instantiate(cfg.env), PostProcess(classes=list(cfg.classes)), []
     for hid in env.house_ids():
-        path = maps / f"{safe_name(hid)}.npz"
+        path = job.maps_path(hid)
         if not path.exists():
             continue
         raw, grid = load_npz(path)["raw"].astype(np.int32), env.scene(hid).grid
@@ -67,7 +65,7 @@ def time_postprocess_job(job_dir: str | Path, repeat: int = 3) -> list[dict]:
             best = min(best, time.perf_counter() - t)
         rows.append({"house": hid, "pixels": grid.walkable.size, "ms": 1e3 * best})
     if not rows:
-        raise FileNotFoundError(f"no cached label maps under {maps}")
+        raise FileNotFoundError(f"no cached label maps of {job_dir} under {job.maps_path('x').parent}")
     return rows
 
 

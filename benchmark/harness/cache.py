@@ -29,11 +29,6 @@ def config_key(*parts: Any) -> str:
     return hashlib.sha1(blob.encode("utf-8")).hexdigest()[:12]
 
 
-def safe_name(house_id: str) -> str:
-    """A house id made safe as a file name."""
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(house_id))
-
-
 @contextlib.contextmanager
 def locked(path: Path, timeout: float = 3600.0) -> Iterator[None]:
     """Hold an inter-process lock tied to ``path`` (a ``.lock`` file beside it)."""

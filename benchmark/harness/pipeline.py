@@ -2,12 +2,7 @@
 aggregate -> post-process -> score (or scene -> segmenter -> score for geometric baselines).
 
 Independent of Hydra: :mod:`benchmark.harness.runner` builds a :class:`Pipeline` from the config.
-Cache layout under ``cache_dir`` (keys: see :func:`benchmark.harness.cache.config_key`)::
-
-    render/<render_key>/<house>/        observations (envs.render.cache layout)
-    classify/<classify_key>/<house>.npz proba (N, C), poses (N, 3)
-    scores/<score_key>/<house>.json     the house's metrics row (ok or failed)
-    maps/<score_key>/<house>.npz        raw and post-processed label maps, poses
+Cache layout: :mod:`benchmark.harness.store` (keys: :func:`benchmark.harness.cache.config_key`).
 """
 
 from __future__ import annotations
@@ -27,8 +22,8 @@ from benchmark.harness.cache import (
     load_npz,
     locked,
     read_json,
-    safe_name,
 )
+from benchmark.harness.store import CacheStore
 from envs.datasets.base import Environment
 from envs.render.observation import poses_array
 
@@ -76,18 +71,22 @@ class Pipeline:
     save_maps: bool = True
     extra: dict[str, Any] = field(default_factory=dict)
 
-    # ---- paths
+    # ---- paths (the run store knows the layout)
+    @property
+    def store(self) -> CacheStore:
+        return CacheStore(Path(self.cache_dir))
+
     def _render_dir(self, hid: str) -> Path:
-        return self.cache_dir / "render" / self.keys["render"] / safe_name(hid)
+        return self.store.render_dir(self.keys["render"], hid)
 
     def _classify_path(self, hid: str) -> Path:
-        return self.cache_dir / "classify" / self.keys["classify"] / f"{safe_name(hid)}.npz"
+        return self.store.classify_path(self.keys["classify"], hid)
 
     def score_path(self, hid: str) -> Path:
-        return self.cache_dir / "scores" / self.keys["score"] / f"{safe_name(hid)}.json"
+        return self.store.score_path(self.keys["score"], hid)
 
     def maps_path(self, hid: str) -> Path:
-        return self.cache_dir / "maps" / self.keys["score"] / f"{safe_name(hid)}.npz"
+        return self.store.maps_path(self.keys["score"], hid)
 
     # ---- stages
     def _observations(self, hid: str, scene, timings: dict) -> list:

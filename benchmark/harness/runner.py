@@ -27,6 +27,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_key
 from benchmark.harness.pipeline import Pipeline, expand_force
+from benchmark.harness.store import Job
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
 
@@ -126,7 +127,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     t0 = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
     body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
-    atomic_write_text(out_dir / "resolved_config.yaml", OmegaConf.to_yaml(body, resolve=True))
+    atomic_write_text(Job(out_dir).config_path, OmegaConf.to_yaml(body, resolve=True))
     pipe = build_pipeline(cfg, choices)
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     if pipe.classifier is not None and hasattr(pipe.classifier, "setup"):
@@ -143,7 +144,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         df = df.drop(columns=["traceback"])
     lead = [c for c in LEADING_COLUMNS if c in df]
     df = df[lead + sorted(c for c in df.columns if c not in lead)]
-    atomic_write_text(out_dir / "metrics.csv", df.to_csv(index=False))
+    atomic_write_text(Job(out_dir).metrics_path, df.to_csv(index=False))
     failed = [r for r in rows if r.get("status") != "ok"]
     reasons = Counter(r.get("error", "").split(":")[0] for r in failed)
     summary = {
@@ -156,7 +157,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     for m in ("iou", "precision", "recall", "accuracy"):
         if m in ok and len(ok):
             summary[f"mean_{m}"] = float(ok[m].mean())
-    atomic_write_json(out_dir / "summary.json", summary)
+    atomic_write_json(Job(out_dir).summary_path, summary)
     log.info("%s: %d houses, %d ok, %d failed%s; mean IoU %.4f; %.1f s", out_dir, len(rows), summary["n_ok"],
              len(failed), (" (" + ", ".join(f"{k}: {v}" for k, v in reasons.items()) + ")") if failed else "",
              summary.get("mean_iou", float("nan")), summary["wall_time_s"])

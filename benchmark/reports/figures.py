@@ -296,24 +296,17 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
 
-    from benchmark.harness.cache import load_npz, read_json, safe_name
+    from benchmark.harness.cache import load_npz
+    from benchmark.harness.store import CacheStore, find_jobs, safe_name
 
     jobs = []
-    for cfg_path in sorted(Path(run_dir).rglob("resolved_config.yaml")):
-        job = cfg_path.parent
-        if not (job / "summary.json").exists() or not (job / "metrics.csv").exists():
-            continue
-        cfg = OmegaConf.load(cfg_path)
-        summary = read_json(job / "summary.json")
-        df = pd.read_csv(job / "metrics.csv")
-        jobs.append((cfg, summary, df))
-    if not jobs:
-        raise FileNotFoundError(f"no finished run (resolved_config.yaml + summary.json) under {run_dir}")
+    for job in find_jobs([run_dir]):
+        jobs.append((job.config(), job.summary(), pd.read_csv(job.metrics_path)))
     written = []
     scenes: dict[tuple, Scene] = {}
 
     def maps_for(cfg, summary, hid):
-        p = Path(cfg.run.results_dir) / "cache" / "maps" / summary["keys"]["score"] / f"{safe_name(hid)}.npz"
+        p = CacheStore(Path(str(cfg.run.cache_dir))).maps_path(summary["keys"]["score"], hid)
         return load_npz(p) if p.exists() else None
 
     def scene_for(cfg, hid):

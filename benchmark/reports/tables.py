@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.harness.cache import atomic_write_text
+from benchmark.harness.store import iter_metric_files
 
 
 @dataclass(frozen=True)
@@ -57,14 +58,7 @@ TABLES: dict[str, TableSpec] = {
 
 def find_metric_files(paths: Sequence[str | Path]) -> list[Path]:
     """Every ``metrics.csv`` at or under ``paths`` (a path may also be a CSV file itself)."""
-    out: list[Path] = []
-    for p in map(Path, paths):
-        if p.is_file():
-            out.append(p)
-        elif p.is_dir():
-            out.extend(sorted(p.rglob("metrics.csv")))
-        else:
-            raise FileNotFoundError(f"no run folder or metrics file at {p}")
+    out = list(iter_metric_files(paths))
     if not out:
         raise FileNotFoundError(f"no metrics.csv under {[str(p) for p in paths]}")
     return out
