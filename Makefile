@@ -6,29 +6,32 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-core test lint bench perf tables figures clean
+.PHONY: help setup setup-test test lint bench perf tables figures report readme-tables clean
 
 help:  ## list the targets
-	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
 
-setup: $(VENV)/.installed  ## create .venv; install the package, test tools, models (torch) and thor (ai2thor) extras
+# Two steps: `setup` is what the offline bench and the core need (no torch, no simulators, no
+# transformers); `setup-test` adds what the whole test suite needs on top (torch pinned, the
+# models and thor extras, pytest and ruff). `make test` runs it first, so CI runs every test.
+setup: $(VENV)/.installed  ## create .venv with the core (offline bench, tables, figures, report)
 
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
-	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(TORCH_PIN)
-	$(PIP) install -q -e ".[dev,models,thor]"
+	$(PIP) install -q -e .
 	touch $@
 
-setup-core: ## create .venv with the core only (no torch): everything but the image classifiers
-	python3 -m venv $(VENV)
-	$(PIP) install -q --upgrade pip
-	$(PIP) install -q -e ".[dev]"
+setup-test: $(VENV)/.installed-test  ## add what the tests need: torch, transformers, ai2thor, pytest, ruff
 
-test: setup  ## run the test suite
+$(VENV)/.installed-test: $(VENV)/.installed
+	$(PIP) install -q $(TORCH_PIN)
+	$(PIP) install -q -e ".[test]"
+	touch $@
+
+test: setup-test  ## run the whole test suite (what CI runs)
 	$(PY) -m pytest -q
 
-lint: setup  ## ruff
+lint: setup-test  ## ruff
 	$(VENV)/bin/ruff check benchmark envs tests
 
 # make bench: the offline benchmark (sizes: BENCH_HOUSES houses per dataset).
