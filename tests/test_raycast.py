@@ -119,3 +119,24 @@ def test_cone_thetas_cover_the_arc():
     t = cone_thetas(90, 90, 100, oversample=2)
     assert np.rad2deg(t.min()) == pytest.approx(45) and np.rad2deg(t.max()) == pytest.approx(135)
     assert np.diff(t).max() * 100 <= 0.5 + 1e-9
+
+
+def test_cone_reference_line_agrees_with_the_exact_definition():
+    """The vision-cone reference walks lines by a closed-form integer rule (not the kernel's
+    error-term loop); it must give the exact-arithmetic digital line above, cell for cell,
+    including the half-way ties, and so must the kernel."""
+    from benchmark.aggregators.reference import digital_line
+
+    rng = np.random.default_rng(1)
+    blocked = np.zeros((90, 90), bool)
+    br, bc = np.empty(200, np.int32), np.empty(200, np.int32)
+    ties = 0
+    for _ in range(2000):
+        r0, c0, r1, c1 = (int(v) for v in rng.integers(0, 90, 4))
+        exact = line_cells(r0, c0, r1, c1)
+        assert digital_line(r0, c0, r1, c1) == exact
+        n, _, _ = trace_ray(blocked, r0, c0, r1, c1, br, bc)
+        assert list(zip(br[:n].tolist(), bc[:n].tolist())) == exact
+        n, d = max(abs(r1 - r0), abs(c1 - c0)), min(abs(r1 - r0), abs(c1 - c0))
+        ties += n > 0 and any((2 * d * i) % (2 * n) == n for i in range(n + 1))  # d*i/n ends in .5
+    assert ties > 10  # the random lines include half-way ties

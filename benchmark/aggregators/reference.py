@@ -4,8 +4,9 @@
   method), then each cell ranks viewpoints by (distance, index) and keeps the first K.
 * Euclidean KNN: all (cell, view) squared pixel distances, each cell sorted by
   (distance, index).
-* Vision cone: a per-ray Python loop walking each Bresenham line, with a set per view so a
-  cell gets at most one vote per view.
+* Vision cone: a per-ray Python loop walking each digital line (computed from its
+  definition, not with the kernel's Bresenham error term), with a set per view so a cell
+  gets at most one vote per view.
 """
 
 from __future__ import annotations
@@ -79,24 +80,33 @@ def euclidean_knn_reference(grid: GridMap, poses, proba, k: int, weighting: str 
     return lab
 
 
-def bresenham(r0: int, c0: int, r1: int, c1: int) -> list[tuple[int, int]]:
-    """The cells of the Bresenham line from (r0, c0) to (r1, c1), in order."""
-    cells = []
-    dr, dc = abs(r1 - r0), abs(c1 - c0)
-    sr, sc = (1 if r1 > r0 else -1), (1 if c1 > c0 else -1)
-    err = dc - dr
-    r, c = r0, c0
-    while True:
-        cells.append((r, c))
-        if (r, c) == (r1, c1):
-            return cells
-        e2 = 2 * err
-        if e2 > -dr:
-            err -= dr
-            c += sc
-        if e2 < dc:
-            err += dc
-            r += sr
+def digital_line(r0: int, c0: int, r1: int, c1: int) -> list[tuple[int, int]]:
+    """The cells of the digital line from (r0, c0) to (r1, c1), in order, from its definition.
+
+    One cell per step along the major axis; on the minor axis the integer nearest the exact
+    line, a tie (exactly half-way) going to the cell nearer the start. Computed in closed
+    form with integer arithmetic, not with Bresenham's error term: an independent check of
+    the ray-casting kernel (``envs.render.raycast.trace_ray``), which must visit these cells.
+
+    Returns:
+        list of (row, col) pairs, ``max(|r1 - r0|, |c1 - c0|) + 1`` of them.
+    """
+    dr, dc = r1 - r0, c1 - c0
+    n = max(abs(dr), abs(dc))
+    if n == 0:
+        return [(r0, c0)]
+    i = np.arange(n + 1, dtype=np.int64)
+
+    def nearest(d: int) -> np.ndarray:  # round(d * i / n), ties toward the start
+        if d > 0:
+            return -((n - 2 * d * i) // (2 * n))  # ceil((2 d i - n) / 2n)
+        return (2 * d * i + n) // (2 * n)  # floor((2 d i + n) / 2n)
+
+    if abs(dc) >= abs(dr):
+        rows, cols = r0 + nearest(dr), c0 + np.sign(dc) * i
+    else:
+        rows, cols = r0 + np.sign(dr) * i, c0 + nearest(dc)
+    return list(zip(rows.tolist(), cols.tolist()))
 
 
 def walk_ray(blocked: np.ndarray, r0: int, c0: int, theta: float, max_range: float):
@@ -105,7 +115,7 @@ def walk_ray(blocked: np.ndarray, r0: int, c0: int, theta: float, max_range: flo
     r1 = int(np.floor(r0 + 0.5 - np.cos(theta) * max_range))
     c1 = int(np.floor(c0 + 0.5 + np.sin(theta) * max_range))
     seen = []
-    for r, c in bresenham(r0, c0, r1, c1):
+    for r, c in digital_line(r0, c0, r1, c1):
         if not (0 <= r < h and 0 <= c < w):
             return seen, None
         if blocked[r, c]:
@@ -139,4 +149,4 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
     return window_mode(counts, grid.walkable, window)
 
 
-__all__ = ["graph_knn_reference", "vision_cone_reference", "euclidean_knn_reference", "bresenham", "walk_ray", "grid_graph"]
+__all__ = ["graph_knn_reference", "vision_cone_reference", "euclidean_knn_reference", "digital_line", "walk_ray", "grid_graph"]
