@@ -1,0 +1,428 @@
+"""Occupancy maps in: ROS ``map_server`` YAML + image, plain occupancy PNGs and NumPy arrays;
+and ROS maps out.
+
+ROS ``map_server`` map (YAML + PGM/PNG/BMP), as the ROS ``map_server`` documentation defines it:
+
+* YAML fields, all required except ``mode``: ``image`` (path, absolute or relative to the
+  YAML file), ``resolution`` (metres/pixel), ``origin: [x, y, yaw]`` (pose of the
+  bottom-left corner of the bottom-left pixel; yaw radians CCW), ``negate`` (0/1 or
+  true/false), ``occupied_thresh``, ``free_thresh`` (probabilities in [0, 1]); ``mode``:
+  ``trinary`` (default), ``scale`` or ``raw``.
+* Each pixel's value ``v`` (0..255) is the mean of its colour channels (integer division,
+  alpha not included). Occupancy probability ``p = (255 - v) / 255``, or ``p = v / 255``
+  with ``negate``.
+* ``trinary``: ``p > occupied_thresh`` -> 100 (occupied); ``p < free_thresh`` -> 0 (free);
+  otherwise -1 (unknown).
+* ``scale``: as trinary, but in-between pixels get ``1 + int(98 * (p - free) / (occ - free))``
+  (1..99, as ROS 1 ``map_server`` computes it, so an in-between cell never reads as free
+  or occupied); a pixel with any transparency (alpha < 255) is unknown (-1).
+* ``raw``: the value itself (``255 - v`` with ``negate``, as ``map_server`` applies negate
+  first): 0..100 is the occupancy, 101..255 is unknown (-1).
+* A non-zero origin yaw is refused with one line (ROS's own ``map_server`` users mostly
+  ignore it; rotating the grid would resample it): set it to 0 after checking the map.
+
+Walkable = free cells (occupancy 0); unknown cells (-1) are obstacles, or walkable with
+``unknown_as="free"``; in-between cells (1..99) are obstacles.
+
+The grid has the image's shape, row 0 = the image's top row; the frame conversion is in
+:mod:`envs.maps.frames`.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from PIL import Image
+
+from envs.atomic import atomic_write_bytes, atomic_write_text
+from envs.maps.frames import grid_origin_to_ros_origin, ros_origin_to_grid_origin
+from envs.maps.gridmap import GridMap
+
+MODES = ("trinary", "scale", "raw")
+UNKNOWN_AS = ("obstacle", "free")
+#: Pixel values written for free and occupied cells (ROS map_saver's trinary values).
+FREE_PIXEL, OCCUPIED_PIXEL = 254, 0
+_REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+
+
+@dataclass
+class RosMap:
+    """A ROS ``map_server`` map, read.
+
+    Attributes:
+        grid: the project's occupancy map (walkable = free cells), (H, W) like the image.
+        occupancy: (H, W) int8 ROS occupancy: -1 unknown, 0 free, 100 occupied, 1..99
+            in-between (scale and raw modes); row 0 = the image's top row.
+        image_path: the image file read.
+        yaml_path: the YAML file read.
+        resolution: metres per pixel.
+        origin: ROS origin (x, y, yaw): metres, metres, radians.
+        negate, occupied_thresh, free_thresh, mode: the YAML's values (``mode`` after any
+            override).
+    """
+
+    grid: GridMap
+    occupancy: np.ndarray
+    image_path: Path
+    yaml_path: Path
+    resolution: float
+    origin: tuple[float, float, float]
+    negate: bool
+    occupied_thresh: float
+    free_thresh: float
+    mode: str
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _number(yaml_path: Path, field: str, value, lo: float | None = None, hi: float | None = None,
+            positive: bool = False) -> float:
+    """A finite float from a YAML field, or one line naming the file, field and value."""
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{yaml_path}: field '{field}' is {value!r}; expected a number") from None
+    if not math.isfinite(v) or (positive and v <= 0) or (lo is not None and v < lo) or (hi is not None and v > hi):
+        want = "a positive number" if positive else f"a number in [{lo}, {hi}]"
+        raise ValueError(f"{yaml_path}: field '{field}' is {value!r}; expected {want}")
+    return v
+
+
+def _negate(yaml_path: Path, value) -> bool:
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int) and value in (0, 1):
+        return bool(value)
+    raise ValueError(f"{yaml_path}: field 'negate' is {value!r}; expected 0, 1, true or false")
+
+
+def _origin(yaml_path: Path, value) -> tuple[float, float, float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise ValueError(f"{yaml_path}: field 'origin' is {value!r}; expected [x, y, yaw] (metres, metres, radians)")
+    x, y, yaw = (_number(yaml_path, f"origin[{i}]", v) for i, v in enumerate(value))
+    if abs(yaw) > 1e-9:
+        raise ValueError(f"{yaml_path}: field 'origin' has yaw {yaw!r}; only yaw 0 is supported (a rotated map is "
+                         f"not read; set the yaw to 0 if the map is axis-aligned)")
+    return x, y, 0.0
+
+
+def _grey_and_alpha(img: Image.Image, image_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) int grey value 0..255 (integer mean of the colour channels) and (H, W) alpha."""
+    if img.mode == "P":
+        img = img.convert("RGBA")
+    elif img.mode == "1":
+        img = img.convert("L")
+    if img.mode not in ("L", "LA", "RGB", "RGBA"):
+        raise ValueError(f"{image_path}: image mode {img.mode!r}; expected an 8-bit grey or colour image "
+                         f"(PGM/PNG/BMP: L, LA, RGB, RGBA or palette)")
+    a = np.asarray(img)
+    if a.size == 0:
+        raise ValueError(f"{image_path}: empty image")
+    if a.ndim == 2:
+        return a.astype(np.int64), np.full(a.shape, 255, np.int64)
+    has_alpha = img.mode in ("LA", "RGBA")
+    colour = a[..., :-1] if has_alpha else a
+    grey = colour.astype(np.int64).sum(axis=-1) // colour.shape[-1]
+    alpha = a[..., -1].astype(np.int64) if has_alpha else np.full(grey.shape, 255, np.int64)
+    return grey, alpha
+
+
+def image_to_occupancy(grey: np.ndarray, alpha: np.ndarray | None, negate: bool, occupied_thresh: float,
+                       free_thresh: float, mode: str) -> np.ndarray:
+    """Pixel values -> ROS occupancy, as ``map_server`` interprets them (see the module doc).
+
+    Args:
+        grey: (H, W) int pixel values 0..255.
+        alpha: (H, W) int alpha 0..255, or None (opaque).
+        negate, occupied_thresh, free_thresh, mode: as in the map YAML.
+
+    Returns:
+        (H, W) int8 occupancy: -1 unknown, 0 free, 100 occupied, 1..99 in-between.
+    """
+    if mode not in MODES:
+        raise ValueError(f"map mode {mode!r}; expected one of {list(MODES)}")
+    grey = np.asarray(grey, dtype=np.int64)
+    if mode == "raw":
+        v = 255 - grey if negate else grey
+        return np.where(v <= 100, v, -1).astype(np.int8)
+    p = grey / 255.0 if negate else (255 - grey) / 255.0
+    out = np.full(grey.shape, -1, dtype=np.int8)
+    if mode == "scale":
+        ratio = (p - free_thresh) / (occupied_thresh - free_thresh) if occupied_thresh > free_thresh else 0.0
+        mid = (1 + np.floor(98 * np.clip(ratio, 0.0, 1.0))).astype(np.int8)
+        out = mid
+    out = np.where(p > occupied_thresh, np.int8(100), out)
+    out = np.where(p < free_thresh, np.int8(0), out)
+    if mode == "scale" and alpha is not None:
+        out = np.where(np.asarray(alpha) < 255, np.int8(-1), out)
+    return out.astype(np.int8)
+
+
+def walkable_from_occupancy(occupancy: np.ndarray, unknown_as: str = "obstacle") -> np.ndarray:
+    """(H, W) bool: free cells (occupancy 0), plus unknown cells (-1) if ``unknown_as="free"``."""
+    if unknown_as not in UNKNOWN_AS:
+        raise ValueError(f"unknown_as is {unknown_as!r}; expected one of {list(UNKNOWN_AS)}")
+    occ = np.asarray(occupancy)
+    walk = occ == 0
+    if unknown_as == "free":
+        walk |= occ == -1
+    return walk
+
+
+def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str = "obstacle") -> RosMap:
+    """Read a ROS ``map_server`` map (YAML + image).
+
+    Args:
+        yaml_path: the map's YAML file.
+        mode: ``trinary`` | ``scale`` | ``raw`` to override the YAML's ``mode`` (None: the
+            YAML's, default ``trinary``).
+        unknown_as: ``obstacle`` (default) or ``free``: whether unknown cells are walkable.
+
+    Returns:
+        A :class:`RosMap`; ``grid.origin`` is the top-left corner of pixel (0, 0) computed
+        from the ROS origin (:func:`envs.maps.frames.ros_origin_to_grid_origin`).
+
+    Raises:
+        FileNotFoundError / ValueError: one line naming the file, the field and the value.
+    """
+    yaml_path = Path(yaml_path).expanduser()
+    if not yaml_path.is_file():
+        raise FileNotFoundError(f"map YAML not found: {yaml_path}")
+    try:
+        meta = yaml.safe_load(yaml_path.read_text())
+    except yaml.YAMLError as e:
+        first = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise ValueError(f"{yaml_path}: not valid YAML ({first})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{yaml_path}: expected a mapping with fields {list(_REQUIRED)}, got {type(meta).__name__}")
+    missing = [f for f in _REQUIRED if f not in meta]
+    if missing:
+        raise ValueError(f"{yaml_path}: missing field(s) {missing}; a map_server YAML needs {list(_REQUIRED)}")
+    if not isinstance(meta["image"], str) or not meta["image"].strip():
+        raise ValueError(f"{yaml_path}: field 'image' is {meta['image']!r}; expected an image file name")
+    resolution = _number(yaml_path, "resolution", meta["resolution"], positive=True)
+    origin = _origin(yaml_path, meta["origin"])
+    negate = _negate(yaml_path, meta["negate"])
+    occ_th = _number(yaml_path, "occupied_thresh", meta["occupied_thresh"], 0.0, 1.0)
+    free_th = _number(yaml_path, "free_thresh", meta["free_thresh"], 0.0, 1.0)
+    if free_th > occ_th:
+        raise ValueError(f"{yaml_path}: field 'free_thresh' is {free_th} > occupied_thresh {occ_th}; "
+                         f"expected free_thresh <= occupied_thresh")
+    yaml_mode = meta.get("mode", "trinary")
+    if not isinstance(yaml_mode, str) or yaml_mode.lower() not in MODES:
+        raise ValueError(f"{yaml_path}: field 'mode' is {yaml_mode!r}; expected one of {list(MODES)}")
+    if mode is not None and mode not in MODES:
+        raise ValueError(f"map mode override {mode!r} for {yaml_path}; expected one of {list(MODES)}")
+    mode = mode or yaml_mode.lower()
+    if unknown_as not in UNKNOWN_AS:
+        raise ValueError(f"unknown_as is {unknown_as!r} for {yaml_path}; expected one of {list(UNKNOWN_AS)}")
+
+    image_path = Path(meta["image"]).expanduser()
+    if not image_path.is_absolute():
+        image_path = yaml_path.parent / image_path
+    if not image_path.is_file():
+        raise FileNotFoundError(f"{yaml_path}: field 'image' names {meta['image']!r}, which does not exist "
+                                f"(looked for {image_path})")
+    try:
+        with Image.open(image_path) as img:
+            img.load()
+            grey, alpha = _grey_and_alpha(img, image_path)
+    except OSError as e:
+        raise ValueError(f"{image_path}: cannot read the image named by {yaml_path} ({e})") from None
+    occupancy = image_to_occupancy(grey, alpha, negate, occ_th, free_th, mode)
+    walkable = walkable_from_occupancy(occupancy, unknown_as)
+    grid = GridMap(walkable, resolution, ros_origin_to_grid_origin(origin[:2], occupancy.shape[0], resolution))
+    return RosMap(grid=grid, occupancy=occupancy, image_path=image_path, yaml_path=yaml_path,
+                  resolution=resolution, origin=origin, negate=negate, occupied_thresh=occ_th,
+                  free_thresh=free_th, mode=mode)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def grid_to_ros_image(grid: GridMap) -> np.ndarray:
+    """A grid as a trinary ROS image: (H, W) uint8, free (walkable) 254, occupied 0.
+
+    Row 0 is the grid's row 0 (the top of the picture), as ``map_server`` expects.
+    """
+    return np.where(np.asarray(grid.walkable), np.uint8(FREE_PIXEL), np.uint8(OCCUPIED_PIXEL)).astype(np.uint8)
+
+
+def unknown_pixel(free_thresh: float = 0.25, occupied_thresh: float = 0.65, negate: bool = False) -> int:
+    """A pixel value that ``map_server`` reads as unknown (-1) in trinary mode under these
+    thresholds: ROS ``map_saver``'s 205 when it qualifies (it does for free_thresh 0.196,
+    not for 0.25), otherwise the value nearest the middle of the unknown band.
+
+    Returns:
+        An int 0..255; ValueError when no 8-bit value falls in the unknown band.
+    """
+    vals = np.arange(256)
+    occ = image_to_occupancy(vals[None, :], None, negate, occupied_thresh, free_thresh, "trinary")[0]
+    ok = vals[occ == -1]
+    if ok.size == 0:
+        raise ValueError(f"no 8-bit pixel value is unknown for free_thresh={free_thresh}, "
+                         f"occupied_thresh={occupied_thresh}")
+    if 205 in ok:
+        return 205
+    return int(ok[np.argmin(np.abs(ok - ok.mean()))])
+
+
+def ros_origin_of(grid: GridMap) -> tuple[float, float, float]:
+    """The ROS ``origin`` ``(x, y, 0.0)`` of a grid (bottom-left corner of its bottom-left pixel)."""
+    x, y = grid_origin_to_ros_origin(grid.origin, grid.shape[0], grid.resolution)
+    return x, y, 0.0
+
+
+def _fmt(v: float) -> str:
+    return repr(float(v))
+
+
+def write_ros_map(yaml_path: str | Path, values: np.ndarray, resolution: float,
+                  origin: tuple[float, float, float] = (0.0, 0.0, 0.0), negate: bool = False,
+                  occupied_thresh: float = 0.65, free_thresh: float = 0.25, mode: str = "trinary",
+                  image_name: str | None = None) -> Path:
+    """Write a ROS ``map_server`` map: the image, then the YAML naming it (each atomically).
+
+    Args:
+        yaml_path: the YAML file to write (``.yaml``).
+        values: (H, W) uint8 image exactly as it is to be stored (row 0 = top); use
+            :func:`grid_to_ros_image` for a grid.
+        resolution: metres per pixel.
+        origin: ROS origin (x, y, yaw): metres, metres, radians (bottom-left corner).
+        negate, occupied_thresh, free_thresh, mode: written to the YAML as given.
+        image_name: the image file name, relative to the YAML's folder (default
+            ``<yaml stem>.pgm``); its suffix picks the format (``.pgm`` binary P5,
+            ``.png``).
+
+    Returns:
+        The YAML path.
+    """
+    yaml_path = Path(yaml_path)
+    values = np.asarray(values)
+    if values.ndim != 2 or values.size == 0 or values.dtype != np.uint8:
+        raise ValueError(f"{yaml_path}: values must be a non-empty (H, W) uint8 image, got shape {values.shape} "
+                         f"dtype {values.dtype}")
+    if mode not in MODES:
+        raise ValueError(f"{yaml_path}: mode {mode!r}; expected one of {list(MODES)}")
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise ValueError(f"{yaml_path}: resolution {resolution!r}; expected a positive number of metres/pixel")
+    if not (0.0 <= free_thresh <= occupied_thresh <= 1.0):
+        raise ValueError(f"{yaml_path}: thresholds free={free_thresh}, occupied={occupied_thresh}; expected "
+                         f"0 <= free_thresh <= occupied_thresh <= 1")
+    if len(origin) != 3 or not all(math.isfinite(float(v)) for v in origin):
+        raise ValueError(f"{yaml_path}: origin {origin!r}; expected finite (x, y, yaw)")
+    image_name = image_name or yaml_path.stem + ".pgm"
+    suffix = Path(image_name).suffix.lower()
+    fmt = {".pgm": "PPM", ".png": "PNG"}.get(suffix)
+    if fmt is None:
+        raise ValueError(f"{yaml_path}: image name {image_name!r}; expected a .pgm or .png file name")
+    buf = io.BytesIO()
+    Image.fromarray(values, mode="L").save(buf, format=fmt)
+    atomic_write_bytes(yaml_path.parent / image_name, buf.getvalue())
+    text = (f"image: {image_name}\n"
+            f"mode: {mode}\n"
+            f"resolution: {_fmt(resolution)}\n"
+            f"origin: [{_fmt(origin[0])}, {_fmt(origin[1])}, {_fmt(origin[2])}]\n"
+            f"negate: {1 if negate else 0}\n"
+            f"occupied_thresh: {_fmt(occupied_thresh)}\n"
+            f"free_thresh: {_fmt(free_thresh)}\n")
+    atomic_write_text(yaml_path, text)
+    return yaml_path
+
+
+def write_grid_ros(yaml_path: str | Path, grid: GridMap, image_name: str | None = None) -> Path:
+    """Write a grid as a trinary ROS map (free 254, occupied 0) whose origin reproduces
+    ``grid.origin`` when read back with :func:`read_ros_map`.
+
+    Returns:
+        The YAML path.
+    """
+    return write_ros_map(yaml_path, grid_to_ros_image(grid), grid.resolution, ros_origin_of(grid),
+                         image_name=image_name)
+
+
+# --------------------------------------------------------------------------- plain images and arrays
+
+
+def _default_origin(origin, height_px: int, resolution: float) -> tuple[float, float]:
+    if origin is None:  # bottom-left corner at world (0, 0), as a ROS map with origin [0, 0, 0]
+        return ros_origin_to_grid_origin((0.0, 0.0), height_px, resolution)
+    if len(origin) != 2:
+        raise ValueError(f"origin {origin!r}; expected the (x0, z0) world position of the top-left corner")
+    return float(origin[0]), float(origin[1])
+
+
+def occupancy_png(path: str | Path, resolution: float, origin: tuple[float, float] | None = None, *,
+                  free_thresh: float = 0.25, occupied_thresh: float = 0.65, negate: bool = False,
+                  unknown_as: str = "obstacle") -> GridMap:
+    """A plain occupancy image (no YAML): free = light, occupied = dark.
+
+    Pixels are interpreted as a ROS trinary map with the given thresholds: with
+    ``p = (255 - v) / 255`` (``v / 255`` with ``negate``), free if ``p < free_thresh``,
+    occupied if ``p > occupied_thresh``, unknown otherwise (an obstacle unless
+    ``unknown_as="free"``).
+
+    Args:
+        path: the image (PNG, PGM, BMP; grey or colour).
+        resolution: metres per pixel.
+        origin: world (x0, z0) in metres of the top-left corner of pixel (0, 0); None puts
+            the bottom-left corner of the image at world (0, 0).
+
+    Returns:
+        The GridMap, (H, W) like the image.
+    """
+    path = Path(path).expanduser()
+    if not path.is_file():
+        raise FileNotFoundError(f"occupancy image not found: {path}")
+    if not (0.0 <= free_thresh <= occupied_thresh <= 1.0):
+        raise ValueError(f"{path}: thresholds free={free_thresh}, occupied={occupied_thresh}; expected "
+                         f"0 <= free_thresh <= occupied_thresh <= 1")
+    try:
+        with Image.open(path) as img:
+            img.load()
+            grey, _ = _grey_and_alpha(img, path)
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read the image ({e})") from None
+    occ = image_to_occupancy(grey, None, negate, occupied_thresh, free_thresh, "trinary")
+    walk = walkable_from_occupancy(occ, unknown_as)
+    return GridMap(walk, resolution, _default_origin(origin, walk.shape[0], resolution))
+
+
+def grid_from_array(array: np.ndarray, resolution: float, origin: tuple[float, float] | None = None, *,
+                    free_value=None) -> GridMap:
+    """A GridMap from a NumPy array.
+
+    Args:
+        array: (H, W) bool, True = walkable; or any (H, W) array with ``free_value`` given
+            (walkable where ``array == free_value``, e.g. ``free_value=0`` for a ROS
+            occupancy array). Row 0 is the top of the map.
+        resolution: metres per pixel.
+        origin: world (x0, z0) in metres of the top-left corner of pixel (0, 0); None puts
+            the bottom-left corner at world (0, 0).
+
+    Returns:
+        The GridMap.
+    """
+    a = np.asarray(array)
+    if a.ndim != 2 or a.size == 0:
+        raise ValueError(f"map array must be a non-empty (H, W) array, got shape {a.shape}")
+    if free_value is None:
+        if a.dtype != bool:
+            raise ValueError(f"map array has dtype {a.dtype}; expected bool (True = walkable), or pass free_value "
+                             f"(the value of free cells)")
+        walk = a
+    else:
+        walk = a == free_value
+    return GridMap(walk, resolution, _default_origin(origin, a.shape[0], resolution))
+
+
+__all__ = ["MODES", "RosMap", "grid_from_array", "grid_to_ros_image", "image_to_occupancy", "occupancy_png",
+           "read_ros_map", "ros_origin_of", "unknown_pixel", "walkable_from_occupancy", "write_grid_ros", "write_ros_map"]
