@@ -1,0 +1,104 @@
+"""The dependency rules of the layout, read from the source with ``ast`` (no imports run):
+
+* ``envs`` never imports ``benchmark``;
+* nothing outside ``benchmark/commands`` imports ``benchmark.commands`` (commands sit on top);
+* no import cycle between the modules of the project.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("envs", "benchmark")
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def project_imports(path: Path) -> set[str]:
+    """Every project module a file imports (at any depth: lazy imports count too)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    me = module_name(path)
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            assert not node.level, f"{me}: relative import (the project uses absolute imports only)"
+            mod = node.module or ""
+            names = [mod] + [f"{mod}.{a.name}" for a in node.names]
+        else:
+            continue
+        out.update(n for n in names if n.split(".")[0] in PACKAGES)
+    return out
+
+
+def all_modules() -> dict[str, set[str]]:
+    files = [p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")]
+    return {module_name(p): project_imports(p) for p in files}
+
+
+@pytest.fixture(scope="module")
+def graph():
+    return all_modules()
+
+
+def test_envs_never_imports_benchmark(graph):
+    bad = sorted((m, i) for m, imps in graph.items() if m.startswith("envs") for i in imps if i.startswith("benchmark"))
+    assert not bad, f"envs modules importing benchmark: {bad}"
+
+
+def test_only_commands_import_commands(graph):
+    bad = sorted((m, i) for m, imps in graph.items() if not m.startswith("benchmark.commands")
+                 for i in imps if i == "benchmark.commands" or i.startswith("benchmark.commands."))
+    assert not bad, f"modules importing a command module: {bad}"
+
+
+def test_no_import_cycles(graph):
+    modules = set(graph)
+
+    def resolve(name: str) -> str | None:  # `from a.b import c` names a.b.c (module) or a.b (attribute)
+        while name and name not in modules:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    edges = {m: {r for i in imps if (r := resolve(i)) and r != m and not m.startswith(r + ".")} for m, imps in graph.items()}
+    # a package's __init__ importing its own submodules is not a cycle of roles: drop parent -> child edges
+    edges = {m: {e for e in es if not e.startswith(m + ".")} for m, es in edges.items()}
+    state: dict[str, int] = {}
+    stack: list[str] = []
+    cycles = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for n in sorted(edges.get(m, ())):
+            if state.get(n) == 1:
+                cycles.append(stack[stack.index(n):] + [n])
+            elif n not in state:
+                visit(n)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(edges):
+        if m not in state:
+            visit(m)
+    assert not cycles, f"import cycles: {cycles[:5]}"
+
+
+def test_the_rules_catch_a_bad_import(tmp_path):
+    """The checker itself: a made-up envs module importing benchmark is seen."""
+    fake = ROOT / "envs" / "_layout_probe_tmp.py"
+    try:
+        fake.write_text("def f():\n    from benchmark.commands.bench import main\n    return main\n")
+        imps = project_imports(fake)
+        assert "benchmark.commands.bench" in imps and "benchmark.commands.bench.main" in imps
+    finally:
+        fake.unlink(missing_ok=True)
