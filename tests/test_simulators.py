@@ -76,9 +76,10 @@ class StandInUnity:
     unity_proc = None
     started = True
 
-    def __init__(self):
+    def __init__(self, fail=None):
         self.sent = []
         self.stopped = False
+        self.fail = {} if fail is None else fail  # action -> (errorCode, errorMessage): answer it as failed
 
     def send(self, action):
         self.sent.append(action)
@@ -86,6 +87,9 @@ class StandInUnity:
     def receive(self, timeout=None):
         a = self.sent[-1] if self.sent else {"action": "Start"}
         name = a.get("action")
+        if name in self.fail:
+            code, message = self.fail[name]
+            return event({"lastAction": name, "lastActionSuccess": False, "errorCode": code, "errorMessage": message})
         if name == "TeleportFull":
             p, yaw = a["position"], a["rotation"]["y"]
             if p["z"] > 50:
@@ -128,7 +132,7 @@ def thor(monkeypatch):
     pytest.importorskip("ai2thor.controller")
     from ai2thor.controller import Controller
 
-    seen = {}
+    seen = {"fail": {}}  # action -> (errorCode, errorMessage) the stand-in answers as failed
 
     def find_build(self, local_build, commit_id, branch, platform):
         seen["commit_id"], seen["platform"] = commit_id, platform
@@ -137,7 +141,7 @@ def thor(monkeypatch):
 
     def start(self, port=0, start_unity=True, width=300, height=300, x_display=None, host="127.0.0.1", **kw):
         seen["size"] = (width, height)
-        self.server = seen["server"] = StandInUnity()
+        self.server = seen["server"] = StandInUnity(seen["fail"])
         self.last_event = self.server.receive()
         return self.last_event
 
@@ -209,6 +213,77 @@ def test_a_controller_that_cannot_start_says_so_in_one_line(monkeypatch):
     with pytest.raises(RuntimeError, match="AI2-THOR could not start .*Invalid commit_id.*benchmark.commands.doctor") as e:
         AI2THORRenderer(commit_id="abc").render(_house(), None, np.zeros((1, 3)))
     assert "\n" not in str(e.value)
+
+
+BAD_HOUSE = "Invalid house: object type 'Bed_23' is not in this build"
+
+
+@pytest.mark.parametrize("code", ["", "InvalidArgument"])  # reported only / raised by ai2thor's step()
+def test_a_house_that_does_not_load_fails_with_the_simulators_message(thor, code):
+    """ai2thor's reset sends CreateHouse without checking it: the adapter does, at the first
+    start (the Controller's own __init__) and at a reset to the next house."""
+    from envs.render.thor import AI2THORRenderer, HouseLoadError
+
+    thor["fail"]["CreateHouse"] = (code, BAD_HOUSE)
+    r = AI2THORRenderer(width=W, height=H)
+    with pytest.raises(HouseLoadError) as e:
+        r.render(_house(), None, np.zeros((2, 3)))
+    assert str(e.value) == f"house 'house-1': AI2-THOR could not load it (CreateHouse failed): {BAD_HOUSE}"
+    assert not any(a["action"] == "TeleportFull" for a in thor["server"].sent)  # nothing rendered
+    if code:  # raised inside Controller(): the Unity process it started is stopped, not leaked
+        assert thor["server"].stopped and r._controller is None
+    else:  # the controller started: it stays for the next house
+        assert r._controller is not None and not thor["server"].stopped
+    thor["fail"].clear()
+    obs = r.render(_house(), None, np.array([[0.0, 0.0, 0.0]]))
+    assert obs[0].objects == [("Bed", 0.5)]
+    thor["fail"]["CreateHouse"] = (code, BAD_HOUSE)  # the next house fails on reset()
+    with pytest.raises(HouseLoadError, match="CreateHouse failed.*Bed_23"):
+        r.reachable_positions(House("house-2", _house().data))
+    r.close()
+
+
+def test_a_scene_name_that_does_not_load_fails_too(thor):
+    from envs.render.thor import AI2THORRenderer
+
+    r = AI2THORRenderer(width=W, height=H)
+    r.render(House("ArchitecTHOR-Val-00", {"scene": "ArchitecTHOR-Val-00"}), None, np.zeros((1, 3)))
+    thor["fail"]["Initialize"] = ("", "agentMode 'drone' is not supported")
+    with pytest.raises(RuntimeError, match="'ArchitecTHOR-Val-00': AI2-THOR could not load it .*drone") as e:
+        r.render(House("ArchitecTHOR-Val-00", {"scene": "ArchitecTHOR-Val-00"}), None, np.zeros((1, 3)))
+    assert "\n" not in str(e.value)
+    r.close()
+
+
+def _sweep_config(tmp_path):
+    from hydra import compose, initialize_config_dir
+
+    from benchmark.harness.runner import CONF_DIR
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=[
+            "env=synthetic", "env.n_houses=2", "env.resolution=0.1", "renderer=ai2thor", f"renderer.width={W}",
+            f"renderer.height={H}", "classifier=oracle", "aggregator=graph_knn", "postprocess=none",
+            f"run.results_dir={tmp_path / 'results'}", "run.progress=false"], return_hydra_config=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fail", ["CreateHouse", "TeleportFull"])
+def test_a_failed_load_is_a_failed_house_and_no_complete_render(thor, tmp_path, fail):
+    """Through the sweep: the house fails with the simulator's message (CreateHouse refused)
+    or as all views refused (every teleport refused), and its render folder is never marked
+    complete, so the next run renders it again."""
+    from benchmark.harness.runner import run
+
+    cfg = _sweep_config(tmp_path)
+    choices = {k: str(v) for k, v in cfg.hydra.runtime.choices.items() if not k.startswith("hydra")}
+    thor["fail"][fail] = ("", BAD_HOUSE if fail == "CreateHouse" else "not a valid position")
+    df = run(cfg, tmp_path / "out", choices)
+    assert (df["status"] == "failed").all()
+    want = f"AI2-THOR could not load it (CreateHouse failed): {BAD_HOUSE}" if fail == "CreateHouse" else "refused"
+    assert all(want in e for e in df["error"]), list(df["error"])
+    renders = list((tmp_path / "results" / "cache" / "render").rglob("COMPLETE"))
+    assert renders == []
 
 
 def test_controller_kwargs_match_the_real_signature():

@@ -13,7 +13,9 @@ Paths inside are relative, so a folder can be copied anywhere (a cache rendered 
 box is swept on a laptop by copying it into the same place under ``results/cache/render``).
 Writes go to a temporary sibling folder that is renamed into place; an older render is
 moved aside first and removed last, so an interrupted write never leaves a half folder
-that looks complete. Refused views (``meta["refused"]``) are kept, with no image.
+that looks complete. Refused views (``meta["refused"]``) are kept, with no image; a render
+in which every view was refused (what a house that failed to load looks like) is not
+written at all, so it is never marked complete and the next run renders it again.
 """
 
 from __future__ import annotations
@@ -39,8 +41,17 @@ def is_complete(folder: str | Path) -> bool:
 
 
 def write_observations(folder: str | Path, observations: Sequence[Observation]) -> None:
-    """Write ``observations`` to ``folder`` atomically (replacing an older render)."""
+    """Write ``observations`` to ``folder`` atomically (replacing an older render).
+
+    Raises:
+        ValueError: every one of the observations was refused (nothing is written: a failed
+            load is retried by the next run, never cached as a result).
+    """
     folder = Path(folder)
+    if observations and all(o.meta.get("refused", False) for o in observations):
+        first = str(observations[0].meta.get("error", "")).strip()[:200]
+        raise ValueError(f"every one of {len(observations)} views was refused by the renderer (first: {first!r}); "
+                         f"not cached in {folder}, the next run renders it again")
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix="." + folder.name + ".", dir=folder.parent))
     try:

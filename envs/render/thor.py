@@ -100,6 +100,40 @@ def controller_kwargs(scene, width: int = 224, height: int = 224, fov: float = 9
     return kw
 
 
+class HouseLoadError(RuntimeError):
+    """The simulator refused to load a house or scene; the message is one line with the
+    simulator's own ``errorMessage``."""
+
+    def __init__(self, name: str, action: str, message: str):
+        self.house, self.action, self.error = str(name), str(action), str(message)
+        super().__init__(f"house {self.house!r}: AI2-THOR could not load it ({self.action} failed): "
+                         f"{self.error or 'no error message from the simulator'}")
+
+
+def _first_line(e) -> str:
+    return (str(e).strip().splitlines() or [type(e).__name__])[0][:300]
+
+
+def _stop_quietly(controller) -> None:
+    try:
+        if getattr(controller, "server", None) is not None:
+            controller.stop()
+    except Exception:  # noqa: BLE001  the process is going away either way
+        pass
+
+
+def check_loaded(controller, name: str) -> None:
+    """Raise :class:`HouseLoadError` unless the controller's last event (the one of the scene
+    load: ``CreateHouse`` for a ProcTHOR house, ``Initialize`` after ``Reset`` for a scene
+    name) reports ``lastActionSuccess``. ai2thor's ``Controller.reset`` sends ``CreateHouse``
+    without checking it, so a build that does not match the houses would otherwise go
+    unnoticed until every teleport is refused."""
+    ev = getattr(controller, "last_event", None)
+    md = getattr(ev, "metadata", None) or {}
+    if not md.get("lastActionSuccess", False):
+        raise HouseLoadError(name, md.get("lastAction") or "scene load", str(md.get("errorMessage") or "").strip()[:300])
+
+
 def visible_objects(event, min_share: float = 0.0, include_structure: bool = False) -> list[tuple[str, float]]:
     """(object type, share of image pixels) per visible object type of an AI2-THOR event, sorted by type.
 
@@ -207,28 +241,60 @@ class AI2THORRenderer(Renderer):
                                  self.grid_size, self.visibility_distance, self.quality, self.gpu_device,
                                  self.local_executable_path)
 
-    def start(self, scene):
-        """Start the controller for ``scene`` (or reset the running one to it)."""
+    def start(self, scene, name: str | None = None):
+        """Start the controller for ``scene`` (or reset the running one to it) and check that
+        the scene loaded. ``name`` names the house in errors (default: the scene name or
+        ``"house"``).
+
+        Returns:
+            the started ``ai2thor.controller.Controller``, with ``scene`` loaded.
+
+        Raises:
+            RuntimeError: the Unity process could not start (one line, pointing at the doctor).
+            HouseLoadError: the simulator refused the scene (``Reset``/``Initialize``/
+                ``CreateHouse`` reported ``lastActionSuccess`` false or raised); the message
+                carries the simulator's own ``errorMessage``. The controller stays usable for
+                the next house when it had started before; a first start that fails is stopped.
+        """
         require_ai2thor()
         from ai2thor.controller import Controller  # noqa: PLC0415
 
+        what = name or (scene if isinstance(scene, str) else "house")
         if self._controller is not None:
-            self._controller.reset(scene=scene)
+            try:
+                self._controller.reset(scene=scene)
+            except (ValueError, RuntimeError) as e:  # ai2thor raises for InvalidArgument-style failures
+                raise HouseLoadError(what, self._last_action(self._controller), _first_line(e)) from None
+            check_loaded(self._controller, what)
             return self._controller
         kw = self.controller_kwargs(scene)
+        # __init__ called on our own instance so that a Unity process started before a
+        # failing scene load can still be stopped (Controller() would lose the reference).
+        controller = Controller.__new__(Controller)
         try:
-            self._controller = Controller(**kw)
-        except Exception as e:  # download, Vulkan/X display, build lookup
-            first = (str(e).strip().splitlines() or [type(e).__name__])[0][:200]
+            controller.__init__(**kw)
+        except Exception as e:  # download, Vulkan/X display, build lookup, or the first scene load
+            ev = getattr(controller, "last_event", None)
+            started = getattr(controller, "server", None) is not None and ev is not None
+            _stop_quietly(controller)
+            if started and not ev.metadata.get("lastActionSuccess", True):
+                raise HouseLoadError(what, self._last_action(controller), _first_line(e)) from None
             raise RuntimeError(f"AI2-THOR could not start (platform {resolve_platform(self.platform)}, build "
-                               f"{self.commit_id or 'pinned by ai2thor'}): {first}; run python -m benchmark.commands.doctor"
-                               ) from e
-        return self._controller
+                               f"{self.commit_id or 'pinned by ai2thor'}): {_first_line(e)}; run "
+                               "python -m benchmark.commands.doctor") from e
+        self._controller = controller
+        check_loaded(controller, what)
+        return controller
+
+    @staticmethod
+    def _last_action(controller) -> str:
+        ev = getattr(controller, "last_event", None)
+        return str((ev.metadata.get("lastAction") if ev is not None else None) or "scene load")
 
     def reachable_positions(self, house) -> list[dict]:
         """AI2-THOR's reachable positions (dicts with x, y, z metres) of a house."""
         scene, _ = self.scene_of(house)
-        ev = self.start(scene).step(action="GetReachablePositions")
+        ev = self.start(scene, house.id).step(action="GetReachablePositions")
         if not ev.metadata.get("lastActionSuccess", False):
             raise RuntimeError(f"house {house.id!r}: GetReachablePositions failed: {ev.metadata.get('errorMessage')}")
         return list(ev.metadata.get("actionReturn") or [])
@@ -255,7 +321,7 @@ class AI2THORRenderer(Renderer):
     def render(self, house, scene, poses: np.ndarray) -> list[Observation]:
         """Observations of ``house`` (a House) at ``poses`` (N, 3) [x, z, yaw_deg]; ``scene`` is unused."""
         sc, y = self.scene_of(house)
-        return self.render_with(self.start(sc), poses, y)
+        return self.render_with(self.start(sc, house.id), poses, y)
 
     def close(self) -> None:
         """Stop the Unity process."""
