@@ -7,23 +7,23 @@
   ``heading_spread`` degrees around the inward normal (the direction away from the nearest
   wall). Every pose lies on a cell at least ``offset`` metres from any obstacle. A walkable
   region narrower than ``2 * offset`` has no path and gets no viewpoint.
-* :class:`FromFile` — poses recorded elsewhere (teleoperation, a robot's log): CSV with
-  columns ``x, z, yaw`` or JSON (a list of ``{"x", "z", "yaw"}`` or ``{"poses": [...]}``),
-  in the simulator's convention (metres, degrees). The path may contain ``{house_id}``.
+* :class:`FromFile` — poses recorded elsewhere (teleoperation, a robot's log): CSV or JSON
+  read by :func:`envs.maps.pose_files.read_poses` in an explicit ``frame``: ``sim``
+  (``x, z, yaw``: metres, degrees; the default), ``ros`` (``x, y, theta``: metres, radians
+  CCW from +x) or ``pixel`` (``row, col, yaw``). The path may contain ``{house_id}``.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import cv2
 import numpy as np
-import pandas as pd
 from scipy import ndimage
 
 from benchmark.interfaces import Viewpoints
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
+from envs.maps.pose_files import FRAME_COLUMNS, read_poses
 from envs.maps.scene import Scene
 
 
@@ -101,42 +101,30 @@ class Autotrace(Viewpoints):
         return np.column_stack([np.repeat(x, len(rel)), np.repeat(z, len(rel)), yaw.reshape(n * len(rel))])
 
 
-def load_poses(path: str | Path) -> np.ndarray:
-    """Read poses (x, z, yaw degrees) from a CSV or JSON file -> (N, 3) float array."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"pose file not found: {path}")
-    if path.suffix.lower() == ".json":
-        data = json.loads(path.read_text())
-        if isinstance(data, dict):
-            data = data.get("poses", data)
-        if not isinstance(data, list):
-            raise ValueError(f"{path}: expected a list of poses or {{'poses': [...]}}")
-        df = pd.DataFrame(data)
-    else:
-        df = pd.read_csv(path)
-    df.columns = [str(c).strip().lower() for c in df.columns]
-    missing = [c for c in ("x", "z", "yaw") if c not in df]
-    if missing:
-        raise ValueError(f"{path}: pose file lacks column(s) {missing}; expected x, z (metres), yaw (degrees)")
-    arr = df[["x", "z", "yaw"]].to_numpy(dtype=float)
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{path}: non-finite pose values")
-    return arr
+def load_poses(path: str | Path, frame: str = "sim", grid: GridMap | None = None) -> np.ndarray:
+    """Read poses from a CSV or JSON file -> (N, 3) float world x, z (metres), yaw (degrees).
+
+    The file reading (columns per ``frame``: ``sim`` x, z, yaw; ``ros`` x, y, theta;
+    ``pixel`` row, col, yaw) is :func:`envs.maps.pose_files.read_poses`.
+    """
+    return read_poses(path, frame, grid)
 
 
 class FromFile(Viewpoints):
-    """Poses from a file (``path`` may contain ``{house_id}``); every pose must be on a
-    walkable cell of the map, or ``off_map="drop"`` drops the others."""
+    """Poses from a file (``path`` may contain ``{house_id}``) in the given ``frame``
+    (``sim``: x, z, yaw degrees; ``ros``: x, y, theta radians CCW; ``pixel``: row, col, yaw);
+    every pose must be on a walkable cell of the map, or ``off_map="drop"`` drops the others."""
 
-    def __init__(self, path: str, off_map: str = "error"):
+    def __init__(self, path: str, off_map: str = "error", frame: str = "sim"):
         if off_map not in ("error", "drop"):
             raise ValueError(f"off_map must be 'error' or 'drop', got {off_map!r}")
-        self.path, self.off_map = path, off_map
+        if frame not in FRAME_COLUMNS:
+            raise ValueError(f"viewpoints frame must be one of {list(FRAME_COLUMNS)}, got {frame!r}")
+        self.path, self.off_map, self.frame = path, off_map, frame
 
     def generate(self, scene: Scene) -> np.ndarray:
         path = str(self.path).format(house_id=scene.house_id)
-        poses = load_poses(path)
+        poses = load_poses(path, self.frame, scene.grid)
         r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
         ok = scene.grid.is_walkable(r, c)
         if not ok.all():

@@ -1,0 +1,102 @@
+"""Pose files in: CSV or JSON, in the ROS frame or the simulator (project) frame.
+
+The frame is always given explicitly (no guessing from the column names):
+
+* ``frame="ros"``: columns ``x, y`` (metres) and ``theta`` (radians, counter-clockwise
+  from +x), as a ROS ``geometry_msgs/Pose2D`` or a ``tf`` echo gives them; converted with
+  :func:`envs.maps.frames.ros_to_world` (world ``z = y``, ``yaw = 90 - degrees(theta)``).
+* ``frame="sim"``: columns ``x, z`` (metres) and ``yaw`` (degrees, 0 faces +z, 90 faces
+  +x), the project's own convention (AI2-THOR's).
+* ``frame="pixel"``: columns ``row, col`` (pixel indices of the map, row 0 on top; the pose
+  is the pixel's centre) and ``yaw`` (project degrees); needs the ``grid``.
+
+CSV: a header row naming the columns (case and surrounding spaces ignored; other columns
+are allowed and ignored). JSON: a list of objects with those keys, or ``{"poses": [...]}``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from envs.maps.frames import ros_to_world
+from envs.maps.gridmap import GridMap
+
+#: The columns each frame needs, in order.
+FRAME_COLUMNS = {"ros": ("x", "y", "theta"), "sim": ("x", "z", "yaw"), "pixel": ("row", "col", "yaw")}
+_UNITS = {"ros": "x, y (metres), theta (radians, CCW from +x)", "sim": "x, z (metres), yaw (degrees)",
+          "pixel": "row, col (pixels), yaw (degrees)"}
+
+
+def _table(path: Path) -> pd.DataFrame:
+    if path.suffix.lower() == ".json":
+        try:
+            data = json.loads(path.read_text())
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
+        if isinstance(data, dict) and "poses" in data:
+            data = data["poses"]
+        if not isinstance(data, list) or not all(isinstance(d, dict) for d in data):
+            raise ValueError(f"{path}: expected a list of pose objects or {{'poses': [...]}}")
+        return pd.DataFrame(data)
+    try:
+        return pd.read_csv(path, skipinitialspace=True)
+    except pd.errors.EmptyDataError:
+        raise ValueError(f"{path}: empty pose file; expected a header row and one pose per line") from None
+    except pd.errors.ParserError as e:
+        raise ValueError(f"{path}: not a readable CSV ({str(e).splitlines()[0]})") from None
+
+
+def read_poses(path: str | Path, frame: str, grid: GridMap | None = None) -> np.ndarray:
+    """Read a pose file -> (N, 3) float array of world ``x, z`` (metres), ``yaw`` (degrees).
+
+    Args:
+        path: a ``.csv`` or ``.json`` file.
+        frame: ``"ros"`` (x, y, theta), ``"sim"`` (x, z, yaw) or ``"pixel"`` (row, col, yaw).
+        grid: the map; needed for ``frame="pixel"`` only.
+
+    Returns:
+        (N, 3) float64: world x, z in metres and yaw in degrees (``"ros"`` yaws in [0, 360),
+        ``"sim"``/``"pixel"`` yaws as written).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: one line naming the file and the columns expected and found, or the
+            first bad value (row and column).
+    """
+    if frame not in FRAME_COLUMNS:
+        raise ValueError(f"pose frame {frame!r} for {path}; expected one of {list(FRAME_COLUMNS)}")
+    if frame == "pixel" and grid is None:
+        raise ValueError(f"pose frame 'pixel' for {path} needs the map (grid)")
+    path = Path(path).expanduser()
+    if not path.is_file():
+        raise FileNotFoundError(f"pose file not found: {path}")
+    df = _table(path)
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    want = FRAME_COLUMNS[frame]
+    missing = [c for c in want if c not in df.columns]
+    if missing:
+        raise ValueError(f"{path}: pose file lacks column(s) {missing} for frame {frame!r}; expected "
+                         f"{_UNITS[frame]}, found columns {list(df.columns)}")
+    arr = np.empty((len(df), 3))
+    for j, c in enumerate(want):
+        col = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(col)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"{path}: non-finite or non-numeric value {df[c].iloc[i]!r} in column {c!r} at pose "
+                             f"index {i}; expected {_UNITS[frame]}")
+        arr[:, j] = col
+    if frame == "ros":
+        x, z, yaw = ros_to_world(arr[:, 0], arr[:, 1], arr[:, 2])
+        return np.column_stack([x, z, yaw])
+    if frame == "pixel":
+        x, z = grid.pixel_to_world(arr[:, 0], arr[:, 1])
+        return np.column_stack([x, z, arr[:, 2]])
+    return arr
+
+
+__all__ = ["FRAME_COLUMNS", "read_poses"]
