@@ -1,0 +1,118 @@
+"""Every option of every config group composes, resolves, names an importable ``_target_``
+and (where that needs no simulator, weights or user files) instantiates; every experiment's
+sweep names options that exist. Groups and options are read from ``conf/``, so a new option
+is covered the moment its YAML file exists.
+"""
+
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.utils import get_class, get_method, instantiate
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from benchmark.paths import CONF_DIR, procthor_houses
+
+CONF = Path(CONF_DIR)
+#: groups of the bench app (conf/config.yaml's defaults list); other folders are groups of other apps.
+GROUPS = sorted(p.name for p in CONF.iterdir() if p.is_dir() and p.name not in ("hydra",))
+OPTIONS = [(g, p.stem) for g in GROUPS for p in sorted((CONF / g).glob("*.yaml"))]
+
+#: options that cannot be built here, and why (their ``_target_`` is still imported).
+NOT_INSTANTIATED = {
+    ("env", "procthor"): "loads ProcTHOR-10k with prior (network, git-lfs)",
+    ("env", "maps"): "needs a folder of the user's maps (tests/test_maps_env.py builds one)",
+    ("classifier", "cnn"): "needs a trained checkpoint",
+    ("classifier", "dinov2"): "needs DINOv2 weights from the hub and a trained head",
+    ("classifier", "vlm"): "needs Qwen2.5-VL weights from the hub",
+    ("classifier", "labels"): "needs the user's per-view label file",
+    ("renderer", "images"): "needs the user's image folder",
+    ("viewpoints", "file"): "needs the user's pose file",
+}
+NEEDS_SHARED = {("env", "procthor_shared"), ("classifier", "objects_procthor")}
+
+
+def _bench_defaults() -> set[str]:
+    cfg = OmegaConf.load(CONF / "config.yaml")
+    out = set()
+    for d in cfg.defaults:
+        if isinstance(d, (dict, DictConfig)):
+            for k in d:
+                out.add(str(k).split(" ")[-1].split("/")[0])
+    return out
+
+
+def _compose(overrides: list[str], hydra_cfg: bool = False):
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=overrides, return_hydra_config=hydra_cfg)
+
+
+def _targets(node) -> list[str]:
+    out = []
+    if isinstance(node, (dict, DictConfig)):
+        for k, v in node.items():
+            if k == "_target_":
+                out.append(str(v))
+            else:
+                out += _targets(v)
+    elif isinstance(node, (list, ListConfig)):
+        for v in node:
+            out += _targets(v)
+    return out
+
+
+def _locate(target: str):
+    try:
+        return get_class(target)
+    except Exception:
+        return get_method(target)
+
+
+def test_groups_are_discovered():
+    assert {"env", "viewpoints", "renderer", "classifier", "aggregator", "postprocess", "segmenter",
+            "metrics", "experiment", "paths"} <= set(GROUPS)
+    assert len(OPTIONS) >= 30
+
+
+@pytest.mark.parametrize("group,option", [o for o in OPTIONS if o[0] != "experiment"], ids=lambda v: str(v))
+def test_every_option_composes_resolves_and_builds(group, option, tmp_path, monkeypatch, request):
+    monkeypatch.setenv("ROOMSEG_ARCHITECTHOR_ANNOTATIONS", str(tmp_path))
+    prefix = "" if group in _bench_defaults() else "+"
+    cfg = _compose([f"{prefix}{group}={option}"])
+    node = cfg[group]
+    plain = OmegaConf.to_container(node, resolve=True)  # every interpolation resolves
+    targets = _targets(plain)
+    for t in targets:
+        assert callable(_locate(t)), f"conf/{group}/{option}.yaml: _target_ {t} is not importable"
+    if group in ("paths", "experiment") or not targets:
+        return
+    if (group, option) in NOT_INSTANTIATED:
+        return
+    if (group, option) in NEEDS_SHARED and not procthor_houses().exists():
+        pytest.skip(f"shared data not found at {procthor_houses()}")
+    if group == "classifier" and option.startswith("objects"):
+        request.applymarker(pytest.mark.slow)
+    obj = instantiate(node)
+    assert obj is not None and type(obj).__name__ == targets[0].rsplit(".", 1)[-1]
+
+
+@pytest.mark.parametrize("option", [o for g, o in OPTIONS if g == "experiment"])
+def test_every_experiment_sweeps_existing_options(option):
+    cfg = _compose([f"experiment={option}"], hydra_cfg=True)
+    params = cfg.hydra.sweeper.get("params") or {}
+    for key, values in params.items():
+        if "." in key:  # a value sweep (e.g. classifier.accuracy), not a group
+            continue
+        for v in str(values).split(","):
+            v = v.strip()
+            assert (CONF / key / f"{v}.yaml").exists(), f"experiment={option}: {key}={v} is not an option of conf/{key}/"
+        # the job of every combination composes
+        first = str(values).split(",")[0].strip()
+        _compose([f"experiment={option}", f"{key}={first}"])
+
+
+def test_unknown_option_is_an_error_listing_the_options():
+    from hydra.errors import ConfigCompositionException, MissingConfigException
+
+    with pytest.raises((ConfigCompositionException, MissingConfigException), match="graph_knn"):
+        _compose(["aggregator=nope"])
