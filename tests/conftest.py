@@ -31,7 +31,7 @@ def selros_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def shared_houses(procthor_file):
-    from envs.world.house import load_houses
+    from envs.datasets.house_files import load_houses
 
     return load_houses(procthor_file)
 

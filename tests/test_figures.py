@@ -26,8 +26,8 @@ def png_ok(path, map_shape, must_show=()):
 
 
 def test_fig3_and_fig4_commands_on_a_shared_house(procthor_file, tmp_path, capsys):
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     scene = rasterise_house(load_houses(procthor_file, SMALLEST_SHARED, SMALLEST_SHARED + 1)[0])
     present = np.unique(scene.semantic[scene.semantic >= 0])

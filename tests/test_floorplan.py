@@ -97,8 +97,8 @@ def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
 def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
     from benchmark.classifiers.oracle import OracleClassifier
     from benchmark.viewpoints import Autotrace
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     house = load_houses(procthor_file, 80, 81)[0]
     scene = rasterise_house(house, resolution=0.1)

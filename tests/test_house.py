@@ -4,8 +4,9 @@ import json
 import numpy as np
 import pytest
 
+from envs.datasets.house_files import iter_house_file, load_houses
 from envs.maps.scene import rasterise_house
-from envs.world.house import House, HouseError, iter_house_file, load_houses, validate_house
+from envs.world.house import House, HouseError, validate_house
 
 
 def square_house():

@@ -49,9 +49,9 @@ def test_instance_png_with_blended_edge(tmp_path):
 
 def test_draw_house_shows_every_room_class(procthor_file, tmp_path):
     from benchmark.commands.draw_house import main
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
     from envs.world.classes import class_colors
-    from envs.world.house import load_houses
 
     out = tmp_path / "house.png"
     assert main(["--houses", str(procthor_file), "--index", "3", "--out", str(out), "--resolution", "0.1"]) == 0

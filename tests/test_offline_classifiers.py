@@ -95,9 +95,9 @@ def test_objects_classifier_table_is_naive_bayes_with_smoothing():
 
 def test_classifiers_on_rendered_views_share_the_interface(procthor_file):
     from benchmark.viewpoints import Autotrace
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
     from envs.render.floorplan import FloorplanRenderer
-    from envs.world.house import load_houses
 
     house = load_houses(procthor_file, 100, 101)[0]
     scene = rasterise_house(house, resolution=0.1)

@@ -304,8 +304,8 @@ def test_label_orphan_components():
 
 
 def test_shared_houses_noisy_ground_truth(procthor_file):
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     pp = PostProcess()
     for i, h in enumerate(load_houses(procthor_file, 0, 4)):

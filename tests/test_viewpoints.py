@@ -81,8 +81,8 @@ def test_autotrace_headings_spread_around_the_inward_normal():
 
 
 def test_autotrace_covers_every_room_of_shared_houses(procthor_file):
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     at = Autotrace(offset=0.5, spacing=1.0, n_headings=1)
     checked = 0

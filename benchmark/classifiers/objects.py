@@ -21,9 +21,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from benchmark.interfaces import Classifier
+from envs.datasets.house_files import iter_house_file
 from envs.maps.scene import ObjectFootprint, rasterise_house
 from envs.world.classes import PAPER_CLASSES
-from envs.world.house import House, iter_house_file
+from envs.world.house import House
 
 
 def room_object_counts(houses: Sequence[House], classes: Sequence[str], resolution: float = 0.1):

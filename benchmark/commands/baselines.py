@@ -77,8 +77,8 @@ def _match(a: argparse.Namespace) -> int:
     from benchmark.baselines.match import match_maps
     from benchmark.baselines.selros import SELROS_RESOLUTION, default_selros_dir
     from envs.atomic import atomic_write_text
+    from envs.datasets.house_files import load_houses
     from envs.maps.label_png import read_instance_png
-    from envs.world.house import load_houses
 
     folder = a.maps or default_selros_dir() / "ground_truth"
     paths = sorted(folder.glob("*_ground_truth.png"))

@@ -14,8 +14,8 @@ def main(argv: list[str] | None = None) -> int:
     """Autotrace on a house file: poses per house and how many rooms get at least one pose."""
     import argparse
 
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     default = procthor_houses()
     ap = argparse.ArgumentParser(description="autotrace room coverage on a house file")

@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 
 from benchmark.reports.draw_house import draw_scene
+from envs.datasets.house_files import load_houses
 from envs.maps.scene import rasterise_house
-from envs.world.house import load_houses
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,7 +10,7 @@ import pandas as pd
 
 from benchmark.paths import procthor_houses
 from benchmark.reports.house_stats import grid_figure, stats
-from envs.world.house import load_houses
+from envs.datasets.house_files import load_houses
 
 
 def main(argv: list[str] | None = None) -> int:

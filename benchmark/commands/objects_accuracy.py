@@ -14,8 +14,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from benchmark.classifiers.oracle import true_labels
     from benchmark.viewpoints import Autotrace
+    from envs.datasets.house_files import load_houses
     from envs.render.floorplan import FloorplanRenderer
-    from envs.world.house import load_houses
 
     default = procthor_houses()
     ap = argparse.ArgumentParser(description="objects classifier per-view accuracy vs the oracle's true label")

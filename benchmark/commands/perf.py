@@ -47,9 +47,9 @@ def _peak(fn, *args) -> int:
 
 def _scenes(path: Path, houses: int, synthetic: int, res: float):
     """(dataset, house id, Scene) for the shared ProcTHOR houses and the generated ones."""
+    from envs.datasets.house_files import load_houses
     from envs.datasets.synthetic import SyntheticEnv
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     if houses > 0:
         for h in load_houses(path, 0, houses):

@@ -19,8 +19,8 @@ def time_postprocess(path: str | Path, houses: int = 150, noise: float = 0.2, re
     = ground truth rasterised at ``resolution`` m/px with ``noise`` salt-and-pepper. One row
     per house: id, pixels, best-of-``repeat`` milliseconds, agreement with ground truth
     before/after (fraction of walkable pixels)."""
+    from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
-    from envs.world.house import load_houses
 
     pp = PostProcess()
     rows = []

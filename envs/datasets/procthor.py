@@ -1,33 +1,56 @@
-"""ProcTHOR houses from a local house file or from AI2's ``prior`` package."""
+"""ProcTHOR houses from a local house file or folder, or from AI2's ``prior`` package."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from envs.datasets.base import Environment
-from envs.maps.scene import Scene, rasterise_house, scene_on_grid
-from envs.world.classes import PAPER_CLASSES
-from envs.world.house import House, HouseError, iter_house_file, load_prior_houses, validate_house
+from envs.datasets.house_files import (
+    HouseRecord,
+    load_prior_dataset,
+    prior_records,
+    read_house_records,
+)
+from envs.maps.scene import (
+    MAX_MAP_PIXELS,
+    Scene,
+    check_max_map_pixels,
+    rasterise_house,
+    scene_on_grid,
+)
+from envs.world.classes import PAPER_CLASSES, room_type_mapping
+from envs.world.house import House, HouseError
 
 
 class ProcTHOREnv(Environment):
     """ProcTHOR-schema houses, rasterised on demand.
 
     Args:
-        path: a ``.json``/``.jsonl``/``.jsonl.gz`` house file; ``None`` loads
-            ``prior.load_dataset(dataset)`` (needs network and ``roomseg-bench[thor]``).
+        path: a house file or folder in any layout of :mod:`envs.datasets.house_files`
+            (``.json``, ``.json.gz``, ``.jsonl``, ``.jsonl.gz``, a folder of ``.json``/``.json.gz``,
+            a split dictionary); ``None`` loads ``prior.load_dataset(dataset)`` (needs network
+            and ``roomseg-bench[thor]``).
         start, stop: index range of houses (the paper: train[0:100]).
-        split, dataset: for ``prior`` only.
+        split: the split of a split-dictionary file, or of ``prior`` (``None``: train there);
+            must be ``None`` for the other layouts.
+        dataset: for ``prior`` only.
         resolution, wall_thickness, clearance, max_object_base: rasterisation parameters
             (metres per pixel, metres, metres, metres); see :func:`envs.maps.scene.rasterise_house`.
         classes: ordered class list.
+        room_types: room type -> class name added to (or, with ``None``, removed from) the
+            defaults :data:`envs.world.classes.ROOM_TYPE_TO_CLASS`.
+        max_map_pixels: the largest map (pixels) a house may rasterise to, ``None`` for no
+            limit; a larger house fails alone.
         name: dataset name in tables.
         occupancy: "floorplan" (rasterised from the house) or "ai2thor" (AI2-THOR's
             reachable positions, ``thor`` = keyword arguments of the AI2-THOR renderer;
             needs the simulator); the ground truth is carried onto that map.
 
-    Houses that fail validation are kept as ids: :meth:`scene` raises their
-    :class:`~envs.world.house.HouseError`, so a sweep records the failure for that house alone.
+    Houses that cannot be read (a line that is not valid JSON) or fail validation (an
+    unmapped room type, a map over ``max_map_pixels``, ...) are kept as ids: :meth:`house`
+    and :meth:`scene` raise their :class:`~envs.world.house.HouseError`, so a sweep records
+    the failure for that house alone.
     """
 
     def __init__(
@@ -35,13 +58,15 @@ class ProcTHOREnv(Environment):
         path: str | None = None,
         start: int = 0,
         stop: int | None = None,
-        split: str = "train",
+        split: str | None = None,
         dataset: str = "procthor-10k",
         resolution: float = 0.05,
         wall_thickness: float = 0.1,
         clearance: float = 0.0,
         max_object_base: float = 0.5,
         classes: list[str] | tuple[str, ...] = PAPER_CLASSES,
+        room_types: Mapping[str, str | None] | None = None,
+        max_map_pixels: int | None = MAX_MAP_PIXELS,
         name: str = "procthor",
         occupancy: str = "floorplan",
         thor: dict | None = None,
@@ -50,29 +75,30 @@ class ProcTHOREnv(Environment):
             raise ValueError(f"occupancy must be 'floorplan' or 'ai2thor', got {occupancy!r}")
         self.name, self.occupancy, self.thor = name, occupancy, dict(thor or {})
         self._renderer = None
+        self.classes = tuple(classes)
+        self.room_types = room_type_mapping(room_types)
         self.raster = dict(resolution=resolution, wall_thickness=wall_thickness,
-                           clearance=clearance, max_object_base=max_object_base, classes=tuple(classes))
+                           clearance=clearance, max_object_base=max_object_base, classes=self.classes,
+                           room_types=self.room_types,
+                           max_map_pixels=check_max_map_pixels(max_map_pixels, "env.max_map_pixels"))
         if path is None:
-            houses = load_prior_houses(dataset, split, start, stop, validate=False)
+            records = prior_records(load_prior_dataset(dataset), dataset, split or "train", start, stop)
         else:
-            p = Path(path).expanduser()
-            houses = []
-            for i, h in enumerate(iter_house_file(p, validate=False)):
-                if stop is not None and i >= stop:
-                    break
-                if i >= start:
-                    houses.append(h)
-        self._houses: dict[str, House] = {h.id: h for h in houses}
+            records = read_house_records(Path(path).expanduser(), start, stop, split=split)
+        self._records: dict[str, HouseRecord] = {r.id: r for r in records}
 
     def house_ids(self) -> list[str]:
-        return list(self._houses)
+        return list(self._records)
 
     def house(self, house_id: str) -> House:
-        if house_id not in self._houses:
+        """The house, validated (``data`` is the dict exactly as read).
+
+        Returns:
+            :class:`House`; raises :class:`HouseError` for an unreadable or invalid house.
+        """
+        if house_id not in self._records:
             raise KeyError(f"no house {house_id!r} in environment {self.name!r}")
-        h = self._houses[house_id]
-        validate_house(h.data, h.id)
-        return h
+        return self._records[house_id].house(room_types=self.room_types, classes=self.classes)
 
     def scene(self, house_id: str) -> Scene:
         house = self.house(house_id)

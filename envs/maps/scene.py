@@ -21,6 +21,28 @@ from envs.world.assets import asset_info
 from envs.world.classes import PAPER_CLASSES, ROOM_TYPE_TO_CLASS, room_type_to_class_index
 from envs.world.house import House, HouseError, floor_polygon, validate_house
 
+#: Peak memory of :func:`rasterise_house` per map pixel, in bytes: 100 B/px growth of the
+#: process's maximum resident set (88 B/px traced by tracemalloc) rasterising one 100 x 100 m
+#: room at 0.05 m/px (2010 x 2010 pixels), where each room and wall window spans the map.
+RASTER_BYTES_PER_PIXEL = 100
+
+#: Default ``max_map_pixels``: the largest map (H x W pixels) rasterised, so that the
+#: rasterisation's arrays fit in 2 GB (20 M pixels x 100 B; at 0.05 m/px about 223 x 223 m).
+MAX_MAP_PIXELS = 2_000_000_000 // RASTER_BYTES_PER_PIXEL
+
+
+def check_max_map_pixels(value, setting: str = "max_map_pixels") -> int | None:
+    """``value`` as a positive int, or ``None`` for no limit; one-line error otherwise.
+
+    Returns:
+        the limit in pixels, or ``None``.
+    """
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        raise ValueError(f"{setting} must be a positive number of pixels or null (no limit), got {value!r}")
+    return value
+
 
 @dataclass(frozen=True)
 class ObjectFootprint:
@@ -160,6 +182,7 @@ def rasterise_house(
     margin: float = 0.25,
     classes: Sequence[str] = PAPER_CLASSES,
     room_types: dict[str, str] | None = None,
+    max_map_pixels: int | None = MAX_MAP_PIXELS,
 ) -> Scene:
     """Rasterise a ProcTHOR-schema house into a :class:`Scene`.
 
@@ -173,21 +196,35 @@ def rasterise_house(
             floor; higher ones (paintings, wall shelves) do not.
         margin: empty border around the house in metres.
         classes: ordered class names for ``instance_classes``.
-        room_types: ProcTHOR roomType -> class name (default: :data:`ROOM_TYPE_TO_CLASS`).
+        room_types: dataset roomType -> class name (default:
+            :data:`~envs.world.classes.ROOM_TYPE_TO_CLASS`).
+        max_map_pixels: the largest map (H x W pixels) to rasterise, ``None`` for no limit;
+            a larger house raises :class:`HouseError` before any array is allocated
+            (default :data:`MAX_MAP_PIXELS`, about 2 GB at :data:`RASTER_BYTES_PER_PIXEL`).
+
+    Returns:
+        :class:`Scene` on a grid of ``resolution`` metres per pixel.
     """
     room_types = dict(room_types or ROOM_TYPE_TO_CLASS)
     hid = house.id
     data = house.data
-    validate_house(data, hid, room_types)
-    if resolution <= 0:
+    validate_house(data, hid, room_types, classes)
+    if not resolution > 0:
         raise ValueError(f"resolution must be positive metres/pixel, got {resolution}")
+    max_map_pixels = check_max_map_pixels(max_map_pixels)
 
     polys = [floor_polygon(r, hid) for r in data["rooms"]]
     allpts = np.array([p for poly in polys for p in poly])
     xmin, zmin = allpts.min(axis=0) - margin
     xmax, zmax = allpts.max(axis=0) + margin
-    w = int(np.ceil((xmax - xmin) / resolution))
-    h = int(np.ceil((zmax - zmin) / resolution))
+    wf, hf = np.ceil((xmax - xmin) / resolution), np.ceil((zmax - zmin) / resolution)
+    if max_map_pixels is not None and not wf * hf <= max_map_pixels:
+        raise HouseError(
+            hid, "map size",
+            f"extent {xmax - xmin:.2f} x {zmax - zmin:.2f} m (x by z, {margin} m margin included) at "
+            f"{resolution} m/px is {wf:.0f} x {hf:.0f} = {wf * hf:.0f} pixels, over the limit "
+            f"max_map_pixels={max_map_pixels} (env.max_map_pixels; about {RASTER_BYTES_PER_PIXEL} bytes per pixel)")
+    w, h = int(wf), int(hf)
     grid0 = GridMap(np.zeros((h, w), bool), resolution, (float(xmin), float(zmax)))
 
     # rooms: pixel centre inside the floor polygon, first room wins
@@ -291,4 +328,5 @@ def room_polygon_areas(house: House) -> np.ndarray:
     return np.array([shapely.Polygon(floor_polygon(r, house.id)).area for r in house.rooms])
 
 
-__all__ = ["ObjectFootprint", "Scene", "rasterise_house", "room_polygon_areas", "scene_on_grid", "HouseError"]
+__all__ = ["ObjectFootprint", "Scene", "rasterise_house", "room_polygon_areas", "scene_on_grid", "HouseError",
+           "MAX_MAP_PIXELS", "RASTER_BYTES_PER_PIXEL", "check_max_map_pixels"]

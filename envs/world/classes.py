@@ -1,4 +1,4 @@
-"""Room classes, the mapping from ProcTHOR room types, and class colours."""
+"""Room classes, the mapping from dataset room types to classes, and class colours."""
 
 from __future__ import annotations
 
@@ -15,8 +15,11 @@ PAPER_CLASSES: tuple[str, ...] = (
     "living_room",
 )
 
-#: ProcTHOR ``roomType`` -> paper class. ProcTHOR-10k uses the first four; the synthetic
-#: generator also writes the last three.
+#: Dataset ``roomType`` -> class: the defaults, the one place they live. ProcTHOR-10k uses
+#: the first four; the synthetic generator also writes Balcony, Corridor and DiningRoom;
+#: Hallway is how other ProcTHOR-schema house sets name a corridor. An environment's
+#: ``room_types`` setting (``env.room_types``) adds to or overrides these
+#: (:func:`room_type_mapping`).
 ROOM_TYPE_TO_CLASS: dict[str, str] = {
     "Kitchen": "kitchen",
     "LivingRoom": "living_room",
@@ -24,8 +27,36 @@ ROOM_TYPE_TO_CLASS: dict[str, str] = {
     "Bathroom": "bathroom",
     "Balcony": "balcony",
     "Corridor": "corridor",
+    "Hallway": "corridor",
     "DiningRoom": "dining_room",
 }
+
+#: Name of the setting that maps room types to classes, quoted by every error about one.
+ROOM_TYPES_SETTING = "env.room_types"
+
+
+def room_type_mapping(overrides: Mapping[str, str | None] | None = None) -> dict[str, str]:
+    """The default room-type mapping with ``overrides`` applied.
+
+    Args:
+        overrides: room type -> class name to add or replace; a ``None`` value removes
+            the type (its houses then fail as having an unknown room type).
+
+    Returns:
+        dict room type -> class name.
+    """
+    out = dict(ROOM_TYPE_TO_CLASS)
+    for k, v in (overrides or {}).items():
+        if not isinstance(k, str) or not k:
+            raise ValueError(f"{ROOM_TYPES_SETTING}: room type {k!r} is not a non-empty string")
+        if v is None:
+            out.pop(k, None)
+        elif isinstance(v, str) and v:
+            out[k] = v
+        else:
+            raise ValueError(f"{ROOM_TYPES_SETTING}.{k}: expected a class name or null, got {v!r}")
+    return out
+
 
 #: Fixed RGB colours (0-255) per class, used by every figure and PNG writer.
 CLASS_COLORS: dict[str, tuple[int, int, int]] = {
@@ -60,12 +91,23 @@ def room_type_to_class_index(
     classes: Sequence[str] = PAPER_CLASSES,
     mapping: Mapping[str, str] = ROOM_TYPE_TO_CLASS,
 ) -> int:
-    """Class index of a ProcTHOR ``roomType`` (e.g. ``"LivingRoom"`` -> index of living_room)."""
+    """Class index of a ProcTHOR ``roomType`` (e.g. ``"LivingRoom"`` -> index of living_room).
+
+    Returns:
+        int position of the mapped class in ``classes``.
+    """
     if room_type not in mapping:
         raise ValueError(
-            f"unknown room type {room_type!r}; expected one of {sorted(mapping)}"
+            f"unknown room type {room_type!r}: map it to a class in {ROOM_TYPES_SETTING} "
+            f"(known types: {sorted(mapping)})"
         )
-    return class_index(classes, mapping[room_type])
+    name = mapping[room_type]
+    if name not in classes:
+        raise ValueError(
+            f"room type {room_type!r} maps to class {name!r}, which is not in classes {list(classes)}; "
+            f"change {ROOM_TYPES_SETTING} or the class list"
+        )
+    return class_index(classes, name)
 
 
 def class_colors(classes: Sequence[str]) -> list[tuple[int, int, int]]:
