@@ -14,13 +14,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("paths", nargs="+", help="run folders or metrics.csv files")
     ap.add_argument("--table", action="append", choices=sorted(TABLES),
-                    help="table(s) to make (repeatable; default: all)")
+                    help="table(s) to make (repeatable; default: every table the rows have data for)")
     ap.add_argument("--out", type=Path, default=None, help="folder for .md/.csv/.tex outputs")
     ap.add_argument("--fraction", action="store_true", help="report fractions instead of percent")
     a = ap.parse_args(argv)
     try:
-        text = render(a.paths, a.table or ["table2", "table3", "table4", "table5", "sensitivity"], a.out,
-                      percent=not a.fraction)
+        text = render(a.paths, a.table, a.out, percent=not a.fraction)
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

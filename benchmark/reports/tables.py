@@ -18,6 +18,7 @@ import pandas as pd
 
 from benchmark.harness.cache import atomic_write_text
 from benchmark.harness.store import iter_metric_files
+from benchmark.reports import formatting
 
 
 @dataclass(frozen=True)
@@ -120,27 +121,36 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     return out.reset_index()
 
 
-def format_cells(summary: pd.DataFrame, spec: TableSpec, percent: bool = True) -> pd.DataFrame:
-    """Wide display table: one cell per (row, col, metric) as ``mean ± std`` (percent)."""
+#: tables that compare values of one column: printed only when that column takes >= 2
+#: values in the rows read (else a line says why the table is left out).
+NEEDS_VARYING: dict[str, tuple[str, str]] = {
+    "table2": ("viewpoints", "viewpoint strategies"),
+    "table3": ("postprocess", "post-processing settings (none and default)"),
+    "sensitivity": ("oracle_accuracy", "oracle accuracies"),
+}
+
+
+def why_empty(df: pd.DataFrame, name: str, summary: pd.DataFrame) -> str | None:
+    """None when table ``name`` has something to show in ``summary``; otherwise one line
+    saying why not (no rows selected, or the one column it compares does not vary)."""
     if summary.empty:
-        return summary
-    scale = 100.0 if percent else 1.0
-    metrics = [m for m in spec.metrics if f"{m}_mean" in summary]
-    disp = summary.copy()
-    for m in metrics:
-        mean, std = disp[f"{m}_mean"] * scale, disp[f"{m}_std"] * scale
-        disp[m] = [("–" if np.isnan(a) else (f"{a:.2f}" if np.isnan(s) else f"{a:.2f} ± {s:.2f}"))
-                   for a, s in zip(mean, std)]
-    disp["houses"] = [f"{n}" + (f" ({f} failed)" if f else "") for n, f in zip(disp["n"], disp["n_failed"])]
-    rows = [c for c in spec.rows if c in disp]
-    cols = [c for c in spec.cols if c in disp]
-    value_cols = [*metrics, "houses"]
-    if not cols:
-        return disp[rows + value_cols]
-    wide = disp.pivot_table(index=rows, columns=cols, values=value_cols, aggfunc="first")
-    wide.columns = [" | ".join(str(x) for x in (c[1:] if len(c) > 1 else ()) ) + f" {c[0]}" for c in wide.columns]
-    wide = wide[sorted(wide.columns)]
-    return wide.reset_index()
+        spec = TABLES[name]
+        sel = ", ".join([f"{k}={v}" for k, v in spec.where.items()] +
+                        [f"{k}!={v}" for k, v in spec.exclude.items() if k != "segmenter_row"])
+        return f"no rows{(' with ' + sel) if sel else ''} among the {len(df)} rows read"
+    if name in NEEDS_VARYING:
+        col, words = NEEDS_VARYING[name]
+        vals = summary[col].dropna().unique() if col in summary else []
+        if len(vals) < 2:
+            shown = ", ".join(formatting.value_label(col, v) for v in vals) or "none"
+            return f"it compares {words}; the rows read have {len(vals)} ({shown})"
+    return None
+
+
+def format_cells(summary: pd.DataFrame, spec: TableSpec, percent: bool = True, name: str = "") -> formatting.Grid:
+    """The display grid of one table (see :mod:`benchmark.reports.formatting`)."""
+    return formatting.build_grid(summary, spec.rows, spec.cols, spec.metrics, spec.title, percent,
+                                 by_metric=name in formatting.BY_METRIC, pooled=name in formatting.POOLED)
 
 
 def metric_notes(df: pd.DataFrame) -> list[str]:
@@ -150,32 +160,45 @@ def metric_notes(df: pd.DataFrame) -> list[str]:
     return sorted({str(v) for v in df["metric_params"].dropna().unique()})
 
 
-def render(paths: Sequence[str | Path], tables: Sequence[str], out_dir: Path | None = None,
+def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out_dir: Path | None = None,
            percent: bool = True) -> str:
-    """Markdown text of the requested tables; with ``out_dir`` also write .md/.csv/.tex each."""
+    """Markdown text of the requested tables; with ``out_dir`` also write .md/.csv/.tex each.
+
+    ``tables`` None: every table the rows have data for; a table left out (or asked for
+    and empty) gets one line saying why. Returns the text printed by the command.
+    """
     df = load_rows(paths)
-    chunks = []
-    for name in tables:
+    chunks, skipped = [], []
+    asked = tables is not None
+    for name in (tables if asked else list(TABLES)):
         if name not in TABLES:
             raise ValueError(f"unknown table {name!r}; expected one of {sorted(TABLES)}")
         spec = TABLES[name]
-        summ = summarise(df, spec)
-        if summ.empty:
-            chunks.append(f"### {spec.title}\n\n(no rows for this table in {len(df)} rows read)\n")
+        if not asked and name == "all":
             continue
-        disp = format_cells(summ, spec, percent)
+        summ = summarise(df, spec)
+        reason = why_empty(df, name, summ)
+        if reason is not None and (summ.empty or not asked):
+            skipped.append(f"{spec.title}: left out, {reason}.")
+            continue
+        grid = format_cells(summ, spec, percent, name)
         notes = metric_notes(df)
-        md = f"### {spec.title}\n\n" + disp.to_markdown(index=False) + "\n\n" + (
-            "Mean ± std over houses, in percent. " if percent else "Mean ± std over houses. ") + (
-            "Metrics: " + "; ".join(notes) if notes else "") + "\n"
+        unit = "in percent" if percent else "as fractions"
+        caption = f"{spec.title}. Mean ± std over houses, {unit}. " + " ".join(grid.notes)
+        md = (f"### {spec.title}\n\n" + formatting.to_markdown(grid) + "\n\n" +
+              f"Mean ± std over houses, {unit}. " + " ".join(grid.notes) +
+              (" Metrics: " + "; ".join(notes) + "." if notes else "") +
+              (f" Note: {reason}." if reason else "") + "\n")
         chunks.append(md)
         if out_dir is not None:
             out_dir.mkdir(parents=True, exist_ok=True)
             atomic_write_text(out_dir / f"{name}.md", md)
             atomic_write_text(out_dir / f"{name}.csv", summ.to_csv(index=False))
-            atomic_write_text(out_dir / f"{name}.tex", disp.to_latex(index=False, escape=True))
-        if name == "sensitivity" and out_dir is not None:
+            atomic_write_text(out_dir / f"{name}.tex", formatting.to_latex(grid, f"tab:{name}", caption.strip()))
+        if name == "sensitivity" and out_dir is not None and reason is None:
             plot_sensitivity(summ, out_dir / "sensitivity.png")
+    if skipped:
+        chunks.append("\n".join(skipped) + "\n")
     failed = df[df["status"] != "ok"]
     if len(failed):
         reasons = failed["error"].fillna("").str.split(":").str[0].value_counts()
