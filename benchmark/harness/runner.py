@@ -14,7 +14,6 @@ time) and ``resolved_config.yaml``. Examples::
 from __future__ import annotations
 
 import logging
-import sys
 import time
 from collections import Counter
 from pathlib import Path
@@ -27,6 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_key
 from benchmark.harness.pipeline import Pipeline, expand_force
+from benchmark.harness.progress import house_progress, job_label
 from benchmark.harness.store import Job
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
@@ -132,12 +132,11 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     if pipe.classifier is not None and hasattr(pipe.classifier, "setup"):
         pipe.classifier.setup(ids)
-    progress = None
-    if cfg.run.get("progress", True):
-        from tqdm.auto import tqdm
-
-        desc = ",".join(v for v in pipe.names.values() if v)
-        progress = lambda it: tqdm(it, desc=desc[:60], unit="house", file=sys.stderr)  # noqa: E731
+    clf_cfg = cfg.get("classifier") if cfg.get("segmenter") is None else None
+    acc = clf_cfg.get("accuracy") if clf_cfg is not None else None
+    # a bar only on a terminal with no other job beside it; else the finished-job line below
+    progress = house_progress(job_label(pipe.names, None if acc is None else float(acc)),
+                              bool(cfg.run.get("progress", True)))
     rows = pipe.run(ids, progress)
     df = pd.DataFrame(rows)
     if "traceback" in df:
