@@ -58,15 +58,18 @@ def room_type_mapping(overrides: Mapping[str, str | None] | None = None) -> dict
     return out
 
 
-#: Fixed RGB colours (0-255) per class, used by every figure and PNG writer.
+#: Fixed RGB colours (0-255) per class, used by every figure and PNG writer: the seven
+#: colours of the Okabe-Ito palette (its black is the background), told apart with the
+#: common colour-vision deficiencies. Open-plan neighbours (kitchen | dining | living) get
+#: green | vermillion | orange, which also differ in lightness.
 CLASS_COLORS: dict[str, tuple[int, int, int]] = {
-    "balcony": (141, 211, 199),
-    "bathroom": (31, 120, 180),
-    "bedroom": (227, 26, 28),
-    "corridor": (255, 217, 47),
-    "dining_room": (106, 61, 154),
-    "kitchen": (51, 160, 44),
-    "living_room": (255, 127, 0),
+    "balcony": (86, 180, 233),      # sky blue
+    "bathroom": (0, 114, 178),      # blue
+    "bedroom": (204, 121, 167),     # reddish purple
+    "corridor": (240, 228, 66),     # yellow
+    "dining_room": (213, 94, 0),    # vermillion
+    "kitchen": (0, 158, 115),       # bluish green
+    "living_room": (230, 159, 0),   # orange
 }
 #: Colour of unlabelled walkable pixels and of non-walkable background.
 UNLABELLED_COLOR: tuple[int, int, int] = (200, 200, 200)
