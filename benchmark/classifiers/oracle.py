@@ -3,25 +3,47 @@
 A view's true label is the class that covers most of the floor the camera sees
 (``Observation.visible_classes``, from the floorplan renderer; ties -> lower class index),
 not the room it stands in. With probability ``1 - accuracy`` the label is replaced by a
-wrong class: uniformly among the others, or drawn from row ``true`` of a confusion matrix
-(diagonal ignored). The output is one-hot. Each view's draw is seeded from ``seed`` and the
-view's pose, so results do not depend on batching, order or caching. A view that sees no
-floor keeps a uniform probability vector and is flagged in ``last_flags``.
+wrong class; a noise model (:mod:`benchmark.classifiers.noise`) decides how the errors of
+different views are correlated (independent, per room, per house) and a confusion matrix
+(given inline or read from a file, e.g. a real classifier's Table I confusion) which wrong
+class is drawn. The output is one-hot. Every draw is seeded from ``seed`` and stable ids
+(the view's pose, the house and room ids), so results do not depend on batching, order or
+caching. A view that sees no floor keeps a uniform probability vector and is flagged in
+``last_flags``.
+
+Models that need the house (per room, per house) get it through :meth:`OracleClassifier.set_scene`,
+which the pipeline calls before classifying a house's views.
 """
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
+from benchmark.classifiers.noise import (
+    Independent,
+    NoiseModel,
+    load_confusion,
+    seen_accuracy,
+    uniform_confusion,
+    view_rng,
+    wrong_class_rows,
+)
 from benchmark.interfaces import Classifier
 from envs.world.classes import PAPER_CLASSES
 
 
 def true_labels(observations: Sequence) -> np.ndarray:
-    """The majority visible class of each observation, -1 where nothing was seen."""
+    """The majority visible class of each observation.
+
+    Returns:
+        (N,) int64 class index, -1 where nothing was seen.
+
+    Raises:
+        ValueError: an observation has no ``visible_classes`` (not the floorplan renderer).
+    """
     out = np.full(len(observations), -1, dtype=np.int64)
     for i, o in enumerate(observations):
         v = o.visible_classes
@@ -39,46 +61,73 @@ class OracleClassifier(Classifier):
     Args:
         accuracy: probability of keeping the true label, in [0, 1].
         seed: random seed.
-        confusion: optional (C, C) matrix; row t gives the relative chances of each wrong
-            class when true class t is replaced.
+        confusion: optional (C, C) matrix (rows: true class), or the path of a confusion
+            file (:func:`benchmark.classifiers.noise.load_confusion`: ``table1_<model>.json``
+            of the ``evaluate`` command, or CSV); row t gives the relative chances of each
+            wrong class when true class t is replaced (diagonal ignored). None: uniform.
+        noise: the noise model (:class:`benchmark.classifiers.noise.NoiseModel`); None:
+            independent errors.
         classes: the ordered class names.
+
+    Attributes:
+        last_flags: (N,) bool, views of the last call that saw no floor.
+        last_accuracy: share of the last call's views (that saw floor) labelled right.
     """
 
-    def __init__(self, accuracy: float = 1.0, seed: int = 0, confusion: Sequence[Sequence[float]] | None = None,
-                 classes: Sequence[str] = PAPER_CLASSES):
+    def __init__(self, accuracy: float = 1.0, seed: int = 0,
+                 confusion: Sequence[Sequence[float]] | str | Path | None = None,
+                 noise: NoiseModel | None = None, classes: Sequence[str] = PAPER_CLASSES):
         if not 0.0 <= accuracy <= 1.0:
             raise ValueError(f"oracle accuracy must be in [0, 1], got {accuracy}")
         self.accuracy, self.seed, self.classes = float(accuracy), int(seed), tuple(classes)
         c = len(self.classes)
-        if confusion is not None:
-            m = np.asarray(confusion, dtype=float)
-            if m.shape != (c, c) or (m < 0).any():
-                raise ValueError(f"confusion must be a non-negative ({c}, {c}) matrix, got shape {m.shape}")
-            np.fill_diagonal(m, 0.0)
-            m[m.sum(1) == 0] = 1.0 - np.eye(c)[m.sum(1) == 0]
-            self.confusion = m / m.sum(1, keepdims=True)
-        else:
-            self.confusion = (1.0 - np.eye(c)) / max(c - 1, 1)
+        if isinstance(confusion, str | Path):
+            confusion = load_confusion(confusion, self.classes)
+        self.confusion = uniform_confusion(c) if confusion is None else wrong_class_rows(confusion, c)
+        self.noise = Independent() if noise is None else noise
+        if not isinstance(self.noise, NoiseModel):
+            raise ValueError(f"oracle noise must be a NoiseModel (e.g. benchmark.classifiers.noise.PerRoom), "
+                             f"got {type(self.noise).__name__}")
+        self.scene = None
         self.last_flags = np.zeros(0, dtype=bool)
+        self.last_accuracy = float("nan")
 
     def setup(self, eval_house_ids: Sequence[str]) -> None:
         """Nothing to prepare."""
 
+    def set_scene(self, scene) -> None:
+        """The house whose views the next calls classify (its id and rooms seed the per-room
+        and per-house models); the pipeline calls this before each house."""
+        self.scene = scene
+
     def _rng(self, pose) -> np.random.Generator:
-        key = np.round(np.asarray(pose, dtype=float) * 1000).astype(np.int64).tobytes()
-        h = int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little")
-        return np.random.default_rng([self.seed, h])
+        return view_rng(self.seed, pose)
 
     def predict_proba(self, observations: Sequence) -> np.ndarray:
+        """(N, C) one-hot rows (uniform for a view that saw no floor).
+
+        Raises:
+            ValueError: a view has no visible classes, or the noise model needs the house
+                and :meth:`set_scene` was not called (or the views lie off its map).
+        """
         truth = true_labels(observations)
         c = len(self.classes)
+        poses = np.asarray([o.pose for o in observations], dtype=float).reshape(-1, 3)
+        scene = None
+        if self.noise.needs_scene:
+            scene = self.scene
+            if scene is None:
+                raise ValueError(f"oracle noise {self.noise.describe()} needs the house: call set_scene(scene) first")
+            if tuple(scene.classes) != self.classes:
+                raise ValueError(f"oracle classes {list(self.classes)} differ from the scene's {list(scene.classes)}")
+            r, cc = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
+            if len(poses) and not np.all(scene.grid.in_bounds(r, cc)):
+                raise ValueError(f"oracle: views lie off the map of house {scene.house_id!r} given to set_scene")
+        labels = self.noise.labels(truth, poses, self.accuracy, self.confusion, self.seed, scene)
         out = np.full((len(truth), c), 1.0 / c)
-        for i, (o, t) in enumerate(zip(observations, truth)):
-            if t < 0:
-                continue
-            rng = self._rng(o.pose)
-            lab = t if rng.random() < self.accuracy else int(rng.choice(c, p=self.confusion[t]))
-            out[i] = 0.0
-            out[i, lab] = 1.0
-        self.last_flags = truth < 0
+        seen = truth >= 0
+        out[seen] = 0.0
+        out[np.nonzero(seen)[0], labels[seen]] = 1.0
+        self.last_flags = ~seen
+        self.last_accuracy = seen_accuracy(truth, out)
         return out

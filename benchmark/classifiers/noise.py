@@ -1,0 +1,538 @@
+"""How the oracle classifier errs: noise models with stable seeds, confusion files, and the
+per-view accuracy measured against what a view sees.
+
+Every model keeps the configured accuracy ``a`` for each view in expectation (a view whose
+true class is ``t`` gets ``t`` with probability ``a``); they differ in how the errors of
+different views are correlated and which wrong class is drawn:
+
+- :class:`Independent`: each view draws alone (right with probability ``a``; if wrong, a
+  class from row ``t`` of the confusion matrix, diagonal ignored).
+- :class:`PerRoom`: a view follows its room with probability ``correlation``, else it
+  draws like :class:`Independent`. A room draws once whether it is right and, if not, one
+  wrong class, so at ``correlation`` 1 every view of a room is right or every view carries
+  the same wrong class; at 0 the model is :class:`Independent`, draw for draw.
+- :class:`PerHouse`: a systematic bias: each house has one bias class (configured, or drawn
+  per house); a wrong view takes the bias class with probability ``strength`` (the "every
+  view is a dining room" failure), else a class from the confusion row.
+
+A confusion matrix (rows: true class, columns: predicted; counts or rates) can come from a
+file (:func:`load_confusion`): the ``table1_<model>.json`` the ``evaluate`` command writes for
+Table I, the same format :func:`view_confusion` writes for a classifier on rendered views,
+or a CSV.
+
+Seeds come from stable ids only: a view from the configured seed and its pose (rounded to
+millimetres), a room from the house id and the room id, a house from its id. So a result
+never depends on batch size, the order of views, caching or the other houses of a run.
+
+The room of a view is the room the view's true class refers to: the nearest room (by the
+Euclidean distance between cell centres on the map) whose class is the view's true class;
+for a view standing in a room of its true class, that room. See :func:`view_rooms`.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: salts that keep the random streams of the different draws apart.
+_FOLLOW, _ROOM, _HOUSE, _BIAS = 1, 2, 3, 4
+
+
+def pose_key(pose: Sequence[float]) -> int:
+    """64-bit key of a pose (x, z in metres, yaw in degrees), rounded to 1/1000.
+
+    Returns:
+        The key as a non-negative int (the same for equal rounded poses in any process).
+    """
+    key = np.round(np.asarray(pose, dtype=float) * 1000).astype(np.int64).tobytes()
+    return int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little")
+
+
+def text_key(*parts: object) -> int:
+    """64-bit key of a tuple of ids (house id, room id), from their ``str`` forms.
+
+    Returns:
+        The key as a non-negative int.
+    """
+    blob = "\x1f".join(str(p) for p in parts).encode("utf-8")
+    return int.from_bytes(hashlib.blake2b(blob, digest_size=8).digest(), "little")
+
+
+def view_rng(seed: int, pose: Sequence[float], salt: int | None = None) -> np.random.Generator:
+    """The random stream of one view (``salt`` picks a separate stream of the same view).
+
+    Returns:
+        A generator seeded from (seed, pose key[, salt]).
+    """
+    parts = [int(seed), pose_key(pose)] + ([] if salt is None else [int(salt)])
+    return np.random.default_rng(parts)
+
+
+def uniform_confusion(n_classes: int) -> np.ndarray:
+    """(C, C) wrong-class distribution with every other class equally likely.
+
+    Returns:
+        Rows sum to 1, zero diagonal (a single class gives [[1.0]]: nothing else to draw).
+    """
+    if n_classes == 1:
+        return np.ones((1, 1))
+    return (1.0 - np.eye(n_classes)) / (n_classes - 1)
+
+
+def wrong_class_rows(confusion: Any, n_classes: int) -> np.ndarray:
+    """A confusion matrix -> (C, C) wrong-class distributions: diagonal dropped, rows
+    normalised; a row with no errors becomes uniform over the other classes.
+
+    Args:
+        confusion: (C, C) non-negative counts or rates, rows = true class.
+        n_classes: C.
+
+    Returns:
+        (C, C) float, zero diagonal (C > 1), rows sum to 1.
+
+    Raises:
+        ValueError: wrong shape, negative or non-finite entries.
+    """
+    m = np.array(confusion, dtype=float)
+    if m.shape != (n_classes, n_classes) or not np.isfinite(m).all() or (m < 0).any():
+        raise ValueError(f"confusion must be a finite non-negative ({n_classes}, {n_classes}) matrix, "
+                         f"got shape {m.shape}")
+    if n_classes == 1:
+        return np.ones((1, 1))
+    np.fill_diagonal(m, 0.0)
+    empty = m.sum(1) == 0
+    m[empty] = uniform_confusion(n_classes)[empty]
+    return m / m.sum(1, keepdims=True)
+
+
+def _resolve(path: str | Path) -> Path:
+    p = Path(path).expanduser()
+    if p.exists() or p.is_absolute():
+        return p
+    root = Path(__file__).resolve().parents[2]
+    return root / p if (root / p).exists() else p
+
+
+def load_confusion(path: str | Path, classes: Sequence[str]) -> np.ndarray:
+    """Read a confusion matrix (rows: true class, columns: predicted) onto ``classes``.
+
+    Formats: JSON with ``confusion`` (C', C') and optional ``classes`` (C' names; the format
+    of ``table1_<model>.json`` from the ``evaluate`` command and of :func:`view_confusion`);
+    or CSV, a (C', C') table of numbers with an optional first row of class names. Named
+    classes are matched by name (file classes that are not in ``classes`` are dropped; a
+    class missing from the file gets an empty row, i.e. uniform wrong classes); without
+    names C' must equal C. A relative path is read from the working directory, else from
+    the repository root.
+
+    Returns:
+        (C, C) float counts/rates in the order of ``classes``.
+
+    Raises:
+        FileNotFoundError, ValueError: the file is missing, unreadable or does not fit.
+    """
+    p = _resolve(path)
+    if not p.exists():
+        raise FileNotFoundError(f"confusion file {path} does not exist")
+    names: list[str] | None
+    if p.suffix.lower() == ".json":
+        rec = json.loads(p.read_text())
+        if not isinstance(rec, dict) or "confusion" not in rec:
+            raise ValueError(f"confusion file {p}: expected a JSON object with a 'confusion' matrix")
+        m = np.asarray(rec["confusion"], dtype=float)
+        names = [str(c) for c in rec["classes"]] if rec.get("classes") is not None else None
+    else:
+        rows = [r for r in csv.reader(p.read_text().splitlines()) if r]
+        names = None
+        try:
+            float(rows[0][0])
+        except (ValueError, IndexError):
+            names, rows = [c.strip() for c in rows[0]], rows[1:]
+        try:
+            m = np.asarray([[float(x) for x in r] for r in rows], dtype=float)
+        except ValueError:
+            raise ValueError(f"confusion file {p}: expected a table of numbers (CSV)") from None
+    if m.ndim != 2 or m.shape[0] != m.shape[1]:
+        raise ValueError(f"confusion file {p}: expected a square matrix, got shape {m.shape}")
+    if names is None:
+        if m.shape[0] != len(classes):
+            raise ValueError(f"confusion file {p}: {m.shape[0]} classes without names, expected {len(classes)}")
+        return m
+    if len(names) != m.shape[0]:
+        raise ValueError(f"confusion file {p}: {len(names)} class names for a {m.shape} matrix")
+    common = [c for c in classes if c in names]
+    if not common:
+        raise ValueError(f"confusion file {p}: none of its classes {names} is one of {list(classes)}")
+    out = np.zeros((len(classes), len(classes)))
+    src = [names.index(c) for c in common]
+    dst = [list(classes).index(c) for c in common]
+    out[np.ix_(dst, dst)] = m[np.ix_(src, src)]
+    return out
+
+
+def view_rooms(scene, poses: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """The room each view's true class refers to.
+
+    Args:
+        scene: the house's :class:`envs.maps.scene.Scene` (``rooms``, ``instance_classes``, grid).
+        poses: (N, 3) world x, z (metres), yaw (degrees).
+        truth: (N,) true class index per view, -1 for a view that saw no floor.
+
+    Returns:
+        (N,) int room index (into ``scene.room_ids``): the nearest room of class ``truth``
+        to the view's cell (Euclidean, cell centres; the room it stands in when that room
+        has the class); -1 where ``truth`` is -1 or the house has no room of that class.
+    """
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    truth = np.asarray(truth)
+    out = np.full(len(truth), -1, dtype=np.int64)
+    if len(truth) == 0:
+        return out
+    from scipy import ndimage  # noqa: PLC0415
+
+    rooms = np.asarray(scene.rooms)
+    h, w = rooms.shape
+    r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
+    r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
+    cls = np.asarray(scene.instance_classes)
+    room_cls = np.where(rooms >= 0, cls[np.maximum(rooms, 0)], -1)
+    for t in np.unique(truth[truth >= 0]):
+        mask = room_cls == t
+        if not mask.any():
+            continue
+        sel = truth == t
+        _, (ir, ic) = ndimage.distance_transform_edt(~mask, return_indices=True)
+        out[sel] = rooms[ir[r[sel], c[sel]], ic[r[sel], c[sel]]]
+    return out
+
+
+class NoiseModel:
+    """How an oracle's labels go wrong; subclasses implement :meth:`labels`.
+
+    ``needs_scene``: the model needs the house (its id, rooms) to draw.
+    """
+
+    name = "noise"
+    needs_scene = False
+
+    def labels(self, truth: np.ndarray, poses: np.ndarray, accuracy: float, wrong: np.ndarray, seed: int,
+               scene=None) -> np.ndarray:
+        """Noisy labels of N views.
+
+        Args:
+            truth: (N,) true class per view, -1 where the view saw no floor.
+            poses: (N, 3) world x, z (metres), yaw (degrees).
+            accuracy: chance of a view keeping its true class, in [0, 1].
+            wrong: (C, C) wrong-class distributions (:func:`wrong_class_rows`).
+            seed: the oracle's seed.
+            scene: the house (needed when ``needs_scene``).
+
+        Returns:
+            (N,) int labels, -1 where ``truth`` is -1.
+        """
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        """Short text of the model and its parameters (for logs and rows)."""
+        return self.name
+
+
+def _independent_label(t: int, pose, accuracy: float, wrong: np.ndarray, seed: int) -> int:
+    rng = view_rng(seed, pose)
+    if rng.random() < accuracy:
+        return int(t)
+    return int(rng.choice(len(wrong), p=wrong[t]))
+
+
+class Independent(NoiseModel):
+    """Each view is right with probability ``accuracy``, independently of every other view;
+    a wrong view draws its class from the confusion row of its true class."""
+
+    name = "independent"
+
+    def labels(self, truth, poses, accuracy, wrong, seed, scene=None):
+        out = np.full(len(truth), -1, dtype=np.int64)
+        for i, t in enumerate(np.asarray(truth)):
+            if t >= 0:
+                out[i] = _independent_label(int(t), poses[i], accuracy, wrong, seed)
+        return out
+
+
+class PerRoom(NoiseModel):
+    """Errors shared by the views of a room.
+
+    Args:
+        correlation: in [0, 1], the chance that a view follows its room's draw (1: every
+            view of a room is right, or all carry the room's one wrong class; 0: independent).
+    """
+
+    name = "per_room"
+    needs_scene = True
+
+    def __init__(self, correlation: float = 1.0):
+        if not 0.0 <= float(correlation) <= 1.0:
+            raise ValueError(f"per-room noise: correlation must be in [0, 1], got {correlation}")
+        self.correlation = float(correlation)
+
+    def describe(self) -> str:
+        return f"{self.name}(correlation={self.correlation:g})"
+
+    def room_label(self, house_id: str, room_id: str, t: int, accuracy: float, wrong: np.ndarray, seed: int) -> int:
+        """The label a room gives its following views: ``t`` with probability ``accuracy``,
+        else one wrong class from row ``t``.
+
+        Returns:
+            The class index.
+        """
+        rng = np.random.default_rng([int(seed), text_key(house_id, room_id), _ROOM])
+        if rng.random() < accuracy:
+            return int(t)
+        return int(rng.choice(len(wrong), p=wrong[t]))
+
+    def labels(self, truth, poses, accuracy, wrong, seed, scene=None):
+        truth = np.asarray(truth)
+        rooms = view_rooms(scene, poses, truth)
+        out = np.full(len(truth), -1, dtype=np.int64)
+        memo: dict[tuple[int, int], int] = {}
+        for i, t in enumerate(truth):
+            if t < 0:
+                continue
+            t = int(t)
+            follow = view_rng(seed, poses[i], _FOLLOW).random() < self.correlation
+            if not follow:
+                out[i] = _independent_label(t, poses[i], accuracy, wrong, seed)
+                continue
+            k = int(rooms[i])
+            if (k, t) not in memo:
+                rid = scene.room_ids[k] if k >= 0 else f"no-room-of-class-{t}"
+                memo[(k, t)] = self.room_label(str(scene.house_id), str(rid), t, accuracy, wrong, seed)
+            out[i] = memo[(k, t)]
+        return out
+
+
+class PerHouse(NoiseModel):
+    """A systematic bias towards one class per house.
+
+    Args:
+        bias_class: the class wrong views lean to (a name), or None to draw it per house
+            (uniformly over the classes, seeded by the house id).
+        strength: in [0, 1], the chance that a wrong view takes the bias class (else a class
+            from its confusion row). A view whose true class is the bias class errs like
+            :class:`Independent`.
+    """
+
+    name = "per_house"
+    needs_scene = True
+
+    def __init__(self, bias_class: str | None = None, strength: float = 1.0):
+        if not 0.0 <= float(strength) <= 1.0:
+            raise ValueError(f"per-house noise: strength must be in [0, 1], got {strength}")
+        self.bias_class = None if bias_class is None else str(bias_class)
+        self.strength = float(strength)
+
+    def describe(self) -> str:
+        return f"{self.name}(bias_class={self.bias_class or 'per house'}, strength={self.strength:g})"
+
+    def bias(self, house_id: str, classes: Sequence[str], seed: int) -> int:
+        """The bias class index of a house.
+
+        Returns:
+            The index of ``bias_class`` in ``classes``, or one drawn from the house id.
+
+        Raises:
+            ValueError: ``bias_class`` is not one of ``classes``.
+        """
+        if self.bias_class is not None:
+            if self.bias_class not in classes:
+                raise ValueError(f"per-house noise: bias_class {self.bias_class!r} is not one of {list(classes)}")
+            return list(classes).index(self.bias_class)
+        return int(np.random.default_rng([int(seed), text_key(house_id), _HOUSE]).integers(len(classes)))
+
+    def labels(self, truth, poses, accuracy, wrong, seed, scene=None):
+        truth = np.asarray(truth)
+        b = self.bias(str(scene.house_id), tuple(scene.classes), seed)
+        out = np.full(len(truth), -1, dtype=np.int64)
+        for i, t in enumerate(truth):
+            if t < 0:
+                continue
+            t = int(t)
+            rng = view_rng(seed, poses[i])
+            if rng.random() < accuracy:
+                out[i] = t
+            elif t != b and view_rng(seed, poses[i], _BIAS).random() < self.strength:
+                out[i] = b
+            else:
+                out[i] = int(rng.choice(len(wrong), p=wrong[t]))
+        return out
+
+
+def seen_accuracy(truth: np.ndarray, proba: np.ndarray) -> float:
+    """Share of views whose top class is their true (majority visible) class.
+
+    Args:
+        truth: (N,) true class per view, -1 for a view that saw no floor (left out).
+        proba: (N, C) class probabilities.
+
+    Returns:
+        The share in [0, 1]; NaN when no view saw floor.
+    """
+    truth = np.asarray(truth)
+    m = truth >= 0
+    if not m.any():
+        return float("nan")
+    return float(np.mean(np.asarray(proba)[m].argmax(axis=1) == truth[m]))
+
+
+def view_accuracy_seen(render_folder: str | Path, poses: np.ndarray, proba: np.ndarray) -> float:
+    """Per-view accuracy against what each view sees (the oracle's truth: the class that
+    covers most of the visible floor), from a house's render cache.
+
+    Args:
+        render_folder: the house's render cache folder (:mod:`envs.render.cache`).
+        poses: (N, 3) poses of the classified (not refused) views.
+        proba: (N, C) their class probabilities.
+
+    Returns:
+        The share in [0, 1]; NaN when the render is not cached, its views carry no visible
+        classes (simulator renderers) or do not match ``poses``, or no view saw floor.
+    """
+    from envs.render import cache as render_cache  # noqa: PLC0415
+
+    if not render_cache.is_complete(render_folder):
+        return float("nan")
+    obs = [o for o in render_cache.read_observations(render_folder, images=False) if not o.meta.get("refused", False)]
+    if len(obs) != len(proba) or any(o.visible_classes is None for o in obs):
+        return float("nan")
+    if not np.allclose(np.asarray([o.pose for o in obs], dtype=float), np.asarray(poses, dtype=float), atol=1e-6):
+        return float("nan")
+    from benchmark.classifiers.oracle import true_labels  # noqa: PLC0415
+
+    return seen_accuracy(true_labels(obs), proba)
+
+
+def view_confusion(truth: np.ndarray, pred: np.ndarray, n_classes: int) -> np.ndarray:
+    """(C, C) counts of (true, predicted) classes over views with a true class.
+
+    Args:
+        truth: (N,) true class, -1 to leave a view out.
+        pred: (N,) predicted class.
+        n_classes: C.
+
+    Returns:
+        (C, C) int64 counts, rows = true class.
+    """
+    t, p = np.asarray(truth, int), np.asarray(pred, int)
+    m = t >= 0
+    return np.bincount(t[m] * n_classes + p[m], minlength=n_classes * n_classes).reshape(n_classes, n_classes)
+
+
+def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Sequence[str],
+                         progress: bool = False) -> tuple[np.ndarray, int]:
+    """A classifier's confusion on rendered views against the oracle's truth (the majority
+    visible class): the matrix that drives the oracle's wrong classes in the ``confusion``
+    noise setting. Needs a renderer that gives visible classes (the floorplan renderer).
+
+    Args:
+        env, viewpoints, renderer, classifier: stages built from ``conf/`` (the runner's).
+        house_ids: the houses to render and classify (keep them apart from the classifier's
+            training houses and from the houses the oracle is later run on).
+        progress: show a progress bar.
+
+    Returns:
+        ((C, C) int64 counts, rows = true class, columns = predicted; number of views that
+        saw no floor and were left out).
+    """
+    from benchmark.classifiers.oracle import true_labels  # noqa: PLC0415
+    from envs.render.observation import poses_array  # noqa: PLC0415
+
+    n = len(classifier.classes)
+    counts = np.zeros((n, n), dtype=np.int64)
+    blind = 0
+    it = house_ids
+    if progress:
+        from tqdm.auto import tqdm  # noqa: PLC0415
+
+        it = tqdm(house_ids, unit="house")
+    if hasattr(classifier, "setup"):
+        classifier.setup(list(house_ids))
+    for hid in it:
+        scene = env.scene(hid)
+        obs = renderer.render(env.house(hid), scene, poses_array(viewpoints.generate(scene)))
+        obs = [o for o in obs if not o.meta.get("refused", False)]
+        truth = true_labels(obs)
+        pred = np.asarray(classifier.predict_proba(obs)).argmax(axis=1)
+        counts += view_confusion(truth, pred, n)
+        blind += int((truth < 0).sum())
+    return counts, blind
+
+
+def _curves(ax, part, metric: str) -> None:
+    for key, g in part.groupby([c for c in ("aggregator", "postprocess") if c in part]):
+        g = g.sort_values("oracle_accuracy")
+        key = key if isinstance(key, tuple) else (key,)
+        label = " + ".join(str(k) for k in key)
+        ax.errorbar(g["oracle_accuracy"] * 100, g[f"{metric}_mean"] * 100, yerr=g[f"{metric}_std"] * 100,
+                    marker="o", capsize=3, label=label, linestyle="--" if "none" in key else "-")
+    ax.set_ylim(0, 100)
+    ax.grid(alpha=0.3)
+
+
+def plot_sensitivity_per_noise(summary, out_dir: str | Path) -> list[Path]:
+    """Sensitivity plots when several noise models (oracle classifier configs) were swept:
+    ``sensitivity_<classifier>.png`` per model (IoU and pixel accuracy against the configured
+    accuracy, one curve per aggregator x post-processing, mean ± std over houses) and
+    ``sensitivity.png``, the IoU panels of every model side by side on one scale.
+
+    Args:
+        summary: the sensitivity table's per-cell summary (``classifier``, ``oracle_accuracy``,
+            ``aggregator``, ``postprocess``, ``<metric>_mean``/``_std`` columns; fractions).
+        out_dir: the folder to write to.
+
+    Returns:
+        The paths written; empty (nothing written) when the summary has fewer than two
+        classifiers.
+    """
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    from benchmark.reports.plotting import save  # noqa: PLC0415
+
+    if "classifier" not in summary or summary["classifier"].nunique() < 2:
+        return []
+    out_dir = Path(out_dir)
+    written = []
+    parts = list(summary.groupby("classifier"))
+    for name, part in parts:
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
+        for ax, m, words in zip(axes, ("iou", "accuracy"), ("IoU (%)", "pixel accuracy (%)")):
+            _curves(ax, part, m)
+            ax.set_xlabel("configured oracle accuracy (%)")
+            ax.set_ylabel(words)
+        axes[0].legend(fontsize=8)
+        fig.suptitle(f"noise: {name}", fontsize=10)
+        path = out_dir / f"sensitivity_{name}.png"
+        save(fig, path)
+        written.append(path)
+    fig, axes = plt.subplots(1, len(parts), figsize=(3.6 * len(parts), 3.6), sharey=True, squeeze=False)
+    for ax, (name, part) in zip(axes[0], parts):
+        _curves(ax, part, "iou")
+        ax.set_title(str(name), fontsize=10)
+        ax.set_xlabel("configured oracle accuracy (%)")
+    axes[0][0].set_ylabel("IoU (%)")
+    axes[0][0].legend(fontsize=7)
+    path = out_dir / "sensitivity.png"
+    save(fig, path)
+    written.append(path)
+    return written
+
+
+__all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows",
+           "view_rooms", "seen_accuracy", "view_accuracy_seen", "view_confusion", "classifier_confusion", "plot_sensitivity_per_noise",
+           "pose_key", "text_key", "view_rng", "uniform_confusion"]
