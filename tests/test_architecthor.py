@@ -168,3 +168,43 @@ def test_configs_compose_and_instantiate(overrides, target, tmp_path, monkeypatc
                                                        + ("[Kitchen]" if target == "env" else "200")])
     with pytest.raises(Exception, match="unknown ArchitecTHOR house|fov must be in"):
         instantiate(bad[target])
+
+
+def test_annotation_checked_against_the_navmesh_map(tmp_path, capsys):
+    """The navmesh map is written first (its own grid, in the convention the mirror check
+    chose), then the annotation is imported and checked against it by world position: the
+    share of annotated pixels on walkable cells, by hand, and a WARNING when the navmesh was
+    written in the other convention."""
+    from envs.maps.annotations import agreement_line, walkable_agreement
+    from envs.render.habitat import topdown_to_gridmap
+
+    # Habitat's top-down view of a navmesh covering exactly the red room (rows 2:18, cols 2:14
+    # of the 0.05 m room map whose top-left corner is world (x, z) = (1.0, 2.0)): with
+    # mirror=z, Habitat z = -our z, so the view starts at Habitat (x, z) = (1.0, -2.0).
+    top = np.zeros((20, 30), bool)
+    top[2:18, 2:14] = True
+    root = tmp_path / "ann"
+    for mirror, house in (("z", "ArchitecTHOR-Val-00"), ("x", "ArchitecTHOR-Val-01")):
+        write_walkable(root / house, topdown_to_gridmap(top, lower_bound=(1.0, 0.0, -2.0), resolution=0.05,
+                                                        mirror=mirror))
+    (tmp_path / "c.json").write_text(json.dumps(COLOURS))
+    for house in ("ArchitecTHOR-Val-00", "ArchitecTHOR-Val-01"):
+        main(["import", "--map", str(_room_map(tmp_path)), "--colours", str(tmp_path / "c.json"),
+              "--resolution", "0.05", "--origin", "1", "2", "--out", str(root / house)])
+    out = capsys.readouterr().out
+    n_ann = 16 * 12 + 10 * 12 + 4 + 4 * 8  # red, blue, doorway, green
+    a = walkable_agreement(root / "ArchitecTHOR-Val-00")
+    assert a == {"annotated": n_ann, "on_walkable": pytest.approx(16 * 12 / n_ann), "walkable": 16 * 12,
+                 "covered": 1.0}
+    assert f"ArchitecTHOR-Val-00: 55.2% of {n_ann} annotated px on walkable cells (warn below 50%), " \
+           "100.0% of 192 walkable cells in a room (warn below 90%)" in out
+    bad = walkable_agreement(root / "ArchitecTHOR-Val-01")  # the other convention: off the rooms
+    assert bad["on_walkable"] < 0.5 and bad["covered"] < 0.9
+    line, ok = agreement_line(root / "ArchitecTHOR-Val-01")
+    assert not ok and line.startswith("WARNING ArchitecTHOR-Val-01") and "navmesh mirror" in line
+    assert "WARNING ArchitecTHOR-Val-01" in out and "WARNING ArchitecTHOR-Val-00" not in out
+    assert main(["check", str(root)]) == 0  # warnings do not fail the check ...
+    assert "1 of 2 house(s) do not sit on their navmesh map" in capsys.readouterr().out
+    assert main(["check", str(root), "--strict"]) == 1  # ... unless asked to
+    assert walkable_agreement(tmp_path / "nowhere") is None
+    assert agreement_line(import_room_map(_room_map(tmp_path), COLOURS, 0.05, (1.0, 2.0), tmp_path / "plain"))[1]

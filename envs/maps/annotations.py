@@ -16,6 +16,16 @@ Layout, one folder per house (``<root>/<house>/``):
   position). Without ``walkable.json`` it must have the label map's size. Without
   ``walkable.png`` every labelled pixel is walkable.
 
+Before the ground truth is trusted it is checked against the navmesh map
+(:func:`walkable_agreement`, printed by ``import`` and ``check``): the share of annotated
+pixels whose world position lies on a walkable cell, and the share of walkable cells that
+lie in an annotated room. An annotation drawn in the other axis convention (see
+``python -m benchmark.commands.navmesh mirror``), with a wrong origin or resolution, lands
+off the navmesh and drops both shares; below the thresholds (:data:`MIN_ON_WALKABLE`,
+:data:`MIN_WALKABLE_COVERED`) the commands print a warning. A correct annotation does not
+reach 100 % on walkable: rooms include furniture and the agent-radius margin along walls,
+which the navmesh leaves out.
+
 ``python -m benchmark.commands.annotations import --map MAP.png --colours MAP.json --resolution 0.02
 --origin X Z --out ROOT/HOUSE`` converts a colour-coded room map whose JSON gives each
 colour a class (``{"#rrggbb": "kitchen", ...}``) into that layout: ``--rooms colour`` (one
@@ -41,6 +51,10 @@ from envs.maps.scene import Scene, scene_on_grid
 from envs.world.classes import PAPER_CLASSES, class_index
 
 ROOM_MODES = ("colour", "components")
+#: Warn when fewer annotated pixels than this share lie on walkable navmesh cells.
+MIN_ON_WALKABLE = 0.5
+#: Warn when fewer walkable navmesh cells than this share lie in an annotated room.
+MIN_WALKABLE_COVERED = 0.9
 
 
 def _grid_meta(path: Path) -> tuple[float, tuple[float, float]]:
@@ -116,6 +130,73 @@ def load_annotation(folder: str | Path, house_id: str | None = None, classes: Se
         wgrid = GridMap(np.asarray(Image.open(walk_png).convert("L")) > 127, wres, worigin)
         scene = scene_on_grid(scene, wgrid)
     return scene
+
+
+def _labels_grid(folder: Path) -> tuple[np.ndarray, GridMap]:
+    labels, _ = read_label_png(folder / "labels.png")
+    res, origin = _grid_meta(folder / "labels.json")
+    return labels, GridMap(labels >= 0, res, origin)
+
+
+def walkable_agreement(folder: str | Path) -> dict | None:
+    """How an annotation folder's labels sit on its navmesh map (``walkable.png``), by
+    world position (each pixel's centre looked up on the other grid; the two may differ in
+    resolution and origin when ``walkable.json`` is there).
+
+    Returns:
+        None when the folder has no ``walkable.png``; else a dict with ``annotated`` (labelled
+        pixels), ``on_walkable`` (share of them on a walkable cell, 0-1), ``walkable``
+        (walkable cells) and ``covered`` (share of them inside a labelled pixel, 0-1).
+    """
+    folder = Path(folder)
+    walk_png, walk_json = folder / "walkable.png", folder / "walkable.json"
+    if not walk_png.is_file():
+        return None
+    if not (folder / "labels.png").is_file():
+        raise FileNotFoundError(f"no annotation at {folder}/labels.png")
+    labels, lgrid = _labels_grid(folder)
+    walk = np.asarray(Image.open(walk_png).convert("L")) > 127
+    if walk_json.is_file():
+        wres, worigin = _grid_meta(walk_json)
+        wgrid = GridMap(walk, wres, worigin)
+    else:
+        if walk.shape != labels.shape:
+            raise ValueError(f"{folder}: walkable.png {walk.shape} and labels.png {labels.shape} differ in size "
+                             "and there is no walkable.json")
+        wgrid = GridMap(walk, lgrid.resolution, lgrid.origin)
+
+    def share_on(src: GridMap, dst: GridMap) -> tuple[int, float]:
+        rr, cc = np.nonzero(src.walkable)
+        if not len(rr):
+            return 0, 0.0
+        r, c = dst.world_to_cell(*src.pixel_to_world(rr, cc))
+        ok = dst.in_bounds(r, c)
+        hit = np.zeros(len(rr), bool)
+        hit[ok] = dst.walkable[r[ok], c[ok]]
+        return int(len(rr)), float(hit.mean())
+
+    n_ann, on = share_on(lgrid, wgrid)
+    n_walk, covered = share_on(wgrid, lgrid)
+    return {"annotated": n_ann, "on_walkable": on, "walkable": n_walk, "covered": covered}
+
+
+def agreement_line(folder: str | Path, min_on_walkable: float = MIN_ON_WALKABLE,
+                   min_covered: float = MIN_WALKABLE_COVERED) -> tuple[str, bool]:
+    """One line about :func:`walkable_agreement` and whether it passed the thresholds
+    (shares 0-1). Returns (line, ok); a folder without ``walkable.png`` is ok with a line
+    saying the check was not possible."""
+    a = walkable_agreement(folder)
+    name = Path(folder).name
+    if a is None:
+        return f"{name}: no walkable.png, not checked against the navmesh", True
+    ok = a["on_walkable"] >= min_on_walkable and a["covered"] >= min_covered
+    line = (f"{name}: {a['on_walkable']:.1%} of {a['annotated']} annotated px on walkable cells "
+            f"(warn below {min_on_walkable:.0%}), {a['covered']:.1%} of {a['walkable']} walkable cells in a room "
+            f"(warn below {min_covered:.0%})")
+    if not ok:
+        line = ("WARNING " + line + ": the annotation does not sit on the navmesh; check the axis convention "
+                "(navmesh mirror), --origin and --resolution")
+    return line, ok
 
 
 def write_walkable(folder: str | Path, grid: GridMap) -> Path:
