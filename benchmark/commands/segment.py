@@ -1,0 +1,485 @@
+"""``roomseg-segment``: segment your own map, no Python.
+
+    roomseg-segment map=robot.yaml poses=poses.csv frame=ros labels=labels.csv out=DIR
+    roomseg-segment map=robot.yaml poses=views.csv frame=ros images=pics/ classifier=cnn out=DIR
+    roomseg-segment map=robot.yaml segmenter=voronoi out=DIR
+    roomseg-segment ... aggregator=graph_knn postprocess=none gt=gt.png gt_format=label
+
+Arguments are Hydra overrides of ``conf/segment.yaml`` (composed with Hydra's compose API:
+the bench app's stage groups and ``_target_`` plug-ins work, and no Hydra output folder is
+made). Three modes:
+
+* **labels** (``labels=FILE``, default ``classifier=labels``): each view's class name (or class
+  probabilities) from the file, placed on the map by the aggregator, then post-processed;
+* **images** (``images=DIR`` and ``classifier=cnn|dinov2|vlm``): the pose file's ``image``
+  column names each view's picture, the classifier labels it;
+* **geometry** (``segmenter=distance|morphological|voronoi``): the geometric baseline on the
+  map's free space; rooms without classes.
+
+Outputs in ``out`` (written in a temporary folder beside it, then renamed, so ``out`` holds
+a complete set or nothing):
+
+* ``labels.png``: index PNG, pixel = class index (``summary.json`` lists the classes), 255 =
+  no class (unlabelled or not walkable); 16-bit with 65535 beyond 255 classes (labels/images);
+* ``segments.png``: index PNG, pixel = room segment id (``rooms.geojson``'s ``segment``),
+  255 / 65535 = none;
+* ``labels_color.png`` + ``labels_color_legend.png`` + ``labels_color.json`` (class colours,
+  pixel-exact, readable with ``envs.maps.label_png.read_label_png``), or
+  ``segments_color.png`` (geometry);
+* ``overview.png``: the map in colour with a legend, a scale bar and the views;
+* ``segmentation.yaml`` + ``segmentation.png``: a raw-mode ROS ``map_server`` map with the
+  input's origin and resolution; cell value = class index (segment id in geometry mode),
+  unknown (-1) where none; not written with more than 101 classes / segments;
+* ``rooms.geojson``: one polygon per room segment in the input map's frame (metres; ROS
+  ``x, y`` for a ROS map), with ``segment``, ``class``, ``area_m2``, ``pixels``;
+* ``scores.json`` (with ``gt=``): :mod:`benchmark.metrics` scores on the map's grid;
+* ``summary.json``: inputs, counts, per-class areas, timings, files; ``config.yaml``: the
+  resolved config.
+
+Bad input gives one line naming the file and the field, and exit status 2.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: The output files of each mode (those that are always written).
+LABEL_FILES = ("labels.png", "segments.png", "labels_color.png", "labels_color_legend.png", "labels_color.json",
+               "rooms.geojson", "summary.json", "config.yaml")
+SEGMENT_FILES = ("segments.png", "segments_color.png", "rooms.geojson", "summary.json", "config.yaml")
+#: The frame GeoJSON coordinates are in.
+GEOJSON_FRAME = "map: x right, y up, metres (ROS map frame; project world x, z)"
+
+
+def compose_config(overrides: Sequence[str]):
+    """``conf/segment.yaml`` composed with ``key=value`` overrides (Hydra's compose API)."""
+    from hydra import compose, initialize_config_dir  # noqa: PLC0415
+
+    from benchmark.paths import CONF_DIR  # noqa: PLC0415
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("segment", overrides=list(overrides))
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+def read_map(cfg) -> tuple[Any, tuple[float, float, float], dict]:
+    """The input map -> (GridMap, ROS origin (x, y, yaw) for the outputs, description)."""
+    from envs.maps.frames import ros_origin_to_grid_origin  # noqa: PLC0415
+    from envs.maps.ros import grid_from_array, occupancy_png, read_ros_map, ros_origin_of  # noqa: PLC0415
+
+    path = Path(str(cfg.map)).expanduser()
+    suffix = path.suffix.lower()
+    if suffix in (".yaml", ".yml"):
+        m = read_ros_map(path, mode=cfg.map_mode, unknown_as=cfg.unknown_as)
+        return m.grid, m.origin, {"map": str(path), "map_format": "ros", "map_image": str(m.image_path),
+                                  "map_mode": m.mode}
+    if cfg.resolution is None:
+        raise ValueError(f"{path}: an image or .npy map needs resolution=<metres per pixel> (a ROS YAML carries it)")
+    res = float(cfg.resolution)
+    if not (np.isfinite(res) and res > 0):
+        raise ValueError(f"resolution={cfg.resolution!r} for {path}; expected a positive number of metres per pixel")
+    ox, oy = (0.0, 0.0) if cfg.origin is None else (float(cfg.origin[0]), float(cfg.origin[1]))
+    if suffix == ".npy":
+        if not path.is_file():
+            raise FileNotFoundError(f"map not found: {path}")
+        arr = np.load(path, allow_pickle=False)
+        h = arr.shape[0] if arr.ndim == 2 else 0
+        grid = grid_from_array(arr, res, ros_origin_to_grid_origin((ox, oy), h, res), free_value=cfg.free_value)
+        fmt = "npy"
+    elif suffix in (".png", ".pgm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"):
+        from PIL import Image  # noqa: PLC0415
+
+        if not path.is_file():
+            raise FileNotFoundError(f"map not found: {path}")
+        with Image.open(path) as im:
+            h = im.size[1]
+        grid = occupancy_png(path, res, ros_origin_to_grid_origin((ox, oy), h, res), free_thresh=cfg.free_thresh,
+                             occupied_thresh=cfg.occupied_thresh, negate=bool(cfg.negate), unknown_as=cfg.unknown_as)
+        fmt = "image"
+    else:
+        raise ValueError(f"map={path}: unknown map type {suffix!r}; expected a ROS .yaml, an image "
+                         f"(.png/.pgm/.bmp) or a .npy array")
+    return grid, ros_origin_of(grid), {"map": str(path), "map_format": fmt}
+
+
+def _pose_ids(path: Path, n: int) -> list[str]:
+    """The pose file's ``id`` column, or the row numbers."""
+    from envs.maps.pose_files import _table  # noqa: PLC0415
+
+    df = _table(path)
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    if "id" in df.columns and len(df) == n:
+        return [str(v).strip() for v in df["id"].tolist()]
+    return [str(i) for i in range(n)]
+
+
+def on_map(grid, poses: np.ndarray) -> np.ndarray:
+    """(N,) bool: the pose stands on a walkable cell."""
+    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
+    return grid.is_walkable(r, c)
+
+
+def _classes_or_default(cfg) -> None:
+    """Image classifiers need a class list before they are built: the paper's seven when
+    ``classes`` is null."""
+    from omegaconf import OmegaConf  # noqa: PLC0415
+
+    from envs.world.classes import PAPER_CLASSES  # noqa: PLC0415
+
+    if cfg.classes is None:
+        OmegaConf.update(cfg, "classes", list(PAPER_CLASSES), force_add=True)
+
+
+def _is_labels_classifier(cfg) -> bool:
+    return str(cfg.classifier.get("_target_", "")).endswith("LabelsFileClassifier")
+
+
+def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], dict]:
+    """The views' poses (N, 3), their (N, C) probabilities, the classes and counts."""
+    from hydra.utils import instantiate  # noqa: PLC0415
+    from omegaconf import OmegaConf  # noqa: PLC0415
+
+    from envs.maps.pose_files import read_poses  # noqa: PLC0415
+    from envs.render.observation import Observation  # noqa: PLC0415
+
+    if cfg.poses is None:
+        raise ValueError("poses=<pose file> is needed with labels= or images= (or choose a segmenter=)")
+    labels_mode = cfg.labels is not None
+    if labels_mode and cfg.images is not None:
+        raise ValueError(f"labels={cfg.labels} and images={cfg.images}: give one (labels file, or images and an "
+                         f"image classifier)")
+    if not labels_mode and cfg.images is None:
+        raise ValueError("give labels=<labels file>, images=<image folder> (with classifier=cnn|dinov2|vlm), or "
+                         "segmenter=distance|morphological|voronoi")
+    t = time.perf_counter()
+    if labels_mode:
+        if not _is_labels_classifier(cfg):
+            raise ValueError(f"labels={cfg.labels} needs classifier=labels (got {cfg.classifier._target_}); image "
+                             f"classifiers take images=<folder>")
+        OmegaConf.update(cfg, "classifier.path", str(cfg.labels))
+        if cfg.frame in ("ros", "sim"):
+            OmegaConf.update(cfg, "classifier.frame", str(cfg.frame))
+        pose_file = Path(str(cfg.poses)).expanduser()
+        poses = read_poses(pose_file, cfg.frame, grid)
+        ids = _pose_ids(pose_file, len(poses))
+        obs = [Observation(pose=tuple(float(v) for v in p), meta={"id": i}) for p, i in zip(poses, ids)]
+    else:
+        if _is_labels_classifier(cfg):
+            raise ValueError(f"images={cfg.images} needs an image classifier: classifier=cnn|dinov2|vlm")
+        _classes_or_default(cfg)
+        obs = instantiate(cfg.renderer).observations(grid=grid)
+        poses = np.array([o.pose for o in obs], dtype=float).reshape(-1, 3)
+    timings["t_read_views"] = time.perf_counter() - t
+    t = time.perf_counter()
+    clf = instantiate(cfg.classifier)
+    proba = np.asarray(clf.predict_proba(obs), dtype=np.float64)
+    timings["t_classify"] = time.perf_counter() - t
+    classes = tuple(clf.classes)
+    if proba.shape != (len(obs), len(classes)):
+        raise ValueError(f"classifier {cfg.classifier._target_} returned shape {proba.shape}, expected "
+                         f"({len(obs)}, {len(classes)})")
+    OmegaConf.update(cfg, "classes", list(classes), force_add=True)
+    ok = on_map(grid, poses)
+    if not ok.any():
+        raise ValueError(f"{cfg.poses}: none of the {len(poses)} poses (frame={cfg.frame}) is on a walkable cell of "
+                         f"{cfg.map}; is the frame right?")
+    if not ok.all():
+        bad = int(np.argmax(~ok))
+        if cfg.off_map == "error":
+            raise ValueError(f"{cfg.poses}: {int((~ok).sum())} of {len(poses)} poses are off the walkable map, first "
+                             f"view {obs[bad].meta.get('id', bad)} at x={poses[bad, 0]:.3f}, z={poses[bad, 1]:.3f} "
+                             f"(world); pass off_map=drop to leave them out")
+        if cfg.off_map != "drop":
+            raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
+    counts = {"n_views": int(len(poses)), "n_off_map": int((~ok).sum())}
+    return poses[ok], proba[ok], classes, counts
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def _segment_colors(n: int) -> np.ndarray:
+    """(n, 3) uint8 distinct-looking colours (tab20 cycled)."""
+    import matplotlib  # noqa: PLC0415
+
+    cmap = matplotlib.colormaps["tab20"]
+    return np.array([[int(255 * v) for v in cmap(i % 20)[:3]] for i in range(n)], np.uint8).reshape(-1, 3)
+
+
+def _overview(path: Path, grid, rgb: np.ndarray, legend: list[tuple[str, tuple[int, int, int]]],
+              poses: np.ndarray | None, title: str) -> None:
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+    from matplotlib.patches import Patch  # noqa: PLC0415
+
+    from benchmark.reports.plotting import add_scale_bar, draw_poses, save  # noqa: PLC0415
+
+    h, w = grid.shape
+    side = 6.0
+    fig, ax = plt.subplots(figsize=(side * min(w / h, 2.0) + 2.2, side * min(h / w, 1.0) + 0.4))
+    ax.imshow(rgb, interpolation="nearest")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_title(title, fontsize=9)
+    add_scale_bar(ax, grid.resolution)
+    if poses is not None and len(poses):
+        r, c = grid.world_to_pixel(poses[:, 0], poses[:, 1])
+        step = max(1, len(poses) // 400)  # at most ~400 markers
+        draw_poses(ax, r[::step] - 0.5, c[::step] - 0.5, poses[::step, 2], size=3.0,
+                   arrow_px=max(3.0, 0.02 * max(h, w)))
+    if legend:
+        handles = [Patch(color=np.array(col) / 255, label=name.replace("_", " ")) for name, col in legend]
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    save(fig, path)
+
+
+def _class_areas(post: np.ndarray, classes: Sequence[str], res: float) -> dict[str, float]:
+    counts = np.bincount(post[post >= 0].ravel(), minlength=len(classes))
+    return {c: round(float(counts[k]) * res * res, 4) for k, c in enumerate(classes)}
+
+
+def write_outputs(tmp: Path, cfg, grid, ros_origin, labels: np.ndarray | None, segs: np.ndarray,
+                  seg_classes: list[str | None] | None, classes: Sequence[str] | None, poses: np.ndarray | None,
+                  title: str) -> dict[str, Any]:
+    """Write the output set into ``tmp``; returns what the summary records about it."""
+    from envs.maps.label_png import write_label_png  # noqa: PLC0415
+    from envs.maps.segmentation_io import (  # noqa: PLC0415
+        ROS_MAX_VALUES,
+        write_index_png,
+        write_rooms_geojson,
+        write_ros_segmentation,
+    )
+    from envs.world.classes import UNLABELLED_COLOR, class_colors  # noqa: PLC0415
+
+    info: dict[str, Any] = {}
+    write_index_png(tmp / "segments.png", segs)
+    extra = {"map": str(cfg.map), "ros_origin": list(ros_origin)}
+    write_rooms_geojson(tmp / "rooms.geojson", segs, grid, seg_classes, frame=GEOJSON_FRAME, extra=extra)
+    n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0
+    if labels is not None:
+        write_index_png(tmp / "labels.png", labels)
+        write_label_png(tmp / "labels_color.png", labels, classes, walkable=grid.walkable,
+                        resolution=grid.resolution, origin=grid.origin, legend=True)
+        ros_values, n_values, what = labels, len(classes), "classes"
+        rgb = None
+        legend = list(zip(classes, class_colors(classes))) + [("unlabelled (walkable)", UNLABELLED_COLOR)]
+    else:
+        from PIL import Image  # noqa: PLC0415
+
+        from envs.atomic import atomic_write_bytes  # noqa: PLC0415
+
+        lut = np.vstack([_segment_colors(n_seg), np.zeros((1, 3), np.uint8)])
+        rgb = lut[np.where(segs >= 0, segs, n_seg)]
+        import io  # noqa: PLC0415
+
+        buf = io.BytesIO()
+        Image.fromarray(rgb).save(buf, format="PNG")
+        atomic_write_bytes(tmp / "segments_color.png", buf.getvalue())
+        ros_values, n_values, what = segs, n_seg, "segments"
+        legend = []
+    if n_values <= ROS_MAX_VALUES:
+        write_ros_segmentation(tmp / "segmentation.yaml", ros_values, grid, ros_origin, image_name="segmentation.png")
+        info["ros_map"] = "segmentation.yaml"
+    else:
+        info["ros_map"] = None
+        info["ros_map_skipped"] = (f"{n_values} {what} do not fit a raw ROS map (cell values 0..100); "
+                                   f"labels.png / segments.png hold them")
+    if cfg.figure:
+        if rgb is None:
+            from envs.maps.label_png import label_colors_rgb  # noqa: PLC0415
+
+            rgb = label_colors_rgb(labels, classes, grid.walkable)
+        _overview(tmp / "overview.png", grid, rgb, legend, poses, title)
+    return info
+
+
+def _scores(cfg, grid, labels: np.ndarray | None, segs: np.ndarray, classes: Sequence[str] | None,
+            metric_params) -> dict[str, Any]:
+    from benchmark.metrics import describe, score_instances, score_semantic  # noqa: PLC0415
+    from envs.maps.ground_truth import describe as describe_gt  # noqa: PLC0415
+    from envs.maps.ground_truth import read_ground_truth  # noqa: PLC0415
+
+    opts = dict(cfg.gt_options or {})
+    gt = read_ground_truth(str(cfg.gt), cfg.gt_format, grid, **opts)
+    out: dict[str, Any] = {"gt": str(cfg.gt), "gt_format": cfg.gt_format, "gt_read": describe_gt(gt),
+                           "metric_params": describe(metric_params, grid.resolution)}
+    if labels is not None and gt.classes is not None:
+        # score on the union of the predicted and ground-truth class names (by name)
+        names = list(classes) + [c for c in gt.classes if c not in classes]
+        remap = np.array([names.index(c) for c in gt.classes], np.int64)
+        inst_cls = np.where(gt.instance_classes >= 0, remap[np.maximum(gt.instance_classes, 0)], -1)
+        out.update(score_semantic(labels, gt.instances, inst_cls, metric_params, classes=names,
+                                  resolution=grid.resolution))
+        out["scored_as"] = "semantic"
+    else:
+        out.update(score_instances(segs, gt.instances, metric_params, resolution=grid.resolution))
+        out["scored_as"] = "instances"
+    return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
+
+
+def _check_out(out: Path, overwrite: bool) -> None:
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out={out} is a file; expected a folder to create")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise ValueError(f"out={out} exists and is not empty; choose a new folder or pass overwrite=true")
+
+
+def _publish(tmp: Path, out: Path) -> None:
+    """Move the finished ``tmp`` folder to ``out`` (replacing an old ``out`` only after
+    the new set is complete)."""
+    old = None
+    if out.exists():
+        if not any(out.iterdir()):
+            out.rmdir()
+        else:
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+            os.replace(out, old / out.name)
+    os.replace(tmp, out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
+    """Run the command on a composed config; returns the summary (also in ``summary.json``)."""
+    from hydra.utils import instantiate  # noqa: PLC0415
+    from omegaconf import OmegaConf  # noqa: PLC0415
+
+    from benchmark.metrics import segments  # noqa: PLC0415
+
+    t_all = time.perf_counter()
+    timings: dict[str, float] = {}
+    out = Path(str(cfg.out)).expanduser().resolve()
+    _check_out(out, bool(cfg.overwrite))
+    if cfg.off_map not in ("error", "drop"):
+        raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
+    t = time.perf_counter()
+    grid, ros_origin, map_info = read_map(cfg)
+    timings["t_read_map"] = time.perf_counter() - t
+    metric_params = instantiate(cfg.metrics)
+    summary: dict[str, Any] = {"command": "roomseg-segment " + " ".join(argv), **map_info,
+                               "map_shape": list(grid.shape), "resolution": grid.resolution,
+                               "ros_origin": list(ros_origin), "walkable_px": int(grid.walkable.sum()),
+                               "rooms_frame": GEOJSON_FRAME}
+    labels = poses = None
+    classes: tuple[str, ...] | None = None
+    if cfg.get("segmenter") is not None:
+        if cfg.labels is not None or cfg.images is not None:
+            raise ValueError("segmenter= runs on the map alone; drop labels= / images= (or drop segmenter=)")
+        summary["mode"] = "geometry"
+        summary["segmenter"] = str(cfg.segmenter._target_)
+        t = time.perf_counter()
+        inst = np.asarray(instantiate(cfg.segmenter)(grid))
+        timings["t_segment"] = time.perf_counter() - t
+        ids = np.unique(inst[(inst >= 0) & grid.walkable])
+        remap = np.full(int(inst.max()) + 2 if inst.size and inst.max() >= 0 else 1, -1, np.int64)
+        remap[ids] = np.arange(len(ids))
+        segs = np.where((inst >= 0) & grid.walkable, remap[np.maximum(inst, 0)], -1).astype(np.int32)
+        seg_classes = None
+        title = f"{Path(str(cfg.map)).name}: {summary['segmenter'].rsplit('.', 1)[-1]}, {len(ids)} segments"
+    else:
+        summary["mode"] = "labels" if cfg.labels is not None else "images"
+        poses, proba, classes, counts = views_and_probabilities(cfg, grid, timings)
+        summary.update(counts)
+        summary["classes"] = list(classes)
+        summary["classifier"] = str(cfg.classifier._target_)
+        summary["aggregator"] = str(cfg.aggregator._target_)
+        summary["postprocess"] = str(cfg.postprocess._target_) if cfg.get("postprocess") else None
+        t = time.perf_counter()
+        agg = instantiate(cfg.aggregator)
+        raw = np.asarray(agg(grid, poses, proba))
+        timings["t_aggregate"] = time.perf_counter() - t
+        if hasattr(agg, "last_used"):
+            summary["n_views_used"] = int(agg.last_used)
+        t = time.perf_counter()
+        labels = instantiate(cfg.postprocess)(raw, grid) if cfg.get("postprocess") else raw
+        labels = np.where(grid.walkable, labels, -1).astype(np.int32)
+        timings["t_postprocess"] = time.perf_counter() - t
+        segs = segments(labels, metric_params.connectivity)
+        n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0
+        first = np.full(n_seg, -1, np.int64)
+        flat_s, flat_l = segs.ravel(), labels.ravel()
+        m = flat_s >= 0
+        first[flat_s[m]] = flat_l[m]
+        seg_classes = [classes[k] for k in first]
+        summary["class_area_m2"] = _class_areas(labels, classes, grid.resolution)
+        summary["unlabelled_walkable_px"] = int((grid.walkable & (labels < 0)).sum())
+        title = (f"{Path(str(cfg.map)).name}: {summary['mode']}, {summary['aggregator'].rsplit('.', 1)[-1]}, "
+                 f"{len(poses)} views")
+    n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0
+    summary["n_segments"] = n_seg
+    areas = np.bincount(segs[segs >= 0].ravel(), minlength=n_seg) * grid.resolution ** 2
+    summary["rooms"] = [{"segment": k, "class": seg_classes[k] if seg_classes else None,
+                         "area_m2": round(float(areas[k]), 4)} for k in range(n_seg)]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        t = time.perf_counter()
+        summary.update(write_outputs(tmp, cfg, grid, ros_origin, labels, segs, seg_classes, classes, poses, title))
+        timings["t_write"] = time.perf_counter() - t
+        if cfg.gt is not None:
+            t = time.perf_counter()
+            scores = _scores(cfg, grid, labels, segs, classes, metric_params)
+            timings["t_score"] = time.perf_counter() - t
+            (tmp / "scores.json").write_text(json.dumps(scores, indent=1))
+            summary["scores"] = {k: scores[k] for k in ("iou", "precision", "recall", "accuracy") if k in scores}
+        (tmp / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
+        timings["t_total"] = time.perf_counter() - t_all
+        summary["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
+        summary["out"] = str(out)
+        summary["files"] = sorted(p.name for p in tmp.iterdir()) + ["summary.json"]
+        (tmp / "summary.json").write_text(json.dumps(summary, indent=1))
+        _check_out(out, bool(cfg.overwrite))
+        _publish(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return summary
+
+
+def _errors() -> tuple[type[BaseException], ...]:
+    from omegaconf.errors import OmegaConfBaseException  # noqa: PLC0415
+
+    from benchmark.classifiers.evaluate import cli_errors  # noqa: PLC0415
+
+    return (*cli_errors(), OmegaConfBaseException)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Console entry point; returns the exit status (0 ok, 2 bad input)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(__doc__)
+        return 0 if argv else 2
+    from benchmark.classifiers.evaluate import one_line  # noqa: PLC0415
+
+    try:
+        cfg = compose_config(argv)
+        s = segment(cfg, argv)
+    except _errors() as e:
+        print(f"error: {one_line(e)}", file=sys.stderr)
+        return 2
+    line = f"{s['mode']}: {s['n_segments']} segments on {s['map_shape'][1]} x {s['map_shape'][0]} px"
+    if "n_views" in s:
+        line += f" from {s['n_views']} views ({s['n_off_map']} off the map)"
+    if "scores" in s:
+        line += ", " + ", ".join(f"{k} {100 * v:.1f}" for k, v in s["scores"].items() if v is not None)
+    print(f"{line}; {s['timings_s']['t_total']:.2f} s; wrote {s['out']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

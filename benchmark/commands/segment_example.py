@@ -1,0 +1,199 @@
+"""``python -m benchmark.commands.segment_example OUT``: write example inputs for
+``roomseg-segment`` (the map the tests use), then print the command that segments them.
+
+A building of ``nx`` x ``ny`` square rooms (``room_m`` metres a side) with 0.1 m walls and a
+1.0 m door in the middle of every wall between two rooms, drawn as a ROS ``map_server`` map
+(trinary: free 254, walls 0, unknown 205 outside; ``origin`` not at zero) with:
+
+* ``map.yaml`` + ``map.pgm``: the occupancy map;
+* ``poses.csv``: ``id, x, y, theta``: 16 views per room: 4 spots (a quarter of the side in
+  from each corner) x 4 headings (0, 90, 180, 270 degrees project yaw), in the ROS frame
+  (metres, radians counter-clockwise from +x);
+* no wall between the two top-right rooms (an open-plan border: the geometric segmenters
+  cannot find it, the views' labels can);
+* ``labels.csv``: ``id, label``: each view's room class;
+* ``gt.png`` (+ ``gt.json``): the ground-truth class map (``write_label_png``; rooms =
+  the free pixels inside each room's walls, doorways go to the room on their left/lower
+  side) for ``gt=... gt_format=label``.
+
+Room classes cycle through the paper's seven so that no two neighbouring rooms share one
+(room (i, j), column i from the left and row j from the bottom, has class
+``(i + 3 j) mod 7``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from envs.maps.frames import ros_origin_to_grid_origin, world_to_ros
+from envs.maps.gridmap import GridMap
+from envs.maps.label_png import write_label_png
+from envs.maps.ros import write_ros_map
+from envs.world.classes import PAPER_CLASSES
+
+#: ROS map thresholds written to the example YAML (ROS map_saver's).
+FREE_THRESH, OCCUPIED_THRESH = 0.196, 0.65
+#: Pixel values of the example image: free, wall, unknown (ROS map_saver's).
+FREE, WALL, UNKNOWN = 254, 0, 205
+WALL_M, DOOR_M, MARGIN_M = 0.1, 1.0, 0.5
+HEADINGS_DEG = (0, 90, 180, 270)
+#: View positions in each room, as fractions of the room side from its bottom-left corner.
+SPOTS = ((0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75))
+
+
+@dataclass(frozen=True)
+class Example:
+    """What :func:`write_example` wrote and the answers a test can check.
+
+    Attributes:
+        map_yaml, poses, labels, gt: the files.
+        grid: the map as read back (walkable = free pixels).
+        rooms: (H, W) int32 room index of each free pixel, -1 elsewhere (door pixels go to
+            the room on their left / lower side).
+        room_classes: class index of each room (into ``PAPER_CLASSES``).
+        ros_origin: the YAML's origin (x, y, yaw).
+    """
+
+    map_yaml: Path
+    poses: Path
+    labels: Path
+    gt: Path
+    grid: GridMap
+    rooms: np.ndarray
+    room_classes: np.ndarray
+    ros_origin: tuple[float, float, float]
+
+
+def room_class(i: int, j: int) -> int:
+    """Class index of room (column i, row j from the bottom)."""
+    return (i + 3 * j) % len(PAPER_CLASSES)
+
+
+def example_map(nx: int = 3, ny: int = 2, room_m: float = 4.0, resolution: float = 0.05,
+                ros_origin: tuple[float, float] = (-3.25, 1.5), open_plan: bool = True):
+    """The example building as arrays.
+
+    Args:
+        nx, ny: rooms across (x) and up (y).
+        room_m: room side, metres (wall centre to wall centre).
+        resolution: metres per pixel.
+        ros_origin: ROS ``origin`` (x, y) of the map's bottom-left corner, metres.
+        open_plan: leave out the wall between the two top-right rooms (an open-plan border
+            that only the views' labels can find).
+
+    Returns:
+        (image (H, W) uint8 ROS pixel values, rooms (H, W) int32, room classes (R,),
+        grid origin (x0, z0), room centres (R, 2) world x, y metres).
+    """
+    if nx < 1 or ny < 1 or room_m < 4 * WALL_M + DOOR_M or resolution <= 0:
+        raise ValueError(f"example building needs nx, ny >= 1, room_m >= {4 * WALL_M + DOOR_M} m and a resolution "
+                         f"> 0, got {nx}, {ny}, {room_m}, {resolution}")
+    w_m, h_m = nx * room_m + 2 * MARGIN_M, ny * room_m + 2 * MARGIN_M
+    W, H = int(round(w_m / resolution)), int(round(h_m / resolution))
+    x0, z0 = ros_origin_to_grid_origin(ros_origin, H, resolution)
+    bx, by = ros_origin[0] + MARGIN_M, ros_origin[1] + MARGIN_M  # building's bottom-left, world metres
+    # pixel-centre coordinates relative to the building corner, in metres
+    u = x0 + (np.arange(W) + 0.5) * resolution - bx
+    v = z0 - (np.arange(H) + 0.5) * resolution - by
+    U, V = np.meshgrid(u, v)
+    inside = (U > 0) & (U < nx * room_m) & (V > 0) & (V < ny * room_m)
+    # distance to the nearest wall line (multiples of room_m) along each axis
+    du = np.abs(U - np.round(U / room_m) * room_m)
+    dv = np.abs(V - np.round(V / room_m) * room_m)
+    wall_u = du < WALL_M / 2  # vertical walls (x = k room_m)
+    wall_v = dv < WALL_M / 2  # horizontal walls
+    # door openings: on internal walls, within DOOR_M/2 of the wall segment's middle
+    ku, kv = np.round(U / room_m), np.round(V / room_m)
+    mid_u = np.abs((V % room_m) - room_m / 2) < DOOR_M / 2  # along a vertical wall, its middle
+    mid_v = np.abs((U % room_m) - room_m / 2) < DOOR_M / 2
+    door_u = wall_u & mid_u & (ku > 0) & (ku < nx) & ~wall_v
+    door_v = wall_v & mid_v & (kv > 0) & (kv < ny) & ~wall_u
+    wall = inside & ((wall_u & ~door_u) | (wall_v & ~door_v))
+    if open_plan and nx >= 2:  # no wall between the two top-right rooms (open plan), except at its ends
+        gap = wall_u & (ku == nx - 1) & (V > (ny - 1) * room_m + WALL_M / 2) & (V < ny * room_m - WALL_M / 2)
+        wall &= ~gap
+    building = (U > -WALL_M / 2) & (U < nx * room_m + WALL_M / 2) & (V > -WALL_M / 2) & (V < ny * room_m + WALL_M / 2)
+    outer = building & ~inside
+    free = inside & ~wall
+    img = np.full((H, W), UNKNOWN, np.uint8)
+    img[free] = FREE
+    img[wall | outer] = WALL
+    ci = np.clip(np.floor(U / room_m), 0, nx - 1).astype(np.int64)
+    cj = np.clip(np.floor(V / room_m), 0, ny - 1).astype(np.int64)
+    # a door pixel lies on a wall line: give it to the room left of / below the wall
+    ci = np.where(door_u, np.clip(ku - 1, 0, nx - 1), ci).astype(np.int64)
+    cj = np.where(door_v, np.clip(kv - 1, 0, ny - 1), cj).astype(np.int64)
+    rooms = np.where(free, ci + nx * cj, -1).astype(np.int32)
+    classes = np.array([room_class(k % nx, k // nx) for k in range(nx * ny)], np.int64)
+    centres = np.array([(bx + (k % nx + 0.5) * room_m, by + (k // nx + 0.5) * room_m) for k in range(nx * ny)])
+    return img, rooms, classes, (x0, z0), centres
+
+
+def write_example(out: str | Path, nx: int = 3, ny: int = 2, room_m: float = 4.0, resolution: float = 0.05,
+                  ros_origin: tuple[float, float] = (-3.25, 1.5), open_plan: bool = True) -> Example:
+    """Write the example inputs into ``out`` (created); see the module doc.
+
+    Returns:
+        An :class:`Example` with the paths and the rooms' answers.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    img, rooms, classes, grid_origin, centres = example_map(nx, ny, room_m, resolution, ros_origin, open_plan)
+    origin3 = (float(ros_origin[0]), float(ros_origin[1]), 0.0)
+    yaml_path = write_ros_map(out / "map.yaml", img, resolution, origin3, occupied_thresh=OCCUPIED_THRESH,
+                              free_thresh=FREE_THRESH, image_name="map.pgm")
+    lines_p, lines_l = ["id,x,y,theta"], ["id,label"]
+    for k, (cx, cy) in enumerate(centres):
+        for s, (fx, fy) in enumerate(SPOTS):
+            for yaw in HEADINGS_DEG:
+                x, y, theta = world_to_ros(cx + (fx - 0.5) * room_m, cy + (fy - 0.5) * room_m, yaw)
+                vid = f"r{k:03d}_s{s}_h{yaw:03d}"
+                lines_p.append(f"{vid},{float(x):.4f},{float(y):.4f},{float(theta):.6f}")
+                lines_l.append(f"{vid},{PAPER_CLASSES[classes[k]]}")
+    (out / "poses.csv").write_text("\n".join(lines_p) + "\n")
+    (out / "labels.csv").write_text("\n".join(lines_l) + "\n")
+    grid = GridMap(img == FREE, resolution, grid_origin)
+    semantic = np.where(rooms >= 0, classes[np.maximum(rooms, 0)], -1)
+    gt = write_label_png(out / "gt.png", semantic, PAPER_CLASSES, walkable=grid.walkable, resolution=resolution,
+                         origin=grid_origin, legend=False)
+    return Example(map_yaml=yaml_path, poses=out / "poses.csv", labels=out / "labels.csv", gt=gt, grid=grid,
+                   rooms=rooms, room_classes=classes, ros_origin=origin3)
+
+
+def _rooms(text: str) -> tuple[int, int]:
+    try:
+        a, b = (int(t) for t in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--rooms {text!r}: expected NXxNY, e.g. 3x2") from None
+    return a, b
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("out", type=Path, help="folder to write the example inputs into")
+    ap.add_argument("--rooms", type=_rooms, default=(3, 2), help="rooms across x up, e.g. 3x2 (default)")
+    ap.add_argument("--room-m", type=float, default=4.0, help="room side, metres (default 4)")
+    ap.add_argument("--resolution", type=float, default=0.05, help="metres per pixel (default 0.05)")
+    a = ap.parse_args(argv)
+    try:
+        ex = write_example(a.out, *a.rooms, room_m=a.room_m, resolution=a.resolution)
+    except (ValueError, OSError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    h, w = ex.grid.shape
+    n_views = len(ex.room_classes) * len(SPOTS) * len(HEADINGS_DEG)
+    print(f"wrote {ex.map_yaml} ({w} x {h} px, {ex.grid.resolution} m/px, {len(ex.room_classes)} rooms), "
+          f"{ex.poses} and {ex.labels} ({n_views} views), {ex.gt}")
+    d = a.out
+    print(f"segment it: roomseg-segment map={d}/map.yaml poses={d}/poses.csv frame=ros labels={d}/labels.csv "
+          f"gt={d}/gt.png gt_format=label out={d}/segmented")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
