@@ -1,0 +1,284 @@
+"""A folder of a user's occupancy maps as an environment (``env=maps``).
+
+Each map becomes one "house" of the runner, so ``roomseg-bench -m env=maps env.dir=DIR
+segmenter=distance,voronoi,morphological`` segments and scores a whole map collection
+with caches, tables and figures as for houses.
+
+**Maps.** A ROS ``map_server`` YAML (+ its image; :func:`envs.maps.ros.read_ros_map`), a
+plain occupancy image (``.png``/``.pgm``/``.bmp``: free = light, needs ``image_resolution``;
+:func:`envs.maps.ros.occupancy_png`) or a ``.npy`` bool array (True = walkable; needs
+``image_resolution``). The map's id is the part of the file name that ``{id}`` matches in the
+``maps`` pattern: the full stem for ``{id}.yaml``, so ``office_a.yaml`` .. ``office_i.yaml``
+are nine maps.
+
+**Pairing.** A naming rule: ``ground_truth``, ``poses``, ``labels``, ``images`` are file
+name patterns with ``{id}`` (relative to ``dir``; ``null`` = none); files matching one of
+these patterns are never taken as maps. Or a manifest: a CSV with columns ``id, map`` and
+optionally ``ground_truth, poses, labels, images`` (paths relative to the manifest's folder;
+an empty cell = none). A listed file that does not exist fails that map alone, with a line
+naming it.
+
+**Ground truth** (``gt_format``: ``instance`` | ``label`` | ``rooms_white``;
+:mod:`envs.maps.ground_truth`) must be pixel-aligned with the map image (same size). It is
+carried onto the *input* map: the segmenters take their free space from the map, never
+from the ground truth; ground-truth rooms on cells the map calls occupied are dropped, and
+walkable cells that no room covers take the nearest room within ``fill_distance`` metres.
+A map without ground truth cannot be scored: its scene fails with one line.
+
+**Poses, labels, images** are what the other stages read (``viewpoints=file``,
+``classifier=labels``, ``renderer=images``) through their own ``{house_id}`` path patterns,
+e.g. ``viewpoints.path='${env.dir}/{house_id}_poses.csv' viewpoints.frame=ros``; listed here,
+they are checked to exist and their content goes into the cache keys.
+
+**No house.** A map has no floor plan and no furniture list: :meth:`MapsEnv.house` gives a
+:class:`MapHouse` (``data = {"map": id, "kind": "occupancy_map"}``) whose ``rooms`` raise a
+one-line error, so renderers that need a house (AI2-THOR, Habitat, the floorplan renderer)
+cannot render maps; use the image-folder renderer or a labels classifier.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from envs.datasets.base import Environment
+from envs.maps.gridmap import GridMap
+from envs.maps.ground_truth import FORMATS, read_ground_truth
+from envs.maps.ros import grid_from_array, occupancy_png, read_ros_map
+from envs.maps.scene import Scene
+from envs.world.classes import PAPER_CLASSES
+from envs.world.house import House
+
+#: Per-map files besides the map itself, in manifest-column order.
+EXTRA_FILES = ("ground_truth", "poses", "labels", "images")
+_IMAGE_SUFFIXES = (".png", ".pgm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff")
+
+
+class MapHouse(House):
+    """The stand-in for a house of a map-folder environment: an id and the map's name, no
+    floor plan. Reading ``rooms`` raises a one-line error naming the map."""
+
+    def __init__(self, house_id: str, map_path: Path):
+        super().__init__(house_id, {"map": house_id, "file": map_path.name, "kind": "occupancy_map"})
+
+    @property
+    def rooms(self) -> list[dict]:
+        raise ValueError(f"map {self.id!r} (env maps) is an occupancy map, not a house: it has no floor plan or "
+                         f"objects, so renderer=floorplan|ai2thor|habitat cannot render it; use renderer=images "
+                         f"or a labels classifier")
+
+
+@dataclass(frozen=True)
+class MapEntry:
+    """One map of the folder: its id and files (None: not given)."""
+
+    id: str
+    map: Path
+    files: dict[str, Path | None] = field(default_factory=dict)
+
+
+def _pattern_regex(pattern: str, what: str) -> re.Pattern:
+    if pattern.count("{id}") != 1 or "/" in pattern:
+        raise ValueError(f"env.{what} pattern {pattern!r} must contain '{{id}}' once and no folder")
+    return re.compile("^" + re.escape(pattern).replace(r"\{id\}", "(?P<id>.+)") + "$")
+
+
+class MapsEnv(Environment):
+    """A folder of occupancy maps (see the module doc).
+
+    Args:
+        dir: the folder.
+        maps: map file name pattern with ``{id}`` (``{id}.yaml``, ``{id}.png``, ``{id}.npy``).
+        manifest: a CSV (path, relative to ``dir`` or absolute) listing the maps instead of
+            the naming rule; ``null`` to use the patterns.
+        ground_truth, poses, labels, images: file name patterns with ``{id}``, or null.
+        gt_format: ``instance`` | ``label`` | ``rooms_white``.
+        image_resolution: metres per pixel of plain images and ``.npy`` maps (ROS YAMLs carry
+            theirs).
+        origin: world (x0, z0) metres of the top-left corner of plain images and ``.npy``
+            maps; null puts their bottom-left corner at (0, 0).
+        free_thresh, occupied_thresh, negate: plain images: occupancy thresholds as in ROS.
+        mode: override every ROS YAML's ``mode`` (null: each YAML's own).
+        unknown_as: ``obstacle`` | ``free``: unknown map cells.
+        min_room_m2, light_threshold, fill_distance: ground-truth reading
+            (:func:`envs.maps.ground_truth.read_ground_truth`).
+        classes: ordered class names (label ground truth maps onto them).
+        name: dataset name in tables.
+    """
+
+    def __init__(self, dir: str, maps: str = "{id}.yaml", manifest: str | None = None,
+                 ground_truth: str | None = "{id}_gt.png", poses: str | None = None, labels: str | None = None,
+                 images: str | None = None, gt_format: str = "instance", image_resolution: float | None = None,
+                 origin: Sequence[float] | None = None, free_thresh: float = 0.25, occupied_thresh: float = 0.65,
+                 negate: bool = False, mode: str | None = None, unknown_as: str = "obstacle",
+                 min_room_m2: float = 0.2, light_threshold: int = 230, fill_distance: float | None = 0.5,
+                 classes: Sequence[str] = PAPER_CLASSES, name: str = "maps"):
+        if dir is None or str(dir) in ("", "???"):
+            raise ValueError("env.dir is not set; expected the folder of maps (env.dir=DIR)")
+        self.dir = Path(str(dir)).expanduser()
+        if not self.dir.is_dir():
+            raise FileNotFoundError(f"env.dir: map folder not found: {self.dir}")
+        if gt_format not in FORMATS:
+            raise ValueError(f"env.gt_format is {gt_format!r}; expected one of {list(FORMATS)}")
+        if image_resolution is not None and not (np.isfinite(image_resolution) and image_resolution > 0):
+            raise ValueError(f"env.image_resolution is {image_resolution!r}; expected a positive number of "
+                             f"metres/pixel or null")
+        if origin is not None and len(origin) != 2:
+            raise ValueError(f"env.origin is {origin!r}; expected [x0, z0] (metres) or null")
+        self.name, self.classes, self.gt_format = name, tuple(classes), gt_format
+        self.resolution, self.origin = image_resolution, (None if origin is None else tuple(map(float, origin)))
+        self.png = dict(free_thresh=free_thresh, occupied_thresh=occupied_thresh, negate=bool(negate),
+                        unknown_as=unknown_as)
+        self.mode, self.unknown_as = mode, unknown_as
+        self.gt_opts = dict(min_room_m2=min_room_m2, light_threshold=light_threshold, fill_distance=fill_distance)
+        patterns = {"ground_truth": ground_truth, "poses": poses, "labels": labels, "images": images}
+        if manifest:
+            entries = self._from_manifest(Path(str(manifest)).expanduser())
+        else:
+            entries = self._from_patterns(maps, patterns)
+        self._entries: dict[str, MapEntry] = {e.id: e for e in entries}
+
+    # ----------------------------------------------------------------- pairing
+
+    def _from_patterns(self, maps: str, patterns: dict[str, str | None]) -> list[MapEntry]:
+        rx = _pattern_regex(maps, "maps")
+        others = {k: _pattern_regex(p, k) for k, p in patterns.items() if p}
+        entries = []
+        for p in sorted(self.dir.iterdir()):
+            m = rx.match(p.name)
+            if not m or not p.is_file() or any(o.match(p.name) for o in others.values()):
+                continue
+            mid = m.group("id")
+            files = {k: (self.dir / patterns[k].replace("{id}", mid) if patterns[k] else None) for k in EXTRA_FILES}
+            entries.append(MapEntry(mid, p, files))
+        if not entries:
+            raise FileNotFoundError(f"env.dir {self.dir}: no map file matches env.maps {maps!r}")
+        return entries
+
+    def _from_manifest(self, path: Path) -> list[MapEntry]:
+        path = path if path.is_absolute() else self.dir / path
+        if not path.is_file():
+            raise FileNotFoundError(f"env.manifest not found: {path}")
+        with path.open(newline="") as f:
+            reader = csv.DictReader(f)
+            cols = [c.strip() for c in (reader.fieldnames or [])]
+            if "id" not in cols or "map" not in cols:
+                raise ValueError(f"{path}: manifest needs columns 'id' and 'map' (optional {list(EXTRA_FILES)}), "
+                                 f"found {cols}")
+            unknown = [c for c in cols if c not in ("id", "map", *EXTRA_FILES)]
+            if unknown:
+                raise ValueError(f"{path}: unknown manifest column(s) {unknown}; expected id, map, "
+                                 f"{', '.join(EXTRA_FILES)}")
+            rows = [{(k or "").strip(): (v or "").strip() for k, v in r.items()} for r in reader]
+        if not rows:
+            raise ValueError(f"{path}: the manifest lists no map")
+        ids = [r["id"] for r in rows]
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        if dup or "" in ids:
+            raise ValueError(f"{path}: manifest ids must be unique and non-empty; repeated or empty: {dup or ['']}")
+
+        def resolve(v: str) -> Path | None:
+            return None if not v else (Path(v) if Path(v).is_absolute() else path.parent / v)
+
+        out = []
+        for i, r in enumerate(rows):
+            if not r["map"]:
+                raise ValueError(f"{path}: row {i + 2} (id {r['id']!r}) has an empty 'map'")
+            out.append(MapEntry(r["id"], resolve(r["map"]), {k: resolve(r.get(k, "")) for k in EXTRA_FILES}))
+        return out
+
+    # ----------------------------------------------------------------- the contract
+
+    def house_ids(self) -> list[str]:
+        return list(self._entries)
+
+    def entry(self, house_id: str) -> MapEntry:
+        """The map's files."""
+        if house_id not in self._entries:
+            raise KeyError(f"no map {house_id!r} in environment {self.name!r} ({self.dir})")
+        return self._entries[house_id]
+
+    def house(self, house_id: str) -> House:
+        """A :class:`MapHouse` (no floor plan; see the module doc)."""
+        return MapHouse(house_id, self.entry(house_id).map)
+
+    def input_files(self, house_id: str) -> list[Path]:
+        """Every file this map's scene and stages read (for cache keys); each must exist.
+
+        Raises:
+            FileNotFoundError: one line naming the missing file and its role.
+        """
+        e = self.entry(house_id)
+        out = [e.map]
+        if e.map.suffix.lower() in (".yaml", ".yml") and e.map.is_file():
+            import yaml  # noqa: PLC0415
+
+            try:
+                img = (yaml.safe_load(e.map.read_text()) or {}).get("image")
+            except (yaml.YAMLError, AttributeError):
+                img = None
+            if isinstance(img, str) and img:
+                out.append(Path(img) if Path(img).is_absolute() else e.map.parent / img)
+        out += [p for p in e.files.values() if p is not None]
+        for role, p in [("map", e.map), *e.files.items()]:
+            if p is not None and not p.exists():
+                raise FileNotFoundError(f"map {house_id!r}: {role} file not found: {p}")
+        return [p for p in out if p.exists()]
+
+    def grid(self, house_id: str) -> GridMap:
+        """The input map as a GridMap."""
+        path = self.entry(house_id).map
+        if not path.is_file():
+            raise FileNotFoundError(f"map {house_id!r}: map file not found: {path}")
+        suffix = path.suffix.lower()
+        if suffix in (".yaml", ".yml"):
+            return read_ros_map(path, mode=self.mode, unknown_as=self.unknown_as).grid
+        if self.resolution is None:
+            raise ValueError(f"{path}: a {suffix} map has no resolution; set env.image_resolution (metres/pixel)")
+        if suffix == ".npy":
+            arr = np.load(path, allow_pickle=False)
+            if arr.dtype != bool:
+                raise ValueError(f"{path}: .npy map has dtype {arr.dtype}; expected bool (True = walkable)")
+            return grid_from_array(arr, self.resolution, self.origin)
+        if suffix in _IMAGE_SUFFIXES:
+            return occupancy_png(path, self.resolution, self.origin, **self.png)
+        raise ValueError(f"{path}: unknown map file type {suffix!r}; expected .yaml, .npy or an image")
+
+    def scene(self, house_id: str) -> Scene:
+        """The map and its ground truth carried onto it.
+
+        Returns:
+            :class:`Scene` with ``grid`` = the input map, ``instances`` = the ground-truth
+            rooms on its walkable cells, ``rooms`` = the same, no walls, no objects.
+
+        Raises:
+            FileNotFoundError / ValueError: one line naming the map's file and the problem
+            (no ground truth, missing file, bad field).
+        """
+        e = self.entry(house_id)
+        self.input_files(house_id)  # every listed file exists
+        grid = self.grid(house_id)
+        gt_path = e.files.get("ground_truth")
+        if gt_path is None:
+            raise ValueError(f"map {house_id!r}: no ground truth (env.ground_truth / manifest column "
+                             f"'ground_truth'); the runner scores every map against its ground truth")
+        gt = read_ground_truth(gt_path, self.gt_format, grid, classes=self.classes, **self.gt_opts)
+        inst = gt.instances
+        if not (inst >= 0).any():
+            raise ValueError(f"{gt_path}: no ground-truth room lies on a walkable cell of the map {e.map.name}")
+        # rooms that lost every pixel to the map's obstacles are dropped, ids kept dense
+        present = np.unique(inst[inst >= 0])
+        remap = np.full(len(gt.instance_classes), -1, np.int32)
+        remap[present] = np.arange(len(present), dtype=np.int32)
+        inst = np.where(inst >= 0, remap[np.maximum(inst, 0)], -1).astype(np.int32)
+        classes = np.asarray(gt.instance_classes, np.int64)[present]
+        return Scene(house_id=house_id, grid=grid, rooms=inst.copy(), instances=inst, instance_classes=classes,
+                     room_ids=[f"room{int(k)}" for k in present], classes=self.classes)
+
+
+__all__ = ["MapEntry", "MapHouse", "MapsEnv"]
