@@ -92,3 +92,22 @@ def test_rooms_reachable_through_doors(shared_houses, shared_scenes):
     print(f"{len(disconnected_by_data)} houses have rooms reachable only through exterior doors: "
           f"{disconnected_by_data[:5]} ...")
     assert len(disconnected_by_data) < len(shared_houses)
+
+
+def test_env_reads_the_shared_file_exactly_and_maps_fit_the_size_limit(procthor_file, shared_scenes):
+    """ProcTHOREnv keeps each house dict exactly as the file's line parses (cache keys hash
+    it), with ids unchanged; the largest shared map is far under the default max_map_pixels."""
+    import gzip
+    import json
+
+    from envs.datasets.procthor import ProcTHOREnv
+    from envs.maps.scene import MAX_MAP_PIXELS
+
+    env = ProcTHOREnv(path=str(procthor_file))
+    with gzip.open(procthor_file, "rt") as f:
+        lines = [json.loads(line) for line in f]
+    assert env.house_ids() == [f"procthor-10k-uniform-hard-val-{i:05d}" for i in range(150)]
+    assert all(env.house(hid).data == d for hid, d in zip(env.house_ids(), lines))
+    largest = max(s.grid.walkable.size for s in shared_scenes)
+    print(f"largest shared map: {largest} pixels at 0.05 m/px; limit {MAX_MAP_PIXELS}")
+    assert largest < MAX_MAP_PIXELS / 10
