@@ -9,8 +9,7 @@ torch = pytest.importorskip("torch")
 from hydra import compose, initialize_config_dir  # noqa: E402
 from hydra.utils import instantiate  # noqa: E402
 
-from benchmark.harness.store import safe_name  # noqa: E402
-from benchmark.harness.runner import CONF_DIR, run, stage_keys  # noqa: E402
+from benchmark.harness.runner import CONF_DIR, build_pipeline, run  # noqa: E402
 from envs.render.cache import write_observations  # noqa: E402
 from envs.render.observation import Observation  # noqa: E402
 
@@ -36,7 +35,8 @@ def test_sweep_from_a_copied_ai2thor_render_cache(tmp_path):
     obs = [Observation(pose=tuple(p), image=rng.integers(0, 256, (32, 32, 3), dtype=np.uint8),
                        objects=[("Sofa", 0.2)]) for p in poses]
     obs[3] = Observation(pose=tuple(poses[3]), meta={"refused": True, "error": "not reachable"})
-    folder = tmp_path / "results" / "cache" / "render" / stage_keys(cfg)["render"] / safe_name(hid)
+    folder = build_pipeline(cfg, choices).render_dir(hid)  # where the run store keeps this house's render
+    assert folder.is_relative_to(tmp_path / "results" / "cache" / "render")
     write_observations(folder, obs)  # "copied from the GPU box"
     df = run(cfg, tmp_path / "out", choices)  # ai2thor is never started: the render is cached
     row = df.iloc[0]

@@ -17,6 +17,7 @@ accuracy against the oracle's true label on the shared ProcTHOR houses.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -53,6 +54,12 @@ def _types(o: ObjectFootprint) -> tuple[str, ...]:
 class ObjectsClassifier(Classifier):
     """Naive Bayes over visible object types.
 
+    Building one reads nothing; :meth:`fit` trains it (about 3 s on the 200 default
+    generated houses), :meth:`save` / :meth:`load` keep a fitted model in an ``.npz``, and
+    :meth:`training_key` names the content of the training set, so a harness can cache the
+    fitted model by what it was trained on (:mod:`benchmark.harness.pipeline` does). Asking
+    for predictions before :meth:`fit` or :meth:`load` fits first.
+
     Args:
         train_path: house file (.json/.jsonl/.jsonl.gz) with training houses, or None.
         train_start, train_stop: index range of the training houses in that file.
@@ -62,33 +69,131 @@ class ObjectsClassifier(Classifier):
         classes: the ordered class names.
     """
 
+    #: bump when the fitted tables change meaning (invalidates saved models).
+    MODEL_VERSION = 1
+    #: metres per pixel of the rasterisation that places objects in rooms during training.
+    TRAIN_RESOLUTION = 0.1
+
     def __init__(self, train_path: str | None = None, train_start: int = 0, train_stop: int | None = None,
                  train_synthetic: Sequence[int] | None = None, alpha: float = 1.0,
                  classes: Sequence[str] = PAPER_CLASSES):
         self.classes = tuple(classes)
         self.alpha = float(alpha)
-        houses = []
-        if train_path:
-            for i, h in enumerate(iter_house_file(train_path)):
-                if train_stop is not None and i >= train_stop:
-                    break
-                if i >= train_start:
-                    houses.append(h)
-        if train_synthetic:
-            from envs.datasets.synthetic import generate_house
-
-            houses += [generate_house(s) for s in range(int(train_synthetic[0]), int(train_synthetic[1]))]
-        if not houses:
+        self.train_path, self.train_start, self.train_stop = train_path, int(train_start), train_stop
+        self.train_synthetic = None if not train_synthetic else (int(train_synthetic[0]), int(train_synthetic[1]))
+        if not train_path and not self.train_synthetic:
             raise ValueError(f"objects classifier: no training houses (train_path={train_path!r} "
                              f"[{train_start}:{train_stop}], train_synthetic={train_synthetic})")
-        self.train_ids = [h.id for h in houses]
-        rooms, types = room_object_counts(houses, self.classes)
-        self.types = sorted(types)
-        counts = np.array([types[t] for t in self.types]).T  # (C, T)
-        self.log_prior = np.log((rooms + self.alpha) / (rooms.sum() + self.alpha * len(self.classes)))
-        self.log_lik = np.log((counts + self.alpha) / (counts.sum(1, keepdims=True) + self.alpha * len(self.types)))
-        self._index = {t: i for i, t in enumerate(self.types)}
+        self._houses: list[House] | None = None
+        self._types: list[str] | None = None
         self.last_flags = np.zeros(0, dtype=bool)
+
+    # ---- the training set
+    def training_houses(self) -> list[House]:
+        """The training houses (read or generated once, then kept).
+
+        Raises:
+            ValueError: the sources give no house."""
+        if self._houses is None:
+            houses = []
+            if self.train_path:
+                for i, h in enumerate(iter_house_file(self.train_path)):
+                    if self.train_stop is not None and i >= self.train_stop:
+                        break
+                    if i >= self.train_start:
+                        houses.append(h)
+            if self.train_synthetic:
+                from envs.datasets.synthetic import generate_house
+
+                houses += [generate_house(s) for s in range(*self.train_synthetic)]
+            if not houses:
+                raise ValueError(f"objects classifier: no training houses (train_path={self.train_path!r} "
+                                 f"[{self.train_start}:{self.train_stop}], train_synthetic={self.train_synthetic})")
+            self._houses = houses
+        return self._houses
+
+    @property
+    def fitted(self) -> bool:
+        return self._types is not None
+
+    @property
+    def types(self) -> list[str]:
+        """Object types seen in training, in table order (fits first if needed)."""
+        if self._types is None:
+            self.fit()
+        return self._types  # type: ignore[return-value]
+
+    @property
+    def train_ids(self) -> list[str]:
+        return [h.id for h in self.training_houses()]
+
+    def training_key(self) -> str:
+        """16 hex digits over the training houses' JSON, alpha, classes and the model version:
+        equal keys mean equal fitted tables."""
+        import hashlib
+        import json
+
+        h = hashlib.sha1()
+        h.update(json.dumps([self.MODEL_VERSION, self.alpha, list(self.classes), self.TRAIN_RESOLUTION]).encode())
+        for house in self.training_houses():
+            h.update(json.dumps([house.id, house.data], sort_keys=True, separators=(",", ":")).encode())
+        return h.hexdigest()[:16]
+
+    # ---- fit / save / load
+    def fit(self) -> ObjectsClassifier:
+        """Count object types per class over the training houses. Returns self."""
+        rooms, types = room_object_counts(self.training_houses(), self.classes, self.TRAIN_RESOLUTION)
+        self._set_tables(sorted(types), rooms, np.array([types[t] for t in sorted(types)]).T)
+        return self
+
+    def _set_tables(self, types: list[str], rooms: np.ndarray, counts: np.ndarray) -> None:
+        """``rooms`` (C,) room counts per class, ``counts`` (C, T) object counts per class and type."""
+        self._types = list(types)
+        self._rooms, self._counts = np.asarray(rooms, dtype=np.float64), np.asarray(counts, dtype=np.float64)
+        self.log_prior = np.log((self._rooms + self.alpha) / (self._rooms.sum() + self.alpha * len(self.classes)))
+        self.log_lik = np.log((self._counts + self.alpha)
+                              / (self._counts.sum(1, keepdims=True) + self.alpha * len(self.types)))
+        self._index = {t: i for i, t in enumerate(self.types)}
+
+    def save(self, path: str | Path) -> Path:
+        """Write the fitted counts to ``path`` (``.npz``, atomically). Returns the path."""
+        import io
+
+        from envs.atomic import atomic_write_bytes
+
+        if self._types is None:
+            raise ValueError("objects classifier: save() before fit()")
+        buf = io.BytesIO()
+        np.savez_compressed(buf, types=np.array(self.types, dtype=str), rooms=self._rooms, counts=self._counts,
+                            classes=np.array(self.classes, dtype=str), key=np.array(self.training_key()),
+                            train_ids=np.array(self.train_ids, dtype=str))
+        atomic_write_bytes(path, buf.getvalue())
+        return Path(path)
+
+    def load(self, path: str | Path) -> ObjectsClassifier:
+        """Read counts written by :meth:`save`, checked against this classifier. Returns self.
+
+        Raises:
+            ValueError: unreadable file, other classes or training set, or bad shapes (the
+                message names the file)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                d = {k: z[k] for k in z.files}
+        except Exception as e:  # noqa: BLE001 - any unreadable file is one error naming it
+            raise ValueError(f"{path}: not a saved objects classifier ({type(e).__name__}: {e})") from None
+        try:
+            types, rooms, counts = [str(t) for t in d["types"]], d["rooms"], d["counts"]
+            classes, key = tuple(str(c) for c in d["classes"]), str(d["key"])
+        except KeyError as e:
+            raise ValueError(f"{path}: saved objects classifier lacks {e}") from None
+        if classes != self.classes or key != self.training_key():
+            raise ValueError(f"{path}: fitted for other classes or another training set")
+        if rooms.shape != (len(classes),) or counts.shape != (len(classes), len(types)) or not (
+                np.isfinite(rooms).all() and np.isfinite(counts).all() and (counts >= 0).all()):
+            raise ValueError(f"{path}: counts of shape {counts.shape} / rooms {rooms.shape} do not fit "
+                             f"{len(classes)} classes x {len(types)} types")
+        self._set_tables(types, rooms, counts)
+        return self
 
     def setup(self, eval_house_ids: Sequence[str]) -> None:
         """Refuse to run when a training house is also evaluated."""
@@ -98,6 +203,9 @@ class ObjectsClassifier(Classifier):
                              f"(e.g. {overlap[:3]}); choose disjoint training houses (train_start/train_stop)")
 
     def predict_proba(self, observations: Sequence) -> np.ndarray:
+        """(N, C) class probabilities of N observations (fits first if not fitted or loaded)."""
+        if self._types is None:
+            self.fit()
         scores = np.tile(self.log_prior, (len(observations), 1))
         flags = np.ones(len(observations), dtype=bool)
         for i, o in enumerate(observations):

@@ -1,11 +1,16 @@
-"""Content-addressed stage caches: keys from resolved configs, atomic writes, file locks.
+"""Content-addressed stage caches: keys from resolved configs and input content, atomic
+writes, file locks.
 
-A cache entry is a file (or folder) under ``<cache_dir>/<stage>/<key>/<house_id>...``.
-``key`` is a short hash of the resolved configs of every stage the entry depends on, so
-changing an aggregator never invalidates renders or classifier outputs. Writes go to a
-temporary name in the same folder and are renamed into place (``os.replace``), so a killed
-run never leaves a half-written entry; a per-entry lock keeps concurrent sweep workers
-from computing the same entry twice.
+A cache entry is a file (or folder) under ``<cache_dir>/<stage>/<key>/<house>@<content>...``
+(paths: :mod:`benchmark.harness.store`). ``key`` is a short hash of the resolved configs of
+every stage the entry depends on, so changing an aggregator never invalidates renders or
+classifier outputs; ``content`` is a short hash of what the entry was computed from: the
+house's JSON and every input file the stages read (:func:`content_hash`,
+:func:`file_fingerprint`, :func:`config_inputs`), so editing one house or one pose file
+recomputes what depends on it and nothing else. Writes go to a temporary name in the same
+folder and are renamed into place (``os.replace``), so a killed run never leaves a
+half-written entry; a per-entry lock keeps concurrent sweep workers from computing the same
+entry twice.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -27,6 +33,103 @@ def config_key(*parts: Any) -> str:
     """12-hex-digit hash of JSON-serialisable config parts (dict key order does not matter)."""
     blob = json.dumps(parts, sort_keys=True, default=str, separators=(",", ":"))
     return hashlib.sha1(blob.encode("utf-8")).hexdigest()[:12]
+
+
+def content_hash(obj: Any) -> str:
+    """16-hex-digit SHA-1 of a JSON-serialisable object (canonical: sorted keys, no spaces).
+
+    Returns:
+        The hash; equal objects (dict order aside) give equal hashes."""
+    blob = json.dumps(obj, sort_keys=True, default=_json_default, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha1(blob.encode("utf-8")).hexdigest()[:16]
+
+
+#: files larger than this (bytes) are fingerprinted by size + modification time, not hashed.
+HASH_LIMIT = 64 * 2**20
+
+_FINGERPRINTS: dict[tuple[str, int, int], str] = {}
+
+
+def file_fingerprint(path: str | Path) -> str:
+    """What a stage read from ``path``, as a short string that changes when the input does.
+
+    A file up to :data:`HASH_LIMIT` bytes: SHA-1 of its bytes. A larger file (model weights):
+    ``size:<bytes>:mtime:<ns>`` (copying it without keeping times recomputes; editing it in
+    place within the same nanosecond with the same size does not: documented limit). A
+    folder: the hash of its files' relative names, sizes and modification times.
+    File fingerprints are memoised per (path, size, mtime) for the process (folders are
+    listed every time).
+
+    Returns:
+        ``sha1:<16 hex>``, ``size:...`` or ``dir:<16 hex>``.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist (the message names it).
+    """
+    p = Path(path).expanduser()
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"input file {p} does not exist") from None
+    if p.is_dir():
+        listing = []
+        for root, dirs, files in os.walk(p):
+            dirs.sort()
+            for name in sorted(files):
+                f = Path(root) / name
+                fs = f.stat()
+                listing.append([str(f.relative_to(p)), fs.st_size, fs.st_mtime_ns])
+        fp = "dir:" + content_hash(listing)
+        return fp
+    memo = (str(p.resolve()), st.st_size, st.st_mtime_ns)
+    if memo in _FINGERPRINTS:
+        return _FINGERPRINTS[memo]
+    if st.st_size > HASH_LIMIT:
+        fp = f"size:{st.st_size}:mtime:{st.st_mtime_ns}"
+    else:
+        h = hashlib.sha1()
+        with open(p, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        fp = "sha1:" + h.hexdigest()[:16]
+    _FINGERPRINTS[memo] = fp
+    return fp
+
+
+def _looks_like_path(value: str) -> bool:
+    return value not in (".", "..") and ("/" in value or os.sep in value or Path(value).suffix != "")
+
+
+def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
+    """Fingerprints of the input files a stage's config names.
+
+    Every string value of ``node`` (a plain dict/list tree) that looks like a path (has a
+    ``/`` or a file suffix) and exists after ``{house_id}`` is filled in, is fingerprinted
+    with :func:`file_fingerprint`. Strings naming nothing that exists (model ids such as
+    ``facebook/dinov2-large``, a missing weights file that the stage will report) are skipped.
+
+    Returns:
+        {dotted config key: fingerprint}, sorted by key.
+    """
+    out: dict[str, str] = {}
+
+    def walk(v: Any, key: str) -> None:
+        if isinstance(v, Mapping):
+            for k, x in v.items():
+                walk(x, f"{key}.{k}" if key else str(k))
+        elif isinstance(v, list | tuple):
+            for i, x in enumerate(v):
+                walk(x, f"{key}[{i}]")
+        elif isinstance(v, str) and _looks_like_path(v):
+            s = v
+            if house_id is not None and "{house_id}" in s:
+                s = s.replace("{house_id}", str(house_id))
+            p = Path(s).expanduser()
+            if p.exists():
+                out[key] = file_fingerprint(p)
+
+    walk(node, "")
+    return dict(sorted(out.items()))
 
 
 @contextlib.contextmanager
@@ -59,10 +162,26 @@ def atomic_save_npz(path: Path, **arrays: np.ndarray) -> None:
 
 
 def load_npz(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
+    """Every array of an ``.npz`` (no pickles).
+
+    Raises:
+        ValueError: the file is not a readable ``.npz`` (the message names the file)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except FileNotFoundError:
+        raise
+    except Exception as e:  # zipfile.BadZipFile, pickled data, truncated members, ...
+        raise ValueError(f"{path}: not a readable .npz ({type(e).__name__}: {e})") from None
 
 
 def read_json(path: Path) -> Mapping[str, Any]:
+    """A JSON file's object.
+
+    Raises:
+        ValueError: malformed JSON (the message names the file, line and column)."""
     with open(path, encoding="utf-8") as f:
-        return json.load(f)
+        try:
+            return json.load(f)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}: malformed JSON ({e})") from None

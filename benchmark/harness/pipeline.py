@@ -1,38 +1,76 @@
-"""One house through the stages, with caches: scene -> viewpoints -> render -> classify ->
-aggregate -> post-process -> score (or scene -> segmenter -> score for geometric baselines).
+"""One house through the stages, with caches. Two paths:
 
-Independent of Hydra: :mod:`benchmark.harness.runner` builds a :class:`Pipeline` from the config.
-Cache layout: :mod:`benchmark.harness.store` (keys: :func:`benchmark.harness.cache.config_key`).
+- :class:`MethodPipeline` (the method): scene -> viewpoints -> render -> classify ->
+  aggregate -> post-process -> score;
+- :class:`SegmenterPipeline` (geometric baselines): scene -> segmenter -> score.
+
+Every cached stage goes through one helper, :meth:`Pipeline._cached`: lock the entry, load
+it if present and valid (a bad entry is recomputed with one warning naming the file),
+otherwise compute, time and save it atomically. Stages are built from their factories only
+when a house needs them, so a fully cached job builds no renderer and no classifier.
+Failures are not cached as results: a failed house is retried on the next run (its last
+failure is logged under ``failures/`` beside the cache); ``cache_failures=True`` serves the
+logged failure instead (for expensive deterministic failures).
+
+Independent of Hydra: :mod:`benchmark.harness.runner` builds a pipeline from the config.
+Cache layout: :mod:`benchmark.harness.store`; keys and content hashes:
+:mod:`benchmark.harness.cache`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import math
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
 from benchmark.harness.cache import (
     atomic_save_npz,
     atomic_write_json,
+    config_inputs,
+    content_hash,
+    file_fingerprint,
     load_npz,
     locked,
     read_json,
 )
 from benchmark.harness.store import CacheStore
+from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
 from envs.datasets.base import Environment
+from envs.render.base import Renderer
 from envs.render.observation import poses_array
+
+log = logging.getLogger("roomseg-bench")
+T = TypeVar("T")
 
 #: Stages that ``force`` can name, in pipeline order; forcing one forces those after it.
 STAGES = ("render", "classify", "score")
 
+#: metrics every successful row carries, each in [0, 1] (accuracy may be NaN: segmenters).
+ROW_METRICS = ("iou", "precision", "recall")
+
+
+class StageError(RuntimeError):
+    """A stage that cannot be built, or does not fit the environment (e.g. another class
+    order): no house's fault, so the run stops with this one-line message."""
+
+
+class BadEntry(ValueError):
+    """A cache entry that fails validation (it is recomputed, with a warning naming it)."""
+
 
 def expand_force(force: Sequence[str] | str | None) -> set[str]:
-    """``force`` option -> the set of stages to redo (a stage implies the ones after it)."""
+    """``force`` option -> the set of stages to redo (a stage implies the ones after it).
+
+    Raises:
+        ValueError: an unknown stage name (one line naming it and the allowed ones)."""
     if force is None:
         return set()
     if isinstance(force, str):
@@ -47,13 +85,51 @@ def expand_force(force: Sequence[str] | str | None) -> set[str]:
     return set(STAGES[first:])
 
 
+def house_content(env: Environment, house_id: str) -> str:
+    """Content hash of one house: what every cache entry of the house depends on.
+
+    An environment may define ``content_key(house_id) -> str`` (used as is); otherwise the
+    hash covers the house's JSON (``env.house(id).data``) and, when the environment defines
+    ``input_files(house_id) -> list of paths``, those files' fingerprints
+    (:func:`benchmark.harness.cache.file_fingerprint`).
+
+    Returns:
+        A hex string (16 digits for the default rule).
+
+    Raises:
+        Whatever ``env.house`` raises for a malformed house (the house then fails alone).
+    """
+    own = getattr(env, "content_key", None)
+    if callable(own):
+        return str(own(house_id))
+    house = env.house(house_id)
+    parts: list[Any] = [getattr(house, "data", house)]
+    files = getattr(env, "input_files", None)
+    if callable(files):
+        parts.append({str(p): file_fingerprint(p) for p in files(house_id)})
+    return content_hash(parts)
+
+
 @dataclass
 class Pipeline:
-    """The stages of one configuration and where their caches live.
+    """The stages of one configuration, built on first use, and where their caches live.
 
-    ``names`` are the short stage names written into every row (``env``, ``viewpoints``,
-    ``renderer``, ``classifier``, ``aggregator``, ``postprocess``, ``segmenter``);
-    ``keys`` the cache keys (``render``, ``classify``, ``score``); ``extra`` more columns.
+    Args:
+        env: the houses.
+        cache_dir: ``run.cache_dir``.
+        keys: the stages' config keys (``render``, ``classify``, ``score``).
+        names: short stage names written into every row (``env``, ``viewpoints``, ...).
+        metric_params: :class:`benchmark.metrics.MetricParams`.
+        builders: stage name -> zero-argument factory (``None``: the stage is absent).
+        inputs: stage name -> the stage's plain config, searched for input files whose
+            content goes into the house's cache entries (:func:`config_inputs`).
+        force: stages to recompute (see :func:`expand_force`).
+        save_maps: keep label maps for figures.
+        extra: more columns for every row.
+        cache_failures: serve a house's logged failure instead of retrying it.
+        classes: the environment's ordered class names; a classifier with other names or
+            another order stops the run (:class:`StageError`).
+        eval_ids: the houses of this run (a classifier's ``setup`` refuses training houses).
     """
 
     env: Environment
@@ -61,99 +137,180 @@ class Pipeline:
     keys: dict[str, str]
     names: dict[str, str]
     metric_params: Any
-    viewpoints: Any = None
-    renderer: Any = None
-    classifier: Any = None
-    aggregator: Any = None
-    postprocess: Any = None
-    segmenter: Any = None
+    builders: Mapping[str, Callable[[], Any] | None] = field(default_factory=dict)
+    inputs: Mapping[str, Any] = field(default_factory=dict)
     force: set[str] = field(default_factory=set)
     save_maps: bool = True
     extra: dict[str, Any] = field(default_factory=dict)
+    cache_failures: bool = False
+    classes: tuple[str, ...] | None = None
+    eval_ids: Sequence[str] = ()
+    _stages: dict[str, Any] = field(default_factory=dict, repr=False)
+    _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
 
-    # ---- paths (the run store knows the layout)
+    #: the stage groups whose input files feed each cached stage, in order.
+    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = ()
+
+    # ---- stages, built on first use
+    def stage(self, name: str) -> Any:
+        """The stage ``name``, built by its factory the first time it is asked for.
+
+        Raises:
+            StageError: the factory fails, or a classifier's classes differ from ``classes``."""
+        if name not in self._stages:
+            build = self.builders.get(name)
+            if build is None:
+                self._stages[name] = None
+                return None
+            try:
+                obj = build()
+            except Exception as e:
+                raise StageError(f"{name} {self.names.get(name, '')!r} could not be built: "
+                                 f"{type(e).__name__}: {e}") from e
+            if name == "classifier":
+                self._check_classes(obj)
+                self._fit_cached(obj)
+                if hasattr(obj, "setup"):
+                    try:
+                        obj.setup(list(self.eval_ids))
+                    except ValueError as e:
+                        raise StageError(str(e)) from e
+            self._stages[name] = obj
+        return self._stages[name]
+
+    def built(self) -> list[str]:
+        """Names of the stages built so far (a fully cached job builds none)."""
+        return [k for k, v in self._stages.items() if v is not None]
+
+    def _fit_cached(self, clf: Any) -> None:
+        """Fit a classifier that offers ``training_key/fit/save/load`` (the objects classifier),
+        or load its fitted model from ``models/`` in the cache, keyed by its training set's
+        content. ``force`` of ``classify`` refits."""
+        if not all(callable(getattr(clf, m, None)) for m in ("training_key", "fit", "save", "load")):
+            return
+        if getattr(clf, "fitted", False):
+            return
+        path = self.store.model_path(type(clf).__name__, clf.training_key())
+        self._cached("classify", path, clf.load, clf.fit, lambda p, c: c.save(p))
+
+    def _check_classes(self, clf: Any) -> None:
+        got = tuple(getattr(clf, "classes", ()) or ())
+        if self.classes is not None and got != tuple(self.classes):
+            raise StageError(f"classifier {self.names.get('classifier', '')!r} has classes {list(got)}, but the "
+                             f"environment has {list(self.classes)}: names and order must be equal "
+                             f"(set the classifier's `classes` to ${{classes}})")
+
+    # ---- content of a house's entries
+    def contents(self, hid: str) -> dict[str, str]:
+        """Per cached stage, the content hash of house ``hid``'s entry: the house's content
+        and the input files of every stage up to that one. Memoised per house."""
+        if hid not in self._contents:
+            acc = house_content(self.env, hid)
+            out = {}
+            for stage, groups in self.CONTENT_STAGES:
+                files = {g: config_inputs(self.inputs.get(g), hid) for g in groups}
+                acc = content_hash([acc, stage, files])
+                out[stage] = acc
+            self._contents[hid] = out
+        return self._contents[hid]
+
     @property
     def store(self) -> CacheStore:
         return CacheStore(Path(self.cache_dir))
 
-    def _render_dir(self, hid: str) -> Path:
-        return self.store.render_dir(self.keys["render"], hid)
-
-    def _classify_path(self, hid: str) -> Path:
-        return self.store.classify_path(self.keys["classify"], hid)
-
     def score_path(self, hid: str) -> Path:
-        return self.store.score_path(self.keys["score"], hid)
+        return self.store.score_path(self.keys["score"], hid, content=self.contents(hid)["score"])
+
+    def failure_path(self, hid: str) -> Path:
+        return self.store.failure_path(self.keys["score"], hid, content=self.contents(hid)["score"])
 
     def maps_path(self, hid: str) -> Path:
-        return self.store.maps_path(self.keys["score"], hid)
+        return self.store.maps_path(self.keys["score"], hid, content=self.contents(hid)["score"])
 
-    # ---- stages
-    def _observations(self, hid: str, scene, timings: dict) -> list:
-        from envs.render import cache as render_cache
+    # ---- the one cached-stage helper
+    def _cached(self, stage: str, path: Path, load: Callable[[Path], T], compute: Callable[[], T],
+                save: Callable[[Path, T], None], exists: Callable[[Path], bool] = Path.exists) -> T:
+        """Lock ``path``; return its validated entry, or compute, save and return it.
 
-        folder = self._render_dir(hid)
-        with locked(folder):
-            if "render" not in self.force and render_cache.is_complete(folder):
-                t = time.perf_counter()
-                obs = render_cache.read_observations(folder)
-                timings["t_render_load"] = time.perf_counter() - t
-                return obs
-            t = time.perf_counter()
-            poses = poses_array(self.viewpoints.generate(scene))
-            timings["t_viewpoints"] = time.perf_counter() - t
-            if len(poses) == 0:
-                raise ValueError(f"viewpoints {self.names.get('viewpoints')!r} produced no poses for house {hid!r}")
-            t = time.perf_counter()
-            obs = self.renderer.render(self.env.house(hid), scene, poses)
-            timings["t_render"] = time.perf_counter() - t
-            render_cache.write_observations(folder, obs)
-            return obs
-
-    def _classified(self, hid: str, scene, timings: dict) -> tuple[np.ndarray, np.ndarray, int]:
-        path = self._classify_path(hid)
+        ``load`` raises on a bad entry (any exception): the entry is recomputed and one
+        warning names the file. ``stage`` in ``force`` skips the load."""
         with locked(path):
-            if "classify" not in self.force and path.exists():
-                z = load_npz(path)
-                return z["poses"], z["proba"], int(z["n_refused"])
-            obs = self._observations(hid, scene, timings)
-            kept = [o for o in obs if not o.meta.get("refused", False)]
-            n_refused = len(obs) - len(kept)
-            if not kept:
-                raise ValueError(f"house {hid!r}: every one of {len(obs)} views was refused by the renderer")
-            t = time.perf_counter()
-            proba = np.asarray(self.classifier.predict_proba(kept), dtype=np.float64)
-            timings["t_classify"] = time.perf_counter() - t
-            n_cls = len(getattr(self.classifier, "classes", proba.shape[1:] or [0]))
-            if proba.shape != (len(kept), n_cls):
-                raise ValueError(
-                    f"classifier {self.names.get('classifier')!r} returned shape {proba.shape}, "
-                    f"expected ({len(kept)}, {n_cls})")
-            poses = poses_array([o.pose for o in kept])
-            atomic_save_npz(path, poses=poses, proba=proba, n_refused=np.array(n_refused))
-            return poses, proba, n_refused
+            if stage not in self.force and exists(path):
+                try:
+                    return load(path)
+                except Exception as e:  # noqa: BLE001 - an unreadable entry never aborts a job
+                    log.warning("%s: bad cache entry, recomputing it (%s)", path, _one_line(e))
+            value = compute()
+            save(path, value)
+            return value
 
+    # ---- one house
     def run_house(self, hid: str) -> dict[str, Any]:
-        """Compute (or load) the metrics row of one house. Exceptions become a failed row."""
-        path = self.score_path(hid)
-        if "score" not in self.force and path.exists():
-            return dict(read_json(path))
-        with locked(path):
-            if "score" not in self.force and path.exists():
-                return dict(read_json(path))
-            row = self._row_base(hid)
-            timings: dict[str, float] = {}
+        """The metrics row of one house: from a valid cache entry, or computed (and cached
+        when it succeeds). An exception in a house becomes a failed row with its reason;
+        :class:`StageError` (a configuration problem) propagates."""
+        row = self._row_base(hid)
+        timings: dict[str, float] = {}
+        try:
+            path = self.score_path(hid)
+        except Exception as e:  # noqa: BLE001 - the house itself is unreadable: it fails alone
+            return self._failed(row, e, timings)
+        if "score" not in self.force:
+            with contextlib.suppress(Exception):  # fast path without the lock; checked again under it
+                return self._load_row(path, hid)
+            if self.cache_failures and self.failure_path(hid).exists():
+                with contextlib.suppress(Exception):
+                    failed = dict(read_json(self.failure_path(hid)))
+                    if failed.get("house_id") == hid and failed.get("status") == "failed":
+                        failed.pop("failed_at", None)
+                        return failed
+
+        def compute() -> dict[str, Any]:
             try:
-                row.update(self._compute(hid, timings))
-                row["status"] = "ok"
-                row["error"] = ""
-            except Exception as e:  # one bad house fails alone; its reason is recorded
-                row["status"] = "failed"
-                row["error"] = f"{type(e).__name__}: {e}".strip()[:500]
-                row["traceback"] = traceback.format_exc(limit=6)[-2000:]
-            row.update({k: round(v, 6) for k, v in timings.items()})
-            atomic_write_json(path, row)
-            return row
+                out = dict(row)
+                out.update(self._compute(hid, timings))
+                out["status"], out["error"] = "ok", ""
+            except StageError:
+                raise
+            except Exception as e:  # noqa: BLE001 - one bad house fails alone; its reason is recorded
+                out = self._failed(dict(row), e, timings)
+            out.update({k: round(v, 6) for k, v in timings.items()})
+            return out
+
+        def save(p: Path, r: dict[str, Any]) -> None:
+            if r["status"] == "ok":
+                atomic_write_json(p, r)
+                with contextlib.suppress(FileNotFoundError):
+                    self.failure_path(hid).unlink()
+            else:
+                atomic_write_json(self.failure_path(hid), {**r, "failed_at": time.strftime("%Y-%m-%dT%H:%M:%S")})
+
+        return self._cached("score", path, lambda p: self._load_row(p, hid), compute, save)
+
+    def _failed(self, row: dict[str, Any], e: BaseException, timings: dict[str, float]) -> dict[str, Any]:
+        row["status"] = "failed"
+        row["error"] = _one_line(e)[:500]
+        row["traceback"] = traceback.format_exc(limit=6)[-2000:]
+        row.update({k: round(v, 6) for k, v in timings.items()})
+        return row
+
+    def _load_row(self, path: Path, hid: str) -> dict[str, Any]:
+        """A cached row, checked: a JSON object of this house and score key, status ok, the
+        stage names of this configuration, and metrics that are numbers in [0, 1]."""
+        row = read_json(path)
+        if not isinstance(row, dict):
+            raise BadEntry(f"expected a JSON object, got {type(row).__name__}")
+        want = {"house_id": hid, "status": "ok", "score_key": self.keys["score"], **self.names}
+        for k, v in want.items():
+            if row.get(k) != v:
+                raise BadEntry(f"{k} is {row.get(k)!r}, expected {v!r}")
+        for m in (*ROW_METRICS, "accuracy"):
+            v = row.get(m)
+            if m == "accuracy" and isinstance(v, float) and math.isnan(v):
+                continue
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
+                raise BadEntry(f"{m} is {v!r}, expected a number in [0, 1]")
+        return dict(row)
 
     def _row_base(self, hid: str) -> dict[str, Any]:
         row: dict[str, Any] = {"house_id": hid, "dataset": getattr(self.env, "name", "env")}
@@ -162,23 +319,114 @@ class Pipeline:
         row["score_key"] = self.keys["score"]
         return row
 
-    def _compute(self, hid: str, timings: dict) -> dict[str, Any]:
-        from benchmark.metrics import score_instances, score_semantic
+    def _compute(self, hid: str, timings: dict[str, float]) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def run(self, house_ids: Sequence[str], progress: Callable | None = None) -> list[dict[str, Any]]:
+        """Rows for ``house_ids`` in order; ``progress`` wraps the iterable (e.g. tqdm)."""
+        if not self.eval_ids:
+            self.eval_ids = tuple(house_ids)
+        it = progress(house_ids) if progress else house_ids
+        return [self.run_house(h) for h in it]
+
+
+@dataclass
+class MethodPipeline(Pipeline):
+    """The method: viewpoints -> render -> classify -> aggregate -> post-process -> score."""
+
+    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (("render", ("viewpoints", "renderer")), ("classify", ("classifier",)),
+                      ("score", ("aggregator", "postprocess", "metrics")))
+
+    @property
+    def viewpoints(self) -> Viewpoints:
+        return self.stage("viewpoints")
+
+    @property
+    def renderer(self) -> Renderer:
+        return self.stage("renderer")
+
+    @property
+    def classifier(self) -> Classifier:
+        return self.stage("classifier")
+
+    @property
+    def aggregator(self) -> Aggregator:
+        return self.stage("aggregator")
+
+    @property
+    def postprocess(self) -> PostProcessor | None:
+        return self.stage("postprocess")
+
+    def render_dir(self, hid: str) -> Path:
+        return self.store.render_dir(self.keys["render"], hid, content=self.contents(hid)["render"])
+
+    def classify_path(self, hid: str) -> Path:
+        return self.store.classify_path(self.keys["classify"], hid, content=self.contents(hid)["classify"])
+
+    def _observations(self, hid: str, scene, timings: dict) -> list:
+        from envs.render import cache as render_cache
+
+        def load(folder: Path) -> list:
+            t = time.perf_counter()
+            obs = render_cache.read_observations(folder)
+            check_render(obs, scene)
+            timings["t_render_load"] = time.perf_counter() - t
+            return obs
+
+        def compute() -> list:
+            t = time.perf_counter()
+            poses = poses_array(self.viewpoints.generate(scene))
+            timings["t_viewpoints"] = time.perf_counter() - t
+            if len(poses) == 0:
+                raise ValueError(f"viewpoints {self.names.get('viewpoints')!r} produced no poses for house {hid!r}")
+            t = time.perf_counter()
+            obs = self.renderer.render(self.env.house(hid), scene, poses)
+            timings["t_render"] = time.perf_counter() - t
+            return obs
+
+        return self._cached("render", self.render_dir(hid), load, compute, render_cache.write_observations,
+                            exists=render_cache.is_complete)
+
+    def _classified(self, hid: str, scene, timings: dict) -> tuple[np.ndarray, np.ndarray, int]:
+        from envs.render import cache as render_cache
+
+        def load(path: Path) -> tuple[np.ndarray, np.ndarray, int]:
+            z = load_npz(path)
+            render = self.render_dir(hid)
+            views = render_cache.read_poses(render) if render_cache.is_complete(render) else None
+            out = check_classified(z, len(self.classes) if self.classes is not None else None, views)
+            check_poses(out[0], scene)
+            return out
+
+        def compute() -> tuple[np.ndarray, np.ndarray, int]:
+            obs = self._observations(hid, scene, timings)
+            kept = [o for o in obs if not o.meta.get("refused", False)]
+            n_refused = len(obs) - len(kept)
+            if not kept:
+                raise ValueError(f"house {hid!r}: every one of {len(obs)} views was refused by the renderer")
+            if hasattr(self.classifier, "set_scene"):  # the house, for classifiers that need it (oracle noise)
+                self.classifier.set_scene(scene)
+            t = time.perf_counter()
+            proba = np.asarray(self.classifier.predict_proba(kept), dtype=np.float64)
+            timings["t_classify"] = time.perf_counter() - t
+            n_cls = len(getattr(self.classifier, "classes", proba.shape[1:] or [0]))
+            if proba.shape != (len(kept), n_cls):
+                raise ValueError(f"classifier {self.names.get('classifier')!r} returned shape {proba.shape}, "
+                                 f"expected ({len(kept)}, {n_cls})")
+            return poses_array([o.pose for o in kept]), proba, n_refused
+
+        def save(path: Path, v: tuple[np.ndarray, np.ndarray, int]) -> None:
+            atomic_save_npz(path, poses=v[0], proba=v[1], n_refused=np.array(v[2]))
+
+        return self._cached("classify", self.classify_path(hid), load, compute, save)
+
+    def _compute(self, hid: str, timings: dict[str, float]) -> dict[str, Any]:
+        from benchmark.classifiers.noise import view_accuracy_seen
+        from benchmark.metrics import score_semantic
 
         t = time.perf_counter()
         scene = self.env.scene(hid)
         timings["t_scene"] = time.perf_counter() - t
-        out: dict[str, Any] = {}
-        if self.segmenter is not None:
-            t = time.perf_counter()
-            inst = self.segmenter(scene.grid)
-            timings["t_segment"] = time.perf_counter() - t
-            t = time.perf_counter()
-            out.update(score_instances(inst, scene.instances, self.metric_params))
-            timings["t_score"] = time.perf_counter() - t
-            if self.save_maps:
-                atomic_save_npz(self.maps_path(hid), instances=inst.astype(np.int32))
-            return out
         poses, proba, n_refused = self._classified(hid, scene, timings)
         t = time.perf_counter()
         raw = self.aggregator(scene.grid, poses, proba)
@@ -187,21 +435,117 @@ class Pipeline:
         post = self.postprocess(raw, scene.grid) if self.postprocess is not None else raw
         timings["t_postprocess"] = time.perf_counter() - t
         t = time.perf_counter()
-        out.update(score_semantic(post, scene.instances, scene.instance_classes, self.metric_params,
-                                  classes=list(scene.classes)))
+        out: dict[str, Any] = score_semantic(post, scene.instances, scene.instance_classes, self.metric_params,
+                                             classes=list(scene.classes), resolution=scene.grid.resolution)
         timings["t_score"] = time.perf_counter() - t
         out["n_views"] = int(len(poses))
         out["n_refused"] = int(n_refused)
         out["view_accuracy"] = _view_accuracy(scene, poses, proba)
+        out["view_accuracy_seen"] = view_accuracy_seen(self.render_dir(hid), poses, proba)  # vs what views see
         if self.save_maps:
             atomic_save_npz(self.maps_path(hid), raw=raw.astype(np.int16), post=post.astype(np.int16),
                             poses=poses, proba=proba.astype(np.float32))
         return out
 
-    def run(self, house_ids: Sequence[str], progress: Callable | None = None) -> list[dict[str, Any]]:
-        """Rows for ``house_ids`` in order; ``progress`` wraps the iterable (e.g. tqdm)."""
-        it = progress(house_ids) if progress else house_ids
-        return [self.run_house(h) for h in it]
+
+@dataclass
+class SegmenterPipeline(Pipeline):
+    """A geometric baseline: scene -> segmenter -> score (no views, no classes)."""
+
+    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (("score", ("segmenter", "metrics")),)
+
+    @property
+    def segmenter(self) -> Segmenter:
+        return self.stage("segmenter")
+
+    def _compute(self, hid: str, timings: dict[str, float]) -> dict[str, Any]:
+        from benchmark.metrics import score_instances
+
+        t = time.perf_counter()
+        scene = self.env.scene(hid)
+        timings["t_scene"] = time.perf_counter() - t
+        t = time.perf_counter()
+        # sanity rows that need the ground truth (segmenter=gt_geometry) say so with uses_scene
+        inst = (self.segmenter(scene.grid, scene=scene) if getattr(self.segmenter, "uses_scene", False)
+                else self.segmenter(scene.grid))
+        timings["t_segment"] = time.perf_counter() - t
+        t = time.perf_counter()
+        out = dict(score_instances(inst, scene.instances, self.metric_params, resolution=scene.grid.resolution))
+        timings["t_score"] = time.perf_counter() - t
+        if self.save_maps:
+            atomic_save_npz(self.maps_path(hid), instances=inst.astype(np.int32))
+        return out
+
+
+def check_poses(poses: np.ndarray, scene) -> None:
+    """Poses (N, 3) must be finite and stand on walkable cells of ``scene.grid``.
+
+    Raises:
+        BadEntry: the count of offending poses and the first one."""
+    if not np.isfinite(poses).all():
+        raise BadEntry(f"{int((~np.isfinite(poses).all(axis=1)).sum())} pose(s) are not finite")
+    r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
+    on = scene.grid.is_walkable(r, c)
+    if not on.all():
+        i = int(np.nonzero(~on)[0][0])
+        raise BadEntry(f"{int((~on).sum())} of {len(poses)} poses lie off the walkable map "
+                       f"(e.g. view {i} at x={poses[i, 0]:.3f}, z={poses[i, 1]:.3f})")
+
+
+def check_render(observations: Sequence, scene) -> None:
+    """Validate a cached render against the house's map.
+
+    Raises:
+        BadEntry: no views, a non-finite pose, or a pose off the map or on a cell that is
+            not walkable (counts and the first offending pose in the message)."""
+    if not observations:
+        raise BadEntry("no views")
+    check_poses(poses_array([o.pose for o in observations]), scene)
+    for i, o in enumerate(observations):
+        for t, a in o.objects:
+            if not isinstance(t, str) or not math.isfinite(a) or a < 0:
+                raise BadEntry(f"view {i}: object entry ({t!r}, {a!r}) is not (type, amount >= 0)")
+
+
+def check_classified(z: Mapping[str, np.ndarray], n_classes: int | None,
+                     views: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    """Validate a cached classification; ``views`` = (poses, refused) of the house's render
+    when that entry exists, so that counts and poses must agree between the two files.
+
+    Returns:
+        (poses (N, 3), proba (N, C), n_refused).
+
+    Raises:
+        BadEntry: a missing array, a wrong shape, a non-finite value, rows that are not
+            probabilities, or counts that disagree with the render.
+    """
+    missing = [k for k in ("poses", "proba", "n_refused") if k not in z]
+    if missing:
+        raise BadEntry(f"missing array(s) {missing}")
+    poses, proba, n_ref = np.asarray(z["poses"]), np.asarray(z["proba"]), np.asarray(z["n_refused"])
+    if poses.ndim != 2 or poses.shape[1] != 3 or len(poses) == 0:
+        raise BadEntry(f"poses have shape {poses.shape}, expected (N >= 1, 3)")
+    want = (len(poses), n_classes if n_classes is not None else (proba.shape[1] if proba.ndim == 2 else -1))
+    if proba.shape != want:
+        raise BadEntry(f"proba has shape {proba.shape}, expected {want}")
+    if not (np.isfinite(poses).all() and np.isfinite(proba).all()):
+        raise BadEntry("non-finite values")
+    if (proba < 0).any() or not np.allclose(proba.sum(axis=1), 1.0, atol=1e-6):
+        raise BadEntry("proba rows are not probabilities (negative, or not summing to 1)")
+    if n_ref.shape != () or not np.issubdtype(n_ref.dtype, np.integer) or int(n_ref) < 0:
+        raise BadEntry(f"n_refused is {n_ref!r}, expected an integer >= 0")
+    if views is not None:
+        vposes, refused = views
+        if len(vposes) != len(poses) + int(n_ref) or int(refused.sum()) != int(n_ref):
+            raise BadEntry(f"{len(poses)} classified + {int(n_ref)} refused views, but the render has "
+                           f"{len(vposes)} views ({int(refused.sum())} refused)")
+        if not np.allclose(vposes[~refused], poses):
+            raise BadEntry("poses differ from the render's")
+    return poses, proba.astype(np.float64), int(n_ref)
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(f"{type(e).__name__}: {e}".split())
 
 
 def _view_accuracy(scene, poses: np.ndarray, proba: np.ndarray) -> float:
@@ -216,3 +560,7 @@ def _view_accuracy(scene, poses: np.ndarray, proba: np.ndarray) -> float:
     if not m.any():
         return float("nan")
     return float(np.mean(proba[m].argmax(axis=1) == truth[m]))
+
+
+__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "BadEntry", "STAGES", "expand_force",
+           "house_content", "check_poses", "check_render", "check_classified"]

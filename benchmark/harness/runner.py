@@ -1,9 +1,12 @@
 """The runner behind ``roomseg-bench`` (:mod:`benchmark.commands.bench`).
 
-Builds every stage from ``conf/`` with ``_target_``, runs the configured houses through
-:class:`benchmark.harness.pipeline.Pipeline` and writes, into the job's output folder:
-``metrics.csv`` (one row per house), ``summary.json`` (counts, failures and why, wall
-time) and ``resolved_config.yaml``. Examples::
+Checks the config (:mod:`benchmark.harness.checks`), builds a
+:class:`benchmark.harness.pipeline.Pipeline` whose stages are instantiated from ``conf/`` with
+``_target_`` only when a house needs them, claims the job's folder (a folder holding another
+run's results is never written into: :func:`benchmark.harness.store.claim_job_dir`), runs the
+selected houses and writes ``metrics.csv`` (one row per house), ``summary.json`` (counts,
+failures and why, wall time, keys, per-house content hashes) and ``resolved_config.yaml``.
+Examples::
 
     roomseg-bench                                   # defaults from conf/config.yaml
     roomseg-bench aggregator=vision_cone run.limit=5
@@ -25,9 +28,16 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_key
-from benchmark.harness.pipeline import Pipeline, expand_force
+from benchmark.harness.checks import ConfigError, check_config, check_writable
+from benchmark.harness.pipeline import (
+    STAGES,
+    MethodPipeline,
+    Pipeline,
+    SegmenterPipeline,
+    expand_force,
+)
 from benchmark.harness.progress import house_progress, job_label
-from benchmark.harness.store import Job
+from benchmark.harness.store import Job, claim_job_dir
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
 
@@ -66,17 +76,26 @@ def stage_keys(cfg: DictConfig) -> dict[str, str]:
 
 
 def select_houses(all_ids: list[str], houses: Any, limit: Any) -> list[str]:
-    """``run.houses`` (list of ids, or None for all) then ``run.limit`` (first N)."""
+    """``run.houses`` (list of ids, or None for all) then ``run.limit`` (first N).
+
+    Raises:
+        ConfigError: an unknown or repeated id in ``run.houses``, or no house selected."""
     ids = list(all_ids)
     if houses:
         wanted = [str(h) for h in houses]
         missing = [h for h in wanted if h not in set(ids)]
         if missing:
-            raise ValueError(f"run.houses: unknown house id(s) {missing[:5]}; the environment has {len(ids)} houses, "
-                             f"e.g. {ids[:3]}")
+            raise ConfigError(f"run.houses: unknown house id(s) {missing[:5]}; the environment has {len(ids)} "
+                              f"houses, e.g. {ids[:3]}")
+        repeated = sorted({h for h in wanted if wanted.count(h) > 1})
+        if repeated:
+            raise ConfigError(f"run.houses: house id(s) {repeated[:5]} listed more than once")
         ids = wanted
     if limit is not None:
         ids = ids[: int(limit)]
+    if not ids:
+        raise ConfigError(f"no house selected: the environment has {len(all_ids)} houses"
+                          + (f", run.limit={limit!r}" if limit is not None else "") + "; expected at least one")
     return ids
 
 
@@ -88,18 +107,37 @@ def _choices() -> dict[str, str]:
     return {k: (str(v) if v is not None else "") for k, v in ch.items() if not k.startswith("hydra")}
 
 
+def _env_classes(env: Any, cfg: DictConfig) -> tuple[str, ...]:
+    """The environment's ordered class names (its ``classes``, else ``env.classes``/``classes``)."""
+    for source in (getattr(env, "classes", None), getattr(env, "raster", {}).get("classes"),
+                   cfg.env.get("classes"), cfg.get("classes")):
+        if source:
+            return tuple(str(c) for c in source)
+    return ()
+
+
+def _builder(node: Any):
+    return (lambda: instantiate(node)) if node is not None else None
+
+
 def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pipeline:
-    """Instantiate every configured stage and the cache keys."""
+    """The pipeline of one configuration: the environment (instantiated now), the other stages
+    as factories (instantiated when a house first needs them), the cache keys and names.
+
+    Returns:
+        A :class:`MethodPipeline`, or a :class:`SegmenterPipeline` when ``segmenter`` is set.
+    """
     choices = choices if choices is not None else _choices()
     env = instantiate(cfg.env)
     seg = cfg.get("segmenter")
     names = {"env": choices.get("env", getattr(env, "name", "env"))}
+    method_stages = ("viewpoints", "renderer", "classifier", "aggregator", "postprocess")
     if seg is not None:
         names["segmenter"] = choices.get("segmenter", str(seg.get("_target_", "")).rsplit(".", 1)[-1])
-        for k in ("viewpoints", "renderer", "classifier", "aggregator", "postprocess"):
+        for k in method_stages:
             names[k] = ""
     else:
-        for k in ("viewpoints", "renderer", "classifier", "aggregator", "postprocess"):
+        for k in method_stages:
             names[k] = choices.get(k, str(cfg[k].get("_target_", "")).rsplit(".", 1)[-1] if cfg.get(k) else "none")
         names["segmenter"] = ""
     extra = {}
@@ -108,30 +146,79 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     extra["label"] = str(cfg.run.get("label") or "")
     metric_params = instantiate(cfg.metrics)
     extra["metric_params"] = describe(metric_params)
-    kw: dict[str, Any] = {}
-    if seg is not None:
-        kw["segmenter"] = instantiate(seg)
-    else:
-        for k in ("viewpoints", "renderer", "classifier", "aggregator"):
-            kw[k] = instantiate(cfg[k])
-        kw["postprocess"] = instantiate(cfg.postprocess) if cfg.get("postprocess") else None
-    return Pipeline(
+    groups = ("segmenter",) if seg is not None else method_stages
+    common = dict(
         env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg), names=names,
         metric_params=metric_params, force=expand_force(cfg.run.get("force")),
-        save_maps=bool(cfg.run.get("save_maps", True)), extra=extra, **kw,
+        save_maps=bool(cfg.run.get("save_maps", True)), extra=extra,
+        builders={k: _builder(cfg.get(k)) for k in groups},
+        inputs={k: _plain(cfg.get(k)) for k in (*groups, "metrics")},
+        cache_failures=bool(cfg.run.get("cache_failures", False)),
     )
+    if seg is not None:
+        return SegmenterPipeline(**common)
+    return MethodPipeline(**common, classes=_env_classes(env, cfg) or None)
+
+
+#: run settings that change nothing in the rows (left out of a job's identity).
+NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
+                "run.allow_failures", "run.cache_failures", "run.name")
+
+
+def job_identity(cfg: DictConfig, ids: list[str]) -> tuple[str, dict[str, Any]]:
+    """A job's identity: a key over every setting that changes its rows (the resolved config
+    without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
+    house ids. Editing a house's content keeps the identity (the rerun updates the job).
+
+    Returns:
+        (key, settings): ``settings`` flat {dotted key: value} for "what differs" messages.
+    """
+    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    flat: dict[str, Any] = {}
+
+    def walk(v: Any, key: str) -> None:
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(x, f"{key}.{k}" if key else str(k))
+        else:
+            flat[key] = v
+
+    walk(OmegaConf.to_container(body, resolve=True), "")
+    settings = {k: v for k, v in flat.items() if k not in NON_ROW_KEYS}
+    settings["houses"] = f"{len(ids)} houses: {ids[0]} .. {ids[-1]} ({config_key(ids)})"
+    return config_key("job", settings, ids), settings
 
 
 def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -> pd.DataFrame:
-    """Run one configuration over its houses; write metrics.csv, summary.json, resolved_config.yaml."""
+    """Run one configuration over its houses; write metrics.csv, summary.json, resolved_config.yaml.
+
+    Returns:
+        The rows (one per house); ``df.attrs["job_dir"]`` is the folder written (``out_dir``,
+        or its ``~<key>`` sibling when ``out_dir`` holds another run's results) and
+        ``df.attrs["n_failed"]`` the failed houses.
+
+    Raises:
+        ConfigError: a bad setting, an unwritable folder, or no house selected (before any work).
+        StageError: a stage that cannot be built or does not fit the environment.
+    """
     t0 = time.perf_counter()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
-    atomic_write_text(Job(out_dir).config_path, OmegaConf.to_yaml(body, resolve=True))
+    check_config(cfg, STAGES)
+    check_writable(cfg.run.results_dir, "run.results_dir")
+    check_writable(cfg.run.cache_dir, "run.cache_dir")
     pipe = build_pipeline(cfg, choices)
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
-    if pipe.classifier is not None and hasattr(pipe.classifier, "setup"):
-        pipe.classifier.setup(ids)
+    pipe.eval_ids = tuple(ids)
+    key, settings = job_identity(cfg, ids)
+    try:
+        out_dir, note = claim_job_dir(out_dir, key, settings)
+    except OSError as e:
+        raise ConfigError(f"cannot write the job folder {getattr(e, 'filename', None) or out_dir} "
+                          f"({e.strerror or e})") from None
+    if note:
+        log.warning(note)
+    job = Job(out_dir)
+    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    atomic_write_text(job.config_path, OmegaConf.to_yaml(body, resolve=True))
     clf_cfg = cfg.get("classifier") if cfg.get("segmenter") is None else None
     acc = clf_cfg.get("accuracy") if clf_cfg is not None else None
     # a bar only on a terminal with no other job beside it; else the finished-job line below
@@ -143,24 +230,33 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         df = df.drop(columns=["traceback"])
     lead = [c for c in LEADING_COLUMNS if c in df]
     df = df[lead + sorted(c for c in df.columns if c not in lead)]
-    atomic_write_text(Job(out_dir).metrics_path, df.to_csv(index=False))
+    atomic_write_text(job.metrics_path, df.to_csv(index=False))
     failed = [r for r in rows if r.get("status") != "ok"]
     reasons = Counter(r.get("error", "").split(":")[0] for r in failed)
+    contents = {}
+    for h in ids:
+        try:
+            contents[h] = pipe.contents(h)["score"]
+        except Exception:  # noqa: BLE001 - an unreadable house has no cache entries
+            contents[h] = ""
     summary = {
         "n_houses": len(rows), "n_ok": len(rows) - len(failed), "n_failed": len(failed),
         "failure_reasons": dict(reasons),
         "failed": [{"house_id": r["house_id"], "error": r.get("error", "")} for r in failed],
         "wall_time_s": round(time.perf_counter() - t0, 3), "keys": pipe.keys, "names": pipe.names,
+        "job_key": key, "stages_built": pipe.built(), "contents": contents,
     }
     ok = df[df["status"] == "ok"] if "status" in df else df
     for m in ("iou", "precision", "recall", "accuracy"):
         if m in ok and len(ok):
             summary[f"mean_{m}"] = float(ok[m].mean())
-    atomic_write_json(Job(out_dir).summary_path, summary)
+    atomic_write_json(job.summary_path, summary)
     log.info("%s: %d houses, %d ok, %d failed%s; mean IoU %.4f; %.1f s", out_dir, len(rows), summary["n_ok"],
              len(failed), (" (" + ", ".join(f"{k}: {v}" for k, v in reasons.items()) + ")") if failed else "",
              summary.get("mean_iou", float("nan")), summary["wall_time_s"])
+    df.attrs["job_dir"] = str(out_dir)
+    df.attrs["n_failed"] = len(failed)
     return df
 
 
-__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "CONF_DIR"]
+__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "CONF_DIR", "ConfigError"]

@@ -6,14 +6,25 @@ Layout (``results_dir`` and ``cache_dir`` come from ``run.results_dir`` / ``run.
 the cache may live anywhere)::
 
     <results_dir>/runs/<run name>/[<job subdir>/]   a job (one configuration):
+        job.json               the job's identity: a key over every choice that changes its
+                               rows (config, house selection, input content); a folder
+                               holding another identity is never written into
         metrics.csv            one row per house
-        summary.json           counts, failures, wall time, cache keys, stage names
+        summary.json           counts, failures, wall time, cache keys, stage names, and
+                               per house the content hash of its cache entries
         resolved_config.yaml   the full config, every interpolation resolved
-    <cache_dir>/render/<render key>/<house>/        observations (envs.render.cache layout)
-    <cache_dir>/classify/<classify key>/<house>.npz proba (N, C), poses (N, 3)
-    <cache_dir>/scores/<score key>/<house>.json     the house's metrics row
-    <cache_dir>/maps/<score key>/<house>.npz        raw / post-processed label maps, poses
+    <results_dir>/runs/<run name>/sweep_summary.{md,csv}   a multirun's jobs (callback)
+    <cache_dir>/render/<render key>/<entry>/        observations (envs.render.cache layout)
+    <cache_dir>/classify/<classify key>/<entry>.npz proba (N, C), poses (N, 3), n_refused
+    <cache_dir>/scores/<score key>/<entry>.json     the house's metrics row (successes only)
+    <cache_dir>/failures/<score key>/<entry>.json   the house's last failure (a log, not a result)
+    <cache_dir>/maps/<score key>/<entry>.npz        raw / post-processed label maps, poses
                                                     (segmenters: instances)
+    <cache_dir>/models/<kind>/<key>.npz             fitted models (objects classifier)
+
+``<entry>`` is ``<house id made safe>@<content>``: ``content`` is a hash of the house's JSON and
+of the input files the stages up to that one read (:mod:`benchmark.harness.cache`), so an
+edited house or input file gets new entries and nothing stale is served.
 """
 
 from __future__ import annotations
@@ -25,6 +36,10 @@ from typing import Any
 
 #: the files every finished job folder holds.
 METRICS, SUMMARY, CONFIG = "metrics.csv", "summary.json", "resolved_config.yaml"
+#: the job's identity (written first, when the runner claims the folder).
+IDENTITY = "job.json"
+#: what a multirun's summary callback writes into the sweep folder.
+SWEEP_SUMMARY = "sweep_summary"
 
 
 def safe_name(house_id: str) -> str:
@@ -32,23 +47,35 @@ def safe_name(house_id: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(house_id))
 
 
+def entry_name(house_id: str, content: str) -> str:
+    """The cache entry name of one house: ``<safe id>@<first 12 hex digits of content>``."""
+    if not content:
+        raise ValueError(f"cache entry of house {house_id!r}: empty content hash")
+    return f"{safe_name(house_id)}@{content[:12]}"
+
+
 @dataclass(frozen=True)
 class CacheStore:
-    """Where the stage caches live under ``root`` (``run.cache_dir``)."""
+    """Where the stage caches live under ``root`` (``run.cache_dir``). ``key`` is a stage's
+    config key, ``content`` the house's content hash for that stage (see the module doc)."""
 
     root: Path
 
-    def render_dir(self, key: str, house_id: str) -> Path:
-        return self.root / "render" / key / safe_name(house_id)
+    def render_dir(self, key: str, house_id: str, *, content: str) -> Path:
+        return self.root / "render" / key / entry_name(house_id, content)
 
-    def classify_path(self, key: str, house_id: str) -> Path:
-        return self.root / "classify" / key / f"{safe_name(house_id)}.npz"
+    def classify_path(self, key: str, house_id: str, *, content: str) -> Path:
+        return self.root / "classify" / key / f"{entry_name(house_id, content)}.npz"
 
-    def score_path(self, key: str, house_id: str) -> Path:
-        return self.root / "scores" / key / f"{safe_name(house_id)}.json"
+    def score_path(self, key: str, house_id: str, *, content: str) -> Path:
+        return self.root / "scores" / key / f"{entry_name(house_id, content)}.json"
 
-    def maps_path(self, key: str, house_id: str) -> Path:
-        return self.root / "maps" / key / f"{safe_name(house_id)}.npz"
+    def failure_path(self, key: str, house_id: str, *, content: str) -> Path:
+        """The last failure of a house (kept as a log; not served as a result by default)."""
+        return self.root / "failures" / key / f"{entry_name(house_id, content)}.json"
+
+    def maps_path(self, key: str, house_id: str, *, content: str) -> Path:
+        return self.root / "maps" / key / f"{entry_name(house_id, content)}.npz"
 
     def model_path(self, kind: str, key: str, suffix: str = ".npz") -> Path:
         """A fitted model (e.g. the objects classifier) cached by the content of its training set."""
@@ -93,8 +120,139 @@ class Job:
         return CacheStore(Path(str(self.config().run.cache_dir)))
 
     def maps_path(self, house_id: str) -> Path:
-        """The saved label maps of one house of this job (may not exist: ``run.save_maps``)."""
-        return self.cache().maps_path(self.summary()["keys"]["score"], house_id)
+        """The saved label maps of one house of this job (may not exist: ``run.save_maps``).
+
+        Raises:
+            KeyError: the job did not run that house (the message names job and house)."""
+        summary = self.summary()
+        contents = summary.get("contents", {})
+        if house_id not in contents:
+            raise KeyError(f"{self.summary_path}: no house {house_id!r} in this job "
+                           f"({len(contents)} houses, e.g. {list(contents)[:3]})")
+        return self.cache().maps_path(summary["keys"]["score"], house_id, content=contents[house_id])
+
+    @property
+    def identity_path(self) -> Path:
+        return self.dir / IDENTITY
+
+    def identity(self) -> dict[str, Any] | None:
+        """The job's ``job.json`` (None when absent or unreadable)."""
+        import json
+
+        try:
+            with open(self.identity_path, encoding="utf-8") as f:
+                out = json.load(f)
+        except (OSError, ValueError):
+            return None
+        return out if isinstance(out, dict) and "key" in out else None
+
+    def run_name(self) -> str:
+        """The run this job belongs to: its ``run.name`` (the folder's parent name for jobs
+        without a resolved config, e.g. per-map tables of the baselines)."""
+        if self.config_path.exists():
+            try:
+                name = self.config().get("run", {}).get("name")
+                if name:
+                    return str(name)
+            except Exception:  # noqa: BLE001 - an unreadable config falls back to the folder
+                pass
+        return self.dir.name
+
+
+def _differences(old: dict[str, Any], new: dict[str, Any], limit: int = 4) -> str:
+    keys = sorted(set(old) | set(new))
+    diff = [k for k in keys if old.get(k) != new.get(k)]
+    parts = [f"{k}: {old.get(k, '(unset)')!s:.40} -> {new.get(k, '(unset)')!s:.40}" for k in diff[:limit]]
+    if len(diff) > limit:
+        parts.append(f"and {len(diff) - limit} more")
+    return "; ".join(parts) or "the house contents"
+
+
+def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tuple[Path, str]:
+    """The folder a job with identity ``key`` writes into, claimed by writing ``job.json``.
+
+    ``out_dir`` if it is new, empty of results, or already holds this identity; otherwise
+    (another run's results are there) the sibling ``<out_dir>~<key[:8]>``, claimed the same
+    way. ``describe`` (flat {setting: value}) is recorded so that the message can say what
+    differs. Concurrent jobs are serialised by a lock beside the folder.
+
+    Returns:
+        (folder, note): ``note`` is "" or one line saying why the job moved to a sibling.
+
+    Raises:
+        FileExistsError: both folders hold other identities (the message names them).
+    """
+    import json
+
+    from benchmark.harness.cache import atomic_write_json, locked
+
+    out_dir = Path(out_dir)
+    note = ""
+    for cand in (out_dir, out_dir.with_name(f"{out_dir.name}~{key[:8]}")):
+        with locked(cand.with_name(cand.name + ".claim")):
+            job = Job(cand)
+            ident = job.identity()
+            taken = ident is not None or job.metrics_path.exists() or job.identity_path.exists()
+            if ident is not None and ident["key"] == key or not taken:
+                cand.mkdir(parents=True, exist_ok=True)
+                if ident is None:
+                    atomic_write_json(job.identity_path, {"key": key, "settings": describe})
+                return cand, note
+            old = (ident or {}).get("settings", {})
+            what = _differences(old, describe) if ident is not None else "no job.json (an older layout)"
+            note = (f"{cand} holds another run's results (differs in {what}); "
+                    f"this job writes to {out_dir.with_name(f'{out_dir.name}~{key[:8]}')} instead")
+    raise FileExistsError(f"{out_dir} and its sibling ~{key[:8]} hold other runs' results; "
+                          f"choose another run.name ({json.dumps(describe)[:200]})")
+
+
+def read_metrics(path: str | Path):
+    """A job's ``metrics.csv`` as a DataFrame, checked whole.
+
+    Checked: it parses; it has ``house_id`` and ``status`` columns; every row has a house id
+    and a status of ``ok`` or ``failed``; the last line ends with a newline (a truncated write
+    does not); where the job's ``summary.json`` is beside it, the row count equals its
+    ``n_houses``.
+
+    Raises:
+        ValueError: one line naming the file and what is wrong.
+    """
+    import json
+
+    import pandas as pd
+
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read ({e.strerror or e})") from None
+    if not raw.strip():
+        raise ValueError(f"{path}: empty metrics file")
+    if not raw.endswith(b"\n"):
+        raise ValueError(f"{path}: truncated (the last line has no newline)")
+    try:
+        import io
+
+        df = pd.read_csv(io.BytesIO(raw), keep_default_na=True)
+    except Exception as e:  # noqa: BLE001 - any parser error is a malformed file
+        raise ValueError(f"{path}: malformed CSV ({type(e).__name__}: {str(e).strip()[:120]})") from None
+    missing = [c for c in ("house_id", "status") if c not in df]
+    if missing:
+        raise ValueError(f"{path}: malformed metrics file, no column(s) {missing}")
+    bad = df["house_id"].isna() | ~df["status"].isin(["ok", "failed"])
+    if bad.any():
+        i = int(bad.to_numpy().nonzero()[0][0])
+        raise ValueError(f"{path}: malformed row {i + 2} (house_id={df['house_id'].iloc[i]!r}, "
+                         f"status={df['status'].iloc[i]!r}; expected a house id and ok|failed)")
+    summary = path.parent / SUMMARY
+    if path.name == METRICS and summary.exists():
+        try:
+            n = json.loads(summary.read_text(encoding="utf-8")).get("n_houses")
+        except ValueError:
+            n = None
+        if isinstance(n, int) and n != len(df):
+            raise ValueError(f"{path}: {len(df)} rows but {summary.name} says {n} houses (truncated?)")
+    return df
 
 
 def job_dir_for(results_dir: str | Path, run_name: str, subdir: str | None = None) -> Path:
@@ -135,5 +293,5 @@ def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
             raise FileNotFoundError(f"no run folder or metrics file at {p}")
 
 
-__all__ = ["CacheStore", "Job", "find_jobs", "iter_metric_files", "job_dir_for", "safe_name",
-           "METRICS", "SUMMARY", "CONFIG"]
+__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "iter_metric_files", "job_dir_for",
+           "read_metrics", "safe_name", "METRICS", "SUMMARY", "CONFIG", "IDENTITY", "SWEEP_SUMMARY"]

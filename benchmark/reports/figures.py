@@ -297,16 +297,19 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
     from omegaconf import OmegaConf
 
     from benchmark.harness.cache import load_npz
-    from benchmark.harness.store import CacheStore, find_jobs, safe_name
+    from benchmark.harness.store import find_jobs, safe_name
 
     jobs = []
     for job in find_jobs([run_dir]):
-        jobs.append((job.config(), job.summary(), pd.read_csv(job.metrics_path)))
+        jobs.append((job.config(), job.summary(), pd.read_csv(job.metrics_path), job))
     written = []
     scenes: dict[tuple, Scene] = {}
 
-    def maps_for(cfg, summary, hid):
-        p = CacheStore(Path(str(cfg.run.cache_dir))).maps_path(summary["keys"]["score"], hid)
+    def maps_for(job, hid):
+        try:
+            p = job.maps_path(hid)  # the run store knows the entry (key, house content)
+        except KeyError:
+            return None
         return load_npz(p) if p.exists() else None
 
     def scene_for(cfg, hid):
@@ -317,16 +320,16 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
 
     # one house per dataset: the first house every job of that dataset scored
     ok_by_env: dict[str, list[set]] = {}
-    for _, summary, df in jobs:
+    for _, summary, df, _ in jobs:
         ok_by_env.setdefault(summary["names"]["env"], []).append(set(df.loc[df["status"] == "ok", "house_id"]))
     picks = {env: house or (sorted(set.intersection(*ids)) or [None])[0] for env, ids in ok_by_env.items()}
     groups: dict[tuple, dict[str, tuple]] = {}
-    for cfg, summary, _ in jobs:
+    for cfg, summary, _, job in jobs:
         names = summary["names"]
         pick = picks.get(names["env"])
         if names.get("segmenter") or pick is None:
             continue
-        m = maps_for(cfg, summary, pick)
+        m = maps_for(job, pick)
         if m is None:
             continue
         label = "_".join(names[k] for k in ("env", "classifier", "aggregator", "postprocess"))

@@ -1,0 +1,188 @@
+"""Configuration checked before any work: one line naming the key, the value and what is allowed.
+
+:func:`check_config` walks the rules below over a composed config (a plain dict or an
+OmegaConf node). A rule is (group, key) -> test; the group is the config node the key sits
+in (``env``, ``aggregator``, ``run``, ...), so ``aggregator.window`` (pixels, odd) and
+``segmenter.window`` (metres) are checked differently. Keys a rule does not name pass
+unchecked (a user's own stage validates its own arguments when it is built).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+
+class ConfigError(ValueError):
+    """An out-of-range or malformed setting; the message is one line naming key, value and rule."""
+
+
+Rule = Callable[[Any], bool]
+
+
+def _num(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def positive(v: Any) -> bool:
+    return _num(v) and v > 0
+
+
+def non_negative(v: Any) -> bool:
+    return _num(v) and v >= 0
+
+
+def fraction(v: Any) -> bool:
+    return _num(v) and 0 <= v <= 1
+
+
+def pos_int(v: Any) -> bool:
+    return _int(v) and v >= 1
+
+
+def nonneg_int(v: Any) -> bool:
+    return _int(v) and v >= 0
+
+
+def odd_int(v: Any) -> bool:
+    return _int(v) and v >= 1 and v % 2 == 1
+
+
+def angle(v: Any) -> bool:
+    return _num(v) and 0 < v <= 360
+
+
+def one_of(*allowed: Any) -> Rule:
+    def rule(v: Any) -> bool:
+        return v in allowed
+    rule.__doc__ = "one of " + ", ".join(map(repr, allowed))
+    return rule
+
+
+def optional(rule: Rule) -> Rule:
+    def opt(v: Any) -> bool:
+        return v is None or rule(v)
+    opt.__doc__ = (rule.__doc__ or _WHAT.get(rule, rule.__name__)) + ", or null"
+    return opt
+
+
+def range_pair(v: Any) -> bool:
+    return isinstance(v, list | tuple) and len(v) == 2 and all(positive(x) for x in v) and v[0] <= v[1]
+
+
+_WHAT: dict[Callable, str] = {
+    positive: "a number > 0", non_negative: "a number >= 0", fraction: "a number in [0, 1]",
+    pos_int: "an integer >= 1", nonneg_int: "an integer >= 0", odd_int: "an odd integer >= 1",
+    angle: "an angle in (0, 360] degrees", range_pair: "[low, high] with 0 < low <= high",
+}
+
+#: (group, key) -> rule. ``*`` matches any group.
+RULES: dict[tuple[str, str], Rule] = {
+    ("env", "resolution"): positive, ("env", "wall_thickness"): non_negative, ("env", "clearance"): non_negative,
+    ("env", "max_object_base"): non_negative, ("env", "n_houses"): pos_int, ("env", "seed_start"): nonneg_int,
+    ("env", "start"): optional(nonneg_int), ("env", "stop"): optional(nonneg_int),
+    ("env", "open_plan_share"): fraction, ("env", "length"): range_pair, ("env", "depth"): range_pair,
+    ("viewpoints", "offset"): non_negative, ("viewpoints", "spacing"): positive,
+    ("viewpoints", "n_headings"): pos_int, ("viewpoints", "heading_spread"): lambda v: _num(v) and 0 <= v <= 360,
+    ("viewpoints", "min_contour"): non_negative, ("viewpoints", "off_map"): one_of("error", "drop"),
+    ("renderer", "fov"): lambda v: _num(v) and 0 < v < 180, ("renderer", "max_range"): positive,
+    ("renderer", "occluder_height"): non_negative, ("renderer", "width"): pos_int, ("renderer", "height"): pos_int,
+    ("renderer", "grid_size"): positive, ("renderer", "min_share"): fraction,
+    ("classifier", "accuracy"): fraction, ("classifier", "alpha"): positive, ("classifier", "batch_size"): pos_int,
+    ("classifier", "image_size"): pos_int, ("classifier", "train_start"): nonneg_int,
+    ("classifier", "train_stop"): optional(nonneg_int),
+    ("aggregator", "k"): pos_int, ("aggregator", "connectivity"): one_of(4, 8),
+    ("aggregator", "weighting"): one_of("majority", "probability"), ("aggregator", "fov"): angle,
+    ("aggregator", "max_range_m"): positive, ("aggregator", "blocked_ray_m"): non_negative,
+    ("aggregator", "window"): odd_int, ("aggregator", "vote"): one_of("label", "probability"),
+    ("aggregator", "ray_density"): positive,
+    ("postprocess", "target_resolution"): positive, ("postprocess", "window"): odd_int,
+    ("postprocess", "iterations"): nonneg_int, ("postprocess", "min_area"): non_negative,
+    ("postprocess", "dp_tolerance"): non_negative,
+    ("metrics", "match"): one_of("iou", "overlap"), ("metrics", "connectivity"): one_of(4, 8),
+    ("metrics", "min_segment_px"): nonneg_int,
+    ("segmenter", "min_area"): non_negative, ("segmenter", "max_area"): positive, ("segmenter", "step"): positive,
+    ("segmenter", "max_door"): positive, ("segmenter", "window"): positive,
+    ("segmenter", "widening"): lambda v: _num(v) and v >= 1,
+    ("run", "limit"): optional(pos_int), ("run", "progress"): one_of(True, False),
+    ("run", "save_maps"): one_of(True, False), ("run", "allow_failures"): one_of(True, False),
+    ("run", "cache_failures"): one_of(True, False), ("run", "max_map_pixels"): optional(pos_int),
+}
+_WHAT_EXTRA = {("viewpoints", "heading_spread"): "a number in [0, 360] degrees",
+               ("renderer", "fov"): "an angle in (0, 180) degrees",
+               ("segmenter", "widening"): "a number >= 1"}
+
+
+def _describe(group: str, key: str, rule: Rule) -> str:
+    return _WHAT_EXTRA.get((group, key)) or _WHAT.get(rule) or rule.__doc__ or "a valid value"
+
+
+def _plain(cfg: Any) -> Mapping[str, Any]:
+    try:
+        from omegaconf import DictConfig, OmegaConf
+
+        if isinstance(cfg, DictConfig):
+            body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+            return OmegaConf.to_container(body, resolve=True)  # type: ignore[return-value]
+    except ImportError:  # pragma: no cover - omegaconf is a core dependency
+        pass
+    return cfg
+
+
+def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:
+    """Check every setting a rule names, and ``run.force`` / ``run.houses``.
+
+    Raises:
+        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <rule>``.
+    """
+    c = _plain(cfg)
+    for group, node in c.items():
+        if not isinstance(node, Mapping):
+            continue
+        for key, value in node.items():
+            rule = RULES.get((group, key))
+            if rule is not None and not rule(value):
+                raise ConfigError(f"{group}.{key}={value!r}: expected {_describe(group, key, rule)}")
+    env = c.get("env") or {}
+    if isinstance(env, Mapping) and _int(env.get("start")) and _int(env.get("stop")) and env["stop"] <= env["start"]:
+        raise ConfigError(f"env.stop={env['stop']!r}: expected a house index above env.start={env['start']!r} "
+                          f"(or null for the end of the file)")
+    run = c.get("run") or {}
+    force = run.get("force")
+    items = [force] if isinstance(force, str) else (force or [])
+    if not isinstance(items, list | tuple) or any(not isinstance(f, str) for f in items):
+        raise ConfigError(f"run.force={force!r}: expected a list of stage names from {list(stages)} or 'all'")
+    unknown = [f for f in items if f not in (*stages, "all")]
+    if unknown:
+        raise ConfigError(f"run.force={list(items)!r}: unknown stage(s) {unknown}; expected names from "
+                          f"{list(stages)} or 'all'")
+    houses = run.get("houses")
+    if houses is not None and (not isinstance(houses, list | tuple) or not houses):
+        raise ConfigError(f"run.houses={houses!r}: expected a non-empty list of house ids, or null for all")
+
+
+def check_writable(path: str | Path, key: str) -> Path:
+    """Create ``path`` (a folder) if needed and check that a file can be written in it.
+
+    Raises:
+        ConfigError: one line naming the setting, the path and the system's reason."""
+    p = Path(path)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".write-check.", dir=p)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as e:
+        raise ConfigError(f"{key}: cannot write in {p} ({e.strerror or e})") from None
+    return p
+
+
+__all__ = ["ConfigError", "RULES", "check_config", "check_writable"]

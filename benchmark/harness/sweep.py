@@ -1,0 +1,101 @@
+"""The end of a multirun: one table of its jobs (houses ok / failed, mean metrics), printed and
+written into the sweep folder as ``sweep_summary.md`` and ``sweep_summary.csv`` (both
+atomically), by a Hydra callback (``hydra.callbacks.sweep_summary`` in ``conf/config.yaml``).
+
+It also keeps the outcome of the process (:data:`OUTCOME`): jobs, failed houses and whether
+failures are allowed, so that ``roomseg-bench`` exits non-zero when any house failed. In a
+multirun the callback runs in the launching process after every job; in a single run the
+task function records its own job.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+
+from benchmark.harness.cache import atomic_write_text
+from benchmark.harness.store import SWEEP_SUMMARY, Job, find_jobs
+
+log = logging.getLogger("roomseg-bench")
+
+#: the process's outcome: jobs run, houses failed, failures allowed (``run.allow_failures``).
+OUTCOME: dict[str, Any] = {"jobs": 0, "n_failed": 0, "allow_failures": False}
+
+METRICS = ("iou", "precision", "recall", "accuracy")
+
+
+def record(n_failed: int, allow_failures: bool) -> None:
+    """Add one finished job to :data:`OUTCOME`."""
+    OUTCOME["jobs"] += 1
+    OUTCOME["n_failed"] += int(n_failed)
+    OUTCOME["allow_failures"] = bool(allow_failures)
+
+
+def sweep_table(jobs: Sequence[Job], root: Path) -> pd.DataFrame:
+    """One row per job: its folder relative to ``root``, houses, ok, failed, mean metrics over
+    its successful houses (from ``summary.json``) and wall time in seconds."""
+    rows = []
+    for job in jobs:
+        s = job.summary()
+        try:
+            rel = str(job.dir.relative_to(root)) or "."
+        except ValueError:
+            rel = str(job.dir)
+        row = {"job": rel, "houses": s.get("n_houses"), "ok": s.get("n_ok"), "failed": s.get("n_failed")}
+        row.update({f"mean_{m}": s.get(f"mean_{m}") for m in METRICS})
+        row["wall_s"] = s.get("wall_time_s")
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["job", "houses", "ok", "failed", *[f"mean_{m}" for m in METRICS], "wall_s"])
+
+
+def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
+    """Summarise the jobs under ``sweep_dir`` (those whose ``summary.json`` was written at or
+    after ``since``, a Unix time, when given) into ``sweep_summary.{md,csv}`` there.
+
+    Returns:
+        The table (empty when no job finished)."""
+    try:
+        jobs = find_jobs([sweep_dir])
+    except FileNotFoundError:
+        jobs = []
+    if since is not None:
+        jobs = [j for j in jobs if j.summary_path.stat().st_mtime >= since]
+    table = sweep_table(jobs, sweep_dir)
+    n_failed = int(table["failed"].fillna(0).sum()) if len(table) else 0
+    pct = table.copy()
+    for m in METRICS:
+        pct[f"mean_{m}"] = [f"{100 * v:.2f}" if isinstance(v, float) else "–" for v in table[f"mean_{m}"]]
+    md = (f"### Sweep {sweep_dir}\n\n" + (pct.to_markdown(index=False) if len(pct) else "(no finished job)")
+          + f"\n\n{len(table)} jobs, {int(table['houses'].fillna(0).sum()) if len(table) else 0} rows, "
+          f"{n_failed} failed; metrics in percent over each job's successful houses.\n")
+    atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.csv", table.to_csv(index=False))
+    atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.md", md)
+    return table
+
+
+class SweepSummary(Callback):
+    """Hydra callback: at the end of a multirun, print and write the sweep's job table."""
+
+    def __init__(self) -> None:
+        self.t0: float | None = None
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self.t0 = time.time() - 1.0  # file times may be coarse
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        table = write_summary(sweep_dir, since=self.t0)
+        OUTCOME["jobs"] = len(table)
+        OUTCOME["n_failed"] = int(table["failed"].fillna(0).sum()) if len(table) else 0
+        OUTCOME["allow_failures"] = bool(config.run.get("allow_failures", False))
+        print((sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8"), flush=True)
+
+
+__all__ = ["SweepSummary", "OUTCOME", "record", "sweep_table", "write_summary"]
