@@ -639,3 +639,77 @@ def test_reachable_command_through_the_real_controller(thor, tmp_path, capsys):
     assert main(["reachable", "--scene", "ArchitecTHOR-Val-00", "--out", str(tmp_path / "p.json")]) == 0
     assert json.loads((tmp_path / "p.json").read_text()) == REACHABLE
     assert thor["server"].stopped and "3 reachable positions of ArchitecTHOR-Val-00" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------- gpu-check
+
+@pytest.mark.slow
+def test_gpu_check_without_a_gpu_prints_every_line_skipped(monkeypatch, capsys):
+    """This machine's situation, made certain: no CUDA, no Vulkan, no X display, no
+    habitat-sim. Every check is a 'skipped: why' line with a time, the table is printed,
+    nothing raises, and the exit status says the required checks did not pass."""
+    torch = pytest.importorskip("torch")
+    import ctypes.util
+
+    from benchmark.commands import gpu_check
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: None)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    _block_import(monkeypatch, "habitat_sim")
+    assert gpu_check.main([]) == 1
+    out = capsys.readouterr().out
+    rows = {line.split("  ")[0].strip(): line for line in out.splitlines()[2:9]}
+    assert list(rows) == ["torch + CUDA", "ai2thor render", "habitat-sim scene (optional)", "classifier cnn",
+                          "classifier dinov2", "classifier vlm", "end to end (1 house, 2 aggregators)"]
+    assert all(" skipped: " in line for line in rows.values()), out
+    assert "no CUDA GPU visible to torch" in rows["torch + CUDA"]
+    assert "no Vulkan library for CloudRendering" in rows["ai2thor render"]
+    assert "conda install habitat-sim" in rows["habitat-sim scene (optional)"]
+    assert "needs the CUDA check to pass" in rows["classifier vlm"]
+    assert "needs the ai2thor check to pass" in rows["end to end (1 house, 2 aggregators)"]
+    assert "Traceback" not in out and "0 passed, 0 failed, 7 skipped; required and not passed: torch + CUDA" in out
+
+
+def test_gpu_check_failures_are_one_line_and_the_exit_status_follows_required_checks(monkeypatch, capsys):
+    from benchmark.commands import gpu_check
+
+    def boom(ctx):
+        raise RuntimeError("CUDA error: out of memory\nCUDA kernel errors might be asynchronously reported")
+
+    def skip(ctx):
+        raise gpu_check.Skip("habitat-sim is not installed")
+
+    items = [("first", True, lambda ctx: "fine"), ("second", True, boom), ("third", False, skip),
+             ("fourth", True, lambda ctx: "still runs")]
+    monkeypatch.setattr(gpu_check, "checks", lambda: items)
+    assert gpu_check.main([]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL: RuntimeError: CUDA error: out of memory" in out and "asynchronously" not in out
+    assert "third (optional)" in out and "skipped: habitat-sim is not installed" in out
+    assert "pass: still runs" in out and "2 passed, 1 failed, 1 skipped; required and not passed: second" in out
+    monkeypatch.setattr(gpu_check, "checks", lambda: [items[0], items[2]])
+    assert gpu_check.main([]) == 0  # an optional check may be skipped
+    assert "every required check passed" in capsys.readouterr().out
+
+
+def test_gpu_check_renders_one_view_through_the_real_controller(thor, monkeypatch):
+    """The ai2thor check with the Unity side stood in: one house, one view at the agent start,
+    RGB + visible objects handed on to the classifier checks (skipped here: no CUDA)."""
+    from benchmark.commands import gpu_check
+
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(gpu_check, "_house_source", lambda ctx: (_house(), "a test house"))
+    ctx = gpu_check.Context(platform="Linux64", commit_id="b" * 40)
+    rows = gpu_check.run_checks(ctx, [("ai2thor render", True, gpu_check.check_ai2thor),
+                                      ("classifier vlm", True, gpu_check.classifier_check("vlm"))])
+    assert rows[0].status == "pass", rows[0].detail
+    assert rows[0].detail == f"build {'b' * 12} (Linux64), house house-1 from a test house: RGB {W}x{H}, " \
+                             "1 visible object types"
+    assert thor["commit_id"] == "b" * 40 and thor["server"].stopped
+    assert ctx.view.shape == (H, W, 3) and rows[1].status == "skipped"
+    thor["fail"]["CreateHouse"] = ("", BAD_HOUSE)  # a build that does not match the house: one FAIL line
+    row, = gpu_check.run_checks(gpu_check.Context(platform="Linux64"),
+                                [("ai2thor render", True, gpu_check.check_ai2thor)])
+    assert row.status == "FAIL" and row.detail == f"HouseLoadError: house 'house-1': AI2-THOR could not load it " \
+                                                  f"(CreateHouse failed): {BAD_HOUSE}"
