@@ -161,11 +161,11 @@ def table_probabilities(df: pd.DataFrame, path: Path, classes: Sequence[str] | N
     neg = np.argwhere(proba < 0)
     if len(neg):
         i, k = neg[0]
-        raise ValueError(f"{path}: column {classes[k]!r} has {proba[i, k]!r} at row {i}; expected a probability >= 0")
+        raise ValueError(f"{path}: column {classes[k]!r} has {float(proba[i, k])!r} at row {i}; expected a probability >= 0")
     total = proba.sum(axis=1)
     if (total <= 0).any():
         i = int(np.argmax(total <= 0))
-        raise ValueError(f"{path}: row {i} has probabilities summing to {total[i]!r}; expected a positive sum")
+        raise ValueError(f"{path}: row {i} has probabilities summing to {float(total[i])!r}; expected a positive sum")
     return proba / total[:, None], classes
 
 
