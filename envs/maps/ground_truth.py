@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 from scipy import ndimage
+from skimage import measure
 
 from envs.maps.gridmap import GridMap
 from envs.maps.label_png import read_instance_png, read_label_png
@@ -104,19 +105,18 @@ def self_iou(instances: np.ndarray, min_px: int = 1) -> float:
     IoU is ``|region| / |room|``. Returns the mean over regions of at least ``min_px``
     pixels (1.0 when every room is one connected region; NaN with no region).
     """
-    inst = np.asarray(instances)
-    k = int(inst.max()) + 1 if (inst >= 0).any() else 0
-    if k == 0:
+    inst = np.asarray(instances, dtype=np.int64)
+    if not (inst >= 0).any():
         return float("nan")
-    room_size = np.bincount(inst[inst >= 0].ravel(), minlength=k)
-    ious = []
-    for i in range(k):
-        lab, n = ndimage.label(inst == i, _FOUR)
-        if n == 0:
-            continue
-        sizes = np.bincount(lab.ravel())[1:]
-        ious.extend((sizes[sizes >= min_px] / room_size[i]).tolist())
-    return float(np.mean(ious)) if ious else float("nan")
+    regions = measure.label(inst, background=-1, connectivity=1)  # one pass, regions of equal value
+    m = regions > 0
+    size = np.bincount(regions[m])
+    room_of = np.zeros(len(size), np.int64)
+    room_of[regions[m]] = inst[m]
+    room_size = np.bincount(inst[m])
+    keep = np.nonzero(size >= max(min_px, 1))[0]
+    keep = keep[keep > 0]
+    return float(np.mean(size[keep] / room_size[room_of[keep]])) if len(keep) else float("nan")
 
 
 def _relabel(lab: np.ndarray) -> np.ndarray:
