@@ -13,7 +13,19 @@ predictions with no ground truth are reported as unpaired.
 class-coloured label PNG with its sidecar, read with :func:`envs.maps.label_png.read_label_png` (its
 segments are the connected regions of one class, as for our own label maps).
 
-**Resolution.** ``resolution`` is the ground truth's metres per pixel. A prediction at
+**Reading colours.** Colours in ``params.not_room_colours`` (black and white by default: the
+SeLRoS and VRF outputs have 1-px white lines along the image border) are never rooms; a colour
+on less than ``params.min_colour_m2`` is anti-aliasing and joins the nearest room
+(:func:`envs.maps.label_png.read_instance_png`). Every row says what the reader did:
+``gt_rooms`` / ``pred_rooms`` (colours that became rooms), ``*_antialias_px`` and
+``*_unassigned_px`` (pixels of not-a-room colours other than black), so a misread shows.
+
+**Sanity rows.** :func:`sanity_rows` scores, on the same ground truth, the whole walkable map
+as one segment (``one_room``), the ground truth's own rooms (``gt_geometry``) and 3 m squares
+(``grid``): the segmenters of :mod:`benchmark.segmenters.sanity`.
+
+**Resolution.** ``resolution`` is the ground truth's metres per pixel (needed: areas are in
+m²). A prediction at
 ``pred_resolution`` (when given and different) is scaled by nearest neighbour onto the
 ground-truth grid with both maps' top-left corners at the same place, then cropped or
 padded (-1); with ``pred_resolution=None`` a prediction of another size is taken to cover
@@ -24,17 +36,28 @@ from __future__ import annotations
 
 import csv
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from benchmark.metrics import MetricParams, describe, resample_nearest, score_instances, segments
-from envs.maps.label_png import DEFAULT_MIN_PIXELS, read_instance_png, read_label_png
+from benchmark.metrics import (
+    METRIC_COLUMNS,
+    MetricParams,
+    describe,
+    resample_nearest,
+    score_instances,
+    segments,
+)
+from envs.maps.label_png import read_instance_png, read_label_png
 
-#: Metric columns every row has (NaN on a failed row).
-METRIC_COLUMNS = ("iou", "precision", "recall", "accuracy", "n_pred_segments", "n_gt_segments")
+#: What the PNG reader did, per row (NaN for label maps and failed rows).
+READ_COLUMNS = ("gt_rooms", "gt_antialias_px", "gt_unassigned_px", "pred_rooms", "pred_antialias_px",
+                "pred_unassigned_px")
+
+#: Names of the sanity rows (as the runner's segmenter options).
+SANITY_METHODS = ("one_room", "gt_geometry", "grid")
 
 #: Map formats :func:`read_map` understands.
 FORMATS = ("instance", "label")
@@ -103,17 +126,23 @@ def pairs_from_manifest(path: str | Path) -> list[Pair]:
     return [Pair(r["id"], resolve(r["ground_truth"]), resolve(r["prediction"])) for r in rows]
 
 
-def read_map(path: str | Path, fmt: str = "instance", min_pixels: int = DEFAULT_MIN_PIXELS) -> np.ndarray:
-    """A map file -> (H, W) int32 ids (room instances or class labels), -1 not walkable.
+def read_map(path: str | Path, fmt: str, params: MetricParams, resolution: float) -> tuple[np.ndarray, dict]:
+    """A map file -> ((H, W) int32 ids: room instances or class labels, -1 none; reader info).
 
     Args:
+        path: the PNG.
         fmt: ``"instance"`` (colour per room) or ``"label"`` (class colours with sidecar).
-        min_pixels: instance maps only: colours on fewer pixels are anti-aliasing (envs.maps.label_png).
+        params: colour rules (``min_colour_m2``, ``not_room_colours``).
+        resolution: metres per pixel of this image (turns ``min_colour_m2`` into pixels).
+    Returns: (ids, info) with info ``rooms``, ``antialias_px``, ``unassigned_px`` (instance
+        maps; empty for label maps).
     """
     if fmt == "instance":
-        return read_instance_png(path, min_pixels=min_pixels)
+        inst, info = read_instance_png(path, min_pixels=params.min_colour_px(resolution),
+                                       not_room=params.not_room_colours, return_info=True)
+        return inst, info
     if fmt == "label":
-        return read_label_png(path)[0]
+        return read_label_png(path)[0], {}
     raise ValueError(f"map format must be one of {FORMATS}, got {fmt!r}")
 
 
@@ -122,8 +151,11 @@ def onto_grid(pred: np.ndarray, shape: tuple[int, int], resolution: float | None
     """Bring a prediction onto the ground-truth grid of ``shape`` (see module doc).
 
     Args:
+        pred: (h, w) int ids.
+        shape: (H, W) of the ground truth.
         resolution, pred_resolution: metres per pixel of the ground truth and of ``pred``;
             both given and different -> scale about the top-left corner, crop/pad with -1.
+    Returns: (H, W) int ids.
     """
     if pred_resolution is None or resolution is None or np.isclose(pred_resolution, resolution):
         return pred if pred.shape == tuple(shape) else resample_nearest(pred, shape)
@@ -137,33 +169,66 @@ def onto_grid(pred: np.ndarray, shape: tuple[int, int], resolution: float | None
     return out
 
 
+def _check_resolution(resolution) -> float:
+    if resolution is None or isinstance(resolution, bool) or not isinstance(resolution, (int, float)) \
+            or not resolution > 0:
+        raise ValueError(f"resolution (metres per pixel of the ground truth) must be a positive number, got "
+                         f"{resolution!r}: areas in m² are turned into pixels with it")
+    return float(resolution)
+
+
+def _base_row(map_id: str, dataset: str, method: str, resolution: float, params: MetricParams) -> dict:
+    row: dict = dict.fromkeys(METRIC_COLUMNS, np.nan) | dict.fromkeys(READ_COLUMNS, np.nan)
+    row |= {"house_id": map_id, "dataset": dataset, "method": method, "resolution": resolution,
+            "metric_params": describe(params, resolution, colours=True), "prediction": "", "status": "ok",
+            "error": ""}
+    return row
+
+
+def read_gt(path: str | Path, fmt: str, params: MetricParams, resolution: float) -> tuple[np.ndarray, dict]:
+    """A ground-truth map -> ((H, W) int32 room ids, -1 none; reader info). Label-format ground
+    truth: rooms are the connected regions of one class."""
+    gt, info = read_map(path, fmt, params, resolution)
+    if fmt == "label":
+        gt = segments(gt, params.connectivity)
+    return gt, info
+
+
 def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricParams(), dataset: str = "external",
-                gt_format: str = "instance", pred_format: str = "instance", min_pixels: int = DEFAULT_MIN_PIXELS,
-                resolution: float | None = None, pred_resolution: float | None = None) -> pd.DataFrame:
+                gt_format: str = "instance", pred_format: str = "instance", *, resolution: float,
+                pred_resolution: float | None = None) -> pd.DataFrame:
     """One row per pair: ``method``'s map scored against the ground truth (see module doc).
 
-    Columns: house_id, dataset, method, resolution, metric_params, prediction, status
-    ("ok" / "failed"), error, and the metrics of :func:`benchmark.metrics.score_instances`
-    (iou, precision, recall, accuracy = NaN, n_pred_segments, n_gt_segments).
+    Args:
+        pairs: maps to score.
+        method: value of the ``method`` column.
+        params: metric and colour rules.
+        dataset: value of the ``dataset`` column.
+        gt_format, pred_format: ``"instance"`` or ``"label"``.
+        resolution: metres per pixel of the ground truth.
+        pred_resolution: metres per pixel of the predictions (None: same extent).
+    Returns: DataFrame with columns house_id, dataset, method, resolution, metric_params,
+        prediction, status ("ok" / "failed"), error, every metric of
+        :data:`benchmark.metrics.METRIC_COLUMNS` (NaN on a failed row) and :data:`READ_COLUMNS`.
     """
     for f in (gt_format, pred_format):
         if f not in FORMATS:
             raise ValueError(f"map format must be one of {FORMATS}, got {f!r}")
+    resolution = _check_resolution(resolution)
     rows = []
     for pair in pairs:
-        row: dict = dict.fromkeys(METRIC_COLUMNS, np.nan)
-        row |= {"house_id": pair.map_id, "dataset": dataset, "method": method, "resolution": resolution,
-               "metric_params": describe(params), "prediction": str(pair.pred or ""), "status": "ok", "error": ""}
+        row = _base_row(pair.map_id, dataset, method, resolution, params)
+        row["prediction"] = str(pair.pred or "")
         try:
             if pair.pred is None:
                 raise FileNotFoundError(f"no prediction listed for map {pair.map_id!r}")
             if not Path(pair.pred).is_file():
                 raise FileNotFoundError(f"no prediction for map {pair.map_id!r}: {pair.pred} not found")
-            gt = read_map(pair.gt, gt_format, min_pixels)
-            if gt_format == "label":  # rooms = connected regions of one class
-                gt = segments(gt, params.connectivity)
-            pred = onto_grid(read_map(pair.pred, pred_format, min_pixels), gt.shape, resolution, pred_resolution)
-            row.update(score_instances(pred, gt, params))
+            gt, gi = read_gt(pair.gt, gt_format, params, resolution)
+            pred, pi = read_map(pair.pred, pred_format, params, pred_resolution or resolution)
+            pred = onto_grid(pred, gt.shape, resolution, pred_resolution)
+            row.update(score_instances(pred, gt, params, resolution=resolution))
+            row.update({f"gt_{k}": v for k, v in gi.items()} | {f"pred_{k}": v for k, v in pi.items()})
         except Exception as e:  # one missing or bad map fails alone, with its reason
             row["status"] = "failed"
             row["error"] = f"{type(e).__name__}: {e}"
@@ -171,34 +236,123 @@ def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricPar
     return pd.DataFrame(rows)
 
 
-def score_directory(
-    gt_dir: str | Path, gt_pattern: str, pred_dir: str | Path, pred_pattern: str, method: str,
-    params: MetricParams = MetricParams(), dataset: str = "external", min_pixels: int = DEFAULT_MIN_PIXELS,
-    resolution: float | None = None, pred_resolution: float | None = None, gt_format: str = "instance",
-    pred_format: str = "instance",
-) -> pd.DataFrame:
-    """One row per ground-truth map in ``gt_dir``: metrics of ``method``'s map with the same id.
+def sanity_rows(gt_paths: dict[str, Path], params: MetricParams = MetricParams(), dataset: str = "external",
+                gt_format: str = "instance", *, resolution: float, grid_size: float = 3.0) -> pd.DataFrame:
+    """The sanity rows on each ground-truth map: ``one_room`` (the walkable map as one segment),
+    ``gt_geometry`` (the ground truth's own rooms) and ``grid`` (``grid_size`` m squares).
 
     Args:
-        gt_dir, gt_pattern: ground-truth folder and file name pattern with ``{id}``.
-        pred_dir, pred_pattern: prediction folder and pattern with ``{id}``.
-        method: method name for the ``method`` column.
-        params: metric parameters.
-        dataset: value of the ``dataset`` column.
-        min_pixels: colours on fewer pixels are anti-aliasing (see envs.maps.label_png).
-        resolution, pred_resolution: metres per pixel of the ground truth and predictions.
-        gt_format, pred_format: ``"instance"`` or ``"label"``.
-    Predictions whose id has no ground truth are listed in ``df.attrs["unpaired"]``.
+        gt_paths: map id -> ground-truth file.
+        params, dataset, gt_format, resolution: as :func:`score_pairs`.
+        grid_size: side of the grid's squares, metres.
+    Returns: DataFrame, three rows per map, columns as :func:`score_pairs`.
     """
-    pairs, unpaired = pairs_by_pattern(gt_dir, gt_pattern, pred_dir, pred_pattern)
-    df = score_pairs(pairs, method, params, dataset, gt_format, pred_format, min_pixels, resolution, pred_resolution)
-    df.attrs["unpaired"] = [str(p) for p in unpaired]
-    return df
+    from types import SimpleNamespace
+
+    from benchmark.segmenters.sanity import Grid, GroundTruthGeometry, OneRoom
+    from envs.maps.gridmap import GridMap
+
+    resolution = _check_resolution(resolution)
+    segs = {"one_room": OneRoom(), "gt_geometry": GroundTruthGeometry(), "grid": Grid(grid_size)}
+    rows = []
+    for mid, path in gt_paths.items():
+        try:
+            gt, gi = read_gt(path, gt_format, params, resolution)
+            grid = GridMap(gt >= 0, resolution, (0.0, 0.0))
+            err = None
+        except Exception as e:  # a bad ground truth fails its rows alone
+            err = f"{type(e).__name__}: {e}"
+        for name, seg in segs.items():
+            row = _base_row(mid, dataset, name, resolution, params)
+            if err:
+                row.update(status="failed", error=err)
+            else:
+                inst = seg(grid, scene=SimpleNamespace(instances=gt)) if name == "gt_geometry" else seg(grid)
+                row.update(score_instances(inst, gt, params, resolution=resolution))
+                row.update({f"gt_{k}": v for k, v in gi.items()})
+            rows.append(row)
+    return pd.DataFrame(rows)
 
 
-def summary_table(df: pd.DataFrame, metrics: tuple[str, ...] = ("iou", "precision", "recall")) -> pd.DataFrame:
-    """Table V-style summary: mean and std per method over its successful maps, in percent,
-    with the count of maps scored and of failed/missing ones."""
+@dataclass
+class ExternalMethod:
+    """Another method's output maps and how to pair and read them (``conf/external/*.yaml``).
+
+    Args:
+        method: name in the ``method`` column.
+        resolution: metres per pixel of the ground truth.
+        gt_dir, gt_pattern: ground-truth folder and file name rule with ``{id}``.
+        pred_dir, pred_pattern: prediction folder and rule with ``{id}``.
+        manifest: CSV ``id, ground_truth, prediction`` (replaces folders and patterns).
+        pred_resolution: metres per pixel of the predictions (None: same extent as the GT).
+        gt_format, pred_format: ``"instance"`` or ``"label"``.
+        dataset: name in the ``dataset`` column.
+    """
+
+    method: str
+    resolution: float
+    gt_dir: str | None = None
+    gt_pattern: str = "{id}_ground_truth.png"
+    pred_dir: str | None = None
+    pred_pattern: str | None = None
+    manifest: str | None = None
+    pred_resolution: float | None = None
+    gt_format: str = "instance"
+    pred_format: str = "instance"
+    dataset: str = "external"
+    unpaired: list = field(default_factory=list, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not self.method:
+            raise ValueError("external.method: a method name is needed (e.g. external.method=ROSE2)")
+        _check_resolution(self.resolution)
+        for f in (self.gt_format, self.pred_format):
+            if f not in FORMATS:
+                raise ValueError(f"external format must be one of {FORMATS}, got {f!r}")
+        if not self.manifest and not (self.gt_dir and self.pred_dir and self.pred_pattern):
+            raise ValueError("external: give either manifest=FILE.csv or gt_dir, pred_dir and pred_pattern (with {id})")
+
+    def pairs(self) -> list[Pair]:
+        """The maps to score (predictions with no ground truth go to ``self.unpaired``)."""
+        if self.manifest:
+            return pairs_from_manifest(self.manifest)
+        pairs, unpaired = pairs_by_pattern(self.gt_dir, self.gt_pattern, self.pred_dir, self.pred_pattern)
+        self.unpaired = [str(p) for p in unpaired]
+        return pairs
+
+    def score(self, params: MetricParams = MetricParams(), sanity: bool = False,
+              grid_size: float = 3.0) -> pd.DataFrame:
+        """Rows of :func:`score_pairs` (+ :func:`sanity_rows` when ``sanity``); predictions with
+        no ground truth are listed in ``df.attrs["unpaired"]``."""
+        pairs = self.pairs()
+        df = score_pairs(pairs, self.method, params, self.dataset, self.gt_format, self.pred_format,
+                         resolution=self.resolution, pred_resolution=self.pred_resolution)
+        if sanity:
+            gts = {p.map_id: p.gt for p in pairs}
+            df = pd.concat([df, sanity_rows(gts, params, self.dataset, self.gt_format, resolution=self.resolution,
+                                            grid_size=grid_size)], ignore_index=True)
+        df.attrs["unpaired"] = list(self.unpaired)
+        return df
+
+
+def score_directory(
+    gt_dir: str | Path, gt_pattern: str, pred_dir: str | Path, pred_pattern: str, method: str,
+    params: MetricParams = MetricParams(), dataset: str = "external", *, resolution: float,
+    pred_resolution: float | None = None, gt_format: str = "instance", pred_format: str = "instance",
+) -> pd.DataFrame:
+    """One row per ground-truth map in ``gt_dir``: metrics of ``method``'s map with the same id
+    (:class:`ExternalMethod` with folders and patterns)."""
+    return ExternalMethod(method, resolution, str(gt_dir), gt_pattern, str(pred_dir), pred_pattern, None,
+                          pred_resolution, gt_format, pred_format, dataset).score(params)
+
+
+#: Columns of the summary table: the paper's three, then the ones merging cannot game.
+SUMMARY_METRICS = ("iou", "precision", "recall", "matched_iou", "pq", "room_iou", "ipa_recall", "ipa_precision")
+
+
+def summary_table(df: pd.DataFrame, metrics: tuple[str, ...] = SUMMARY_METRICS) -> pd.DataFrame:
+    """Table V-style summary: mean ± std per method over its successful maps, in percent, then
+    the mean segment count, count error and reader counts, the maps scored and failed."""
     ok = df[df["status"] == "ok"]
     methods = list(dict.fromkeys(df["method"]))
     g = ok.groupby("method", sort=False)
@@ -207,6 +361,12 @@ def summary_table(df: pd.DataFrame, metrics: tuple[str, ...] = ("iou", "precisio
     for m in metrics:
         mean, std = g[m].mean().reindex(methods), g[m].std(ddof=1).reindex(methods).fillna(0)
         out[m] = [f"{100 * a:.2f} ± {100 * s:.2f}" if np.isfinite(a) else "n/a" for a, s in zip(mean, std)]
+    out["segments"] = [f"{v:.1f}" if np.isfinite(v) else "n/a"
+                       for v in g["n_pred_segments"].mean().reindex(methods)]
+    out["count_error"] = [f"{v:+.1f}" if np.isfinite(v) else "n/a" for v in g["count_error"].mean().reindex(methods)]
+    if "pred_unassigned_px" in ok:
+        out["unassigned_px"] = [f"{v:.0f}" if np.isfinite(v) else "–"
+                                for v in g["pred_unassigned_px"].mean().reindex(methods)]
     out["failed"] = df[df["status"] != "ok"].groupby("method").size().reindex(methods).fillna(0).astype(int)
     return out.reset_index()
 
@@ -216,13 +376,18 @@ def failures(df: pd.DataFrame) -> pd.DataFrame:
     return df.loc[df["status"] != "ok", ["method", "house_id", "error"]].reset_index(drop=True)
 
 
-def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note: str = "") -> None:
+def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note: str = "",
+           resolution: float | None = None) -> str:
     """Write ``df`` as ``out/metrics.csv`` and ``out/table5.md`` (when given) and print its
-    Table V-style summary, the metric parameters, then every failed/missing map."""
+    Table V-style summary, the metric parameters, then every failed/missing map.
+
+    Returns: the printed text."""
     from envs.atomic import atomic_write_text  # noqa: PLC0415
 
     text = summary_table(df).to_markdown(index=False)
-    text += f"\n\nMean ± std over maps, percent. Metrics: {describe(params)}{note}\n"
+    text += (f"\n\nMean ± std over maps, percent; segments, count error (segments - rooms) and unassigned "
+             f"pixels (prediction pixels of not-a-room colours) are means. Metrics: "
+             f"{describe(params, resolution, colours=True)}{note}\n")
     bad = failures(df)
     if len(bad):
         text += f"\nFailed or missing maps ({len(bad)}):\n\n" + bad.to_markdown(index=False) + "\n"
@@ -233,3 +398,4 @@ def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note
         atomic_write_text(Path(out) / "metrics.csv", df.to_csv(index=False))
         atomic_write_text(Path(out) / "table5.md", text)
     print(text, end="")
+    return text

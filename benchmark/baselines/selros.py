@@ -1,23 +1,30 @@
-"""Score the SeLRoS release's SeLRoS and VRF outputs against its ground truth.
+"""The SeLRoS release (30 ProcTHOR environments; see the shared data's README) and the geometric
+baselines on maps given as files.
 
-``python -m benchmark.commands.selros [--data ../shared/data/selros] [--min-segment-px 50] [--geometric]``
-prints the per-method means (IoU, precision, recall) over the 30 environments and the
-metric parameters; ``--out DIR`` also writes the per-map ``metrics.csv``.
+The SeLRoS and VRF outputs are scored by :class:`benchmark.baselines.external.ExternalMethod`
+from the presets ``conf/external/selros.yaml`` and ``vrf.yaml``. The geometric segmenters
+need an occupancy map: they take it from files (:func:`geometric_rows`), never from the
+ground truth's rooms. For the SeLRoS release the map is the free space the other methods were
+given: the non-black pixels of the VRF outputs. On all 30 maps these are exactly the ground
+truth's non-black pixels and the SeLRoS outputs' (checked by ``tests/test_selros.py``), and the
+ground truth draws no border lines between rooms (rooms meet at their doorways), so this map
+carries no room borders.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+from PIL import Image
 
-from benchmark.baselines.external import score_directory
-from benchmark.metrics import MetricParams, describe
+from benchmark.metrics import MetricParams, describe, score_instances
 from benchmark.paths import selros_dir
 
-#: (method, folder, file pattern) of the outputs in the SeLRoS release.
-SELROS_METHODS = (("SeLRoS", "selros", "{id}_output.png"), ("VRF", "vrf", "{id}_segmented.png"))
-SELROS_RESOLUTION = 0.02  # metres per pixel
+#: The release's folders and file name rules (ground truth, occupancy maps = VRF outputs).
+GT_FOLDER, GT_PATTERN = "ground_truth", "{id}_ground_truth.png"
+OCCUPANCY_FOLDER, OCCUPANCY_PATTERN = "vrf", "{id}_segmented.png"
 
 
 def default_selros_dir() -> Path:
@@ -25,35 +32,59 @@ def default_selros_dir() -> Path:
     return selros_dir()
 
 
-def selros_rows(data: Path, params: MetricParams) -> pd.DataFrame:
-    """Per-map rows of every method in the SeLRoS release."""
-    frames = [score_directory(data / "ground_truth", "{id}_ground_truth.png", data / folder, pattern, method,
-                              params, dataset="selros", resolution=SELROS_RESOLUTION)
-              for method, folder, pattern in SELROS_METHODS]
-    return pd.concat(frames, ignore_index=True)
+def read_free_space(path: str | Path) -> np.ndarray:
+    """An occupancy image -> (H, W) bool free space: every pixel that is not black (0, 0, 0)
+    (instance-coloured maps; a plain occupancy PNG with white free space reads the same)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"occupancy map not found: {path}")
+    return np.asarray(Image.open(path).convert("RGB")).any(axis=-1)
 
 
-def geometric_rows(data: Path, params: MetricParams) -> pd.DataFrame:
-    """Per-map rows of the geometric baselines run on each ground-truth map's walkable mask."""
-    from benchmark.metrics import score_instances
+def geometric_rows(gt_paths: dict[str, Path], occupancy_paths: dict[str, Path], params: MetricParams,
+                   resolution: float, dataset: str = "selros", segmenters: dict | None = None) -> pd.DataFrame:
+    """Per-map rows of the geometric segmenters, each run on the map's occupancy image.
+
+    Args:
+        gt_paths: map id -> instance-coloured ground truth.
+        occupancy_paths: map id -> occupancy image (non-black = free); a missing one fails
+            that map's rows, naming the file.
+        params: metric and colour rules.
+        resolution: metres per pixel of both images.
+        dataset: value of the ``dataset`` column.
+        segmenters: name -> segmenter (default: morphological, distance, voronoi).
+    Returns: DataFrame, one row per (map, segmenter), columns as external scoring.
+    """
+    from benchmark.baselines.external import read_gt
     from benchmark.segmenters.distance import DistanceTransform
     from benchmark.segmenters.morphological import Morphological
     from benchmark.segmenters.voronoi import Voronoi
     from envs.maps.gridmap import GridMap
-    from envs.maps.label_png import read_instance_png
 
+    if segmenters is None:
+        segmenters = {"morphological": Morphological(), "distance": DistanceTransform(), "voronoi": Voronoi()}
     rows = []
-    for gpath in sorted((data / "ground_truth").glob("*_ground_truth.png")):
-        mid = gpath.name.split("_")[0]
-        gt = read_instance_png(gpath)
-        grid = GridMap(gt >= 0, SELROS_RESOLUTION, (0.0, 0.0))
-        for name, seg in (("morphological", Morphological()), ("distance", DistanceTransform()),
-                          ("voronoi", Voronoi())):
-            row = {"house_id": mid, "dataset": "selros", "method": name, "resolution": SELROS_RESOLUTION,
-                   "metric_params": describe(params), "status": "ok", "error": ""}
+    for mid, gpath in gt_paths.items():
+        try:
+            gt, _ = read_gt(gpath, "instance", params, resolution)
+            occ = occupancy_paths.get(mid)
+            if occ is None:
+                raise FileNotFoundError(f"no occupancy map for {mid!r}")
+            free = read_free_space(occ)
+            if free.shape != gt.shape:
+                raise ValueError(f"occupancy map {occ} has shape {free.shape}, ground truth {gt.shape}")
+            grid = GridMap(free, resolution, (0.0, 0.0))
+            err = None
+        except Exception as e:  # one map fails alone
+            err = f"{type(e).__name__}: {e}"
+        for name, seg in segmenters.items():
+            row = {"house_id": mid, "dataset": dataset, "method": name, "resolution": resolution,
+                   "metric_params": describe(params, resolution, colours=True), "status": "ok", "error": ""}
             try:
-                row.update(score_instances(seg(grid), gt, params))
+                if err:
+                    raise RuntimeError(err)
+                row.update(score_instances(seg(grid), gt, params, resolution=resolution))
             except Exception as e:  # one map fails alone
-                row.update(status="failed", error=f"{type(e).__name__}: {e}")
+                row.update(status="failed", error=err or f"{type(e).__name__}: {e}")
             rows.append(row)
     return pd.DataFrame(rows)

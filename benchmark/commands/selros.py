@@ -1,37 +1,97 @@
-"""``python -m benchmark.commands.selros``: the SeLRoS release's SeLRoS and VRF outputs (and,
-with ``--geometric``, the geometric baselines) scored against its ground truth."""
+"""``python -m benchmark.commands.selros`` (also ``python -m benchmark.commands.baselines table5``):
+Table V on the SeLRoS release: the SeLRoS and VRF outputs (presets conf/external/selros.yaml,
+vrf.yaml), the geometric baselines run on each map's occupancy image, and the sanity rows,
+all scored against the release's ground truth.
+
+    python -m benchmark.commands.selros [--data DIR] [--resolution 0.02] [--out DIR] [--no-geometric]
+        [--occupancy-dir DIR --occupancy-pattern '{id}_map.png'] [metrics.key=value ...]
+
+Map ids come from the ground-truth file names by the rule ``--gt-pattern`` (default
+``{id}_ground_truth.png``: ``office_a_ground_truth.png`` is ``office_a``). Trailing
+``metrics.*`` arguments are Hydra overrides of the shared ``metrics`` group (e.g.
+``metrics.connectivity=8 metrics.min_segment_m2=0.05``).
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import pandas as pd
 
-from benchmark.baselines.external import report
-from benchmark.baselines.selros import (
-    SELROS_RESOLUTION,
-    default_selros_dir,
-    geometric_rows,
-    selros_rows,
-)
-from benchmark.metrics import MetricParams
+
+def compose_score(overrides: list[str]):
+    """conf/score.yaml composed with Hydra ``overrides`` (no app run)."""
+    from hydra import compose, initialize_config_dir
+
+    from benchmark.paths import CONF_DIR
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base=None):
+        return compose("score", overrides=overrides)
+
+
+def _quote(v) -> str:
+    """A value as a quoted Hydra override string (braces, spaces and commas stay literal)."""
+    return "'" + str(v).replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="SeLRoS / VRF outputs vs the SeLRoS ground truth")
-    ap.add_argument("--data", type=Path, default=default_selros_dir())
-    ap.add_argument("--min-segment-px", type=int, default=MetricParams().min_segment_px)
-    ap.add_argument("--connectivity", type=int, default=MetricParams().connectivity)
-    ap.add_argument("--match", default=MetricParams().match)
-    ap.add_argument("--out", type=Path, default=None, help="folder for metrics.csv")
-    ap.add_argument("--geometric", action="store_true", help="add the geometric baselines on the same maps")
-    a = ap.parse_args(argv)
-    params = MetricParams(match=a.match, connectivity=a.connectivity, min_segment_px=a.min_segment_px)
-    df = selros_rows(a.data, params)
-    if a.geometric:
-        df = pd.concat([df, geometric_rows(a.data, params)], ignore_index=True)
-    report(df, params, a.out, f"; maps at {SELROS_RESOLUTION} m/px.")
+    from hydra.utils import instantiate
+
+    from benchmark.baselines.external import _glob_ids, report
+    from benchmark.baselines.selros import (
+        GT_FOLDER,
+        GT_PATTERN,
+        OCCUPANCY_FOLDER,
+        OCCUPANCY_PATTERN,
+        default_selros_dir,
+        geometric_rows,
+    )
+
+    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.selros", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, default=None, help="the SeLRoS release folder (default: shared data)")
+    ap.add_argument("--resolution", type=float, default=None, help="metres per pixel (default: the presets', 0.02)")
+    ap.add_argument("--gt-pattern", default=GT_PATTERN, help="ground-truth file rule with {id}")
+    ap.add_argument("--occupancy-dir", type=Path, default=None,
+                    help=f"occupancy maps for the geometric baselines (default: DATA/{OCCUPANCY_FOLDER})")
+    ap.add_argument("--occupancy-pattern", default=None, help=f"their file rule (default {OCCUPANCY_PATTERN})")
+    ap.add_argument("--no-geometric", action="store_true", help="leave out the geometric baselines")
+    ap.add_argument("--no-sanity", action="store_true", help="leave out one_room, gt_geometry and grid")
+    ap.add_argument("--out", type=Path, default=None, help="folder for metrics.csv and table5.md")
+    a, rest = ap.parse_known_args(argv)
+    bad = [r for r in rest if not r.startswith("metrics.")]
+    if bad:
+        print(f"error: unknown arguments {bad}; metric options are Hydra overrides like metrics.connectivity=8",
+              file=sys.stderr)
+        return 2
+    data = a.data or default_selros_dir()
+    try:
+        common = [f"external.gt_dir={_quote(data / GT_FOLDER)}", f"external.gt_pattern={_quote(a.gt_pattern)}", *rest]
+        if a.resolution is not None:
+            common.append(f"external.resolution={a.resolution}")
+        frames, params, res = [], None, None
+        for preset, folder in (("selros", "selros"), ("vrf", "vrf")):
+            cfg = compose_score([f"external={preset}", f"external.pred_dir={_quote(data / folder)}", *common])
+            method, params = instantiate(cfg.external), instantiate(cfg.metrics)
+            res = method.resolution
+            frames.append(method.score(params, sanity=not a.no_sanity and preset == "selros",
+                                       grid_size=float(cfg.grid_size)))
+        if not a.no_geometric:
+            gts = _glob_ids(data / GT_FOLDER, a.gt_pattern)
+            occ_dir = a.occupancy_dir or data / OCCUPANCY_FOLDER
+            occ = _glob_ids(occ_dir, a.occupancy_pattern or OCCUPANCY_PATTERN)
+            frames.append(geometric_rows(gts, occ, params, res))
+    except Exception as e:
+        cause = e.__cause__ if type(e).__name__ == "InstantiationException" and e.__cause__ else e
+        if isinstance(cause, (FileNotFoundError, ValueError)):
+            print(f"error: {cause}", file=sys.stderr)
+            return 2
+        raise
+    df = pd.concat(frames, ignore_index=True)
+    df.attrs["unpaired"] = []
+    report(df, params, a.out, note=f"; geometric baselines on {a.occupancy_dir or 'the VRF outputs'}' free space.",
+           resolution=res)
     return 0
 
 

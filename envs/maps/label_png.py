@@ -8,7 +8,10 @@
   two room colours, or of a room and black, appear on thin lines of pixels. **Rule:** a colour
   covering fewer than ``min_pixels`` pixels is not a room; with ``assign="neighbour"``
   (default) each of its pixels joins the nearest pixel of a kept room colour (Euclidean
-  distance in pixels), with ``assign="drop"`` it becomes unlabelled (-1).
+  distance in pixels), with ``assign="drop"`` it becomes unlabelled (-1). Colours listed in
+  ``not_room`` (black always, and e.g. white: the 1-px lines along the border of the SeLRoS
+  and VRF outputs) are never rooms and stay unlabelled (-1), whatever their size. Callers that
+  score maps set ``min_pixels`` from an area in m² (benchmark.metrics.MetricParams).
 """
 
 from __future__ import annotations
@@ -135,19 +138,29 @@ def _pack(rgb: np.ndarray) -> np.ndarray:
 
 
 def read_instance_png(path: str | Path, min_pixels: int = DEFAULT_MIN_PIXELS, assign: str = "neighbour",
-                      return_colors: bool = False):
-    """Read an instance-coloured map -> (H, W) int32 instance ids (0..K-1), -1 not walkable.
+                      return_colors: bool = False, not_room: Sequence = (0x000000,), return_info: bool = False):
+    """Read an instance-coloured map -> (H, W) int32 instance ids (0..K-1), -1 not a room.
 
-    Black (0, 0, 0) is not walkable. Instances are numbered by decreasing pixel count.
-    Colours on fewer than ``min_pixels`` pixels are anti-aliasing, not rooms: ``assign``
-    ``"neighbour"`` gives each such pixel the instance of the nearest kept pixel,
-    ``"drop"`` leaves it -1. With ``return_colors`` also returns the (K, 3) RGB colours.
+    Args:
+        path: the PNG (any mode; read as RGB).
+        min_pixels: colours on fewer pixels are anti-aliasing, not rooms: ``assign``
+            ``"neighbour"`` gives each such pixel the instance of the nearest kept pixel,
+            ``"drop"`` leaves it -1.
+        not_room: colours that are never a room (packed 0xRRGGBB ints or ``"#rrggbb"``); their
+            pixels are -1. Black is always among them (not walkable).
+        return_colors: also return the (K, 3) uint8 RGB colour of each instance.
+        return_info: also return a dict: ``rooms`` (colours that became rooms),
+            ``antialias_px`` (pixels of colours under ``min_pixels``), ``unassigned_px``
+            (pixels of ``not_room`` colours other than black).
+    Returns: ``inst``, then ``colors`` and/or ``info`` when asked, in that order. Instances
+        are numbered by decreasing pixel count.
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"instance map not found: {path}")
     if assign not in ("neighbour", "drop"):
         raise ValueError(f"assign must be 'neighbour' or 'drop', got {assign!r}")
+    skip = {0} | {colour_int(c) for c in not_room}
     rgb = np.asarray(Image.open(path).convert("RGB"))
     if rgb.size == 0:
         raise ValueError(f"{path}: empty image")
@@ -158,18 +171,47 @@ def read_instance_png(path: str | Path, min_pixels: int = DEFAULT_MIN_PIXELS, as
     ids = np.full(len(colors), -1, dtype=np.int32)
     k = 0
     kept = []
+    antialias = unassigned = 0
     for ci in order:
-        if colors[ci] == 0 or counts[ci] < min_pixels:
+        if int(colors[ci]) in skip:
+            unassigned += int(counts[ci]) if colors[ci] != 0 else 0
+            continue
+        if counts[ci] < min_pixels:
+            antialias += int(counts[ci])
             continue
         ids[ci] = k
         kept.append(colors[ci])
         k += 1
     inst = ids[inverse]
-    stray = (key != 0) & (inst < 0)
+    not_room_px = np.isin(key, np.array(sorted(skip), dtype=np.int64))
+    stray = ~not_room_px & (inst < 0)
     if assign == "neighbour" and stray.any() and k > 0:
         _, (rr, cc) = ndimage.distance_transform_edt(inst < 0, return_indices=True)
         inst[stray] = inst[rr[stray], cc[stray]]
+    extra = []
     if return_colors:
         kc = np.array(kept, dtype=np.int64)
-        return inst, np.stack([(kc >> 16) & 255, (kc >> 8) & 255, kc & 255], axis=-1).astype(np.uint8)
-    return inst
+        extra.append(np.stack([(kc >> 16) & 255, (kc >> 8) & 255, kc & 255], axis=-1).astype(np.uint8))
+    if return_info:
+        extra.append({"rooms": k, "antialias_px": antialias, "unassigned_px": unassigned})
+    return (inst, *extra) if extra else inst
+
+
+def colour_int(c) -> int:
+    """0xRRGGBB int, ``"#rrggbb"`` or ``[r, g, b]`` -> packed int."""
+    if isinstance(c, (int, np.integer)):
+        if not 0 <= int(c) <= 0xFFFFFF:
+            raise ValueError(f"colour must be in 0x000000-0xffffff, got {c!r}")
+        return int(c)
+    if isinstance(c, str):
+        s = c.strip().lstrip("#")
+        try:
+            if len(s) == 6:
+                return int(s, 16)
+        except ValueError:
+            pass
+        raise ValueError(f"colour must look like '#rrggbb', got {c!r}")
+    v = [int(x) for x in c]
+    if len(v) != 3 or not all(0 <= x <= 255 for x in v):
+        raise ValueError(f"colour must be '#rrggbb' or [r, g, b] in 0-255, got {c!r}")
+    return (v[0] << 16) | (v[1] << 8) | v[2]

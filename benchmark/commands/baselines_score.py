@@ -1,0 +1,56 @@
+"""``python -m benchmark.commands.baselines_score``: score another method's output maps against
+ground truth, a Hydra app over the ``external`` group (conf/score.yaml).
+
+    python -m benchmark.commands.baselines_score external=selros
+    python -m benchmark.commands.baselines_score -m external=selros,vrf metrics.connectivity=8
+    python -m benchmark.commands.baselines_score external=rose2 external.pred_dir=/path 'external.pred_pattern={id}.png'
+
+Each job prints a Table V-style summary with the sanity rows (``sanity=false`` leaves them out)
+and writes ``metrics.csv`` and ``table5.md`` to its output folder
+(``results/scores/<method>[<overrides>]``). The exit status is 0 when every map was scored.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from hydra.utils import instantiate
+from omegaconf import DictConfig
+
+from benchmark.paths import CONF_DIR
+
+
+def run(cfg: DictConfig, out: Path | None) -> int:
+    """Score ``cfg.external`` with ``cfg.metrics``; write to ``out``. Returns 0 when every map
+    was scored, 1 when some failed (listed), 2 on a bad setting (one line)."""
+    from benchmark.baselines.external import report
+
+    try:
+        method = instantiate(cfg.external)
+        params = instantiate(cfg.metrics)
+        df = method.score(params, sanity=bool(cfg.sanity), grid_size=float(cfg.grid_size))
+    except (FileNotFoundError, ValueError, TypeError) as e:
+        msg = str(e.__cause__ or e) if type(e).__name__ == "InstantiationException" else str(e)
+        print(f"error: {msg}", file=sys.stderr)
+        return 2
+    except Exception as e:  # Hydra wraps a target's ValueError in InstantiationException
+        cause = e.__cause__
+        if isinstance(cause, (FileNotFoundError, ValueError, TypeError)):
+            print(f"error: {cause}", file=sys.stderr)
+            return 2
+        raise
+    report(df, params, out, resolution=method.resolution)
+    return 0 if (df["status"] == "ok").all() else 1
+
+
+@hydra.main(config_path=CONF_DIR, config_name="score", version_base=None)
+def main(cfg: DictConfig) -> int:
+    return run(cfg, Path(HydraConfig.get().runtime.output_dir))
+
+
+if __name__ == "__main__":
+    rc = main()
+    raise SystemExit(rc if isinstance(rc, int) else 0)
