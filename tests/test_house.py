@@ -28,6 +28,9 @@ def square_house():
     (lambda h: h["rooms"][0]["floorPolygon"][2].__setitem__("z", float("inf")), "rooms[room|1].floorPolygon[2]"),
     (lambda h: h["rooms"][0].__setitem__("roomType", "Garage"), "rooms[room|1].roomType"),
     (lambda h: h["objects"].append({"id": "o1", "assetId": "Chair_1", "position": {"x": "a", "z": 1}}), "objects[o1].position"),
+    (lambda h: h.__setitem__("doors", [3]), "doors[0]"),
+    (lambda h: h.__setitem__("walls", {"w": 1}), "walls"),
+    (lambda h: h["rooms"][0].__setitem__("roomType", ["Kitchen"]), "rooms[room|1].roomType"),
 ])
 def test_malformed_house_names_house_and_field(mutate, field):
     h = square_house()
@@ -121,3 +124,15 @@ def test_unknown_asset_uses_type_default_and_rotation():
     assert s.objects[0].known_asset is False
     assert removed == pytest.approx(0.25 / 0.02**2, rel=0.05)
 
+
+
+def test_room_type_checked_against_mapping_and_classes():
+    h = square_house()
+    h["rooms"][0]["roomType"] = "Hallway"
+    validate_house(h, "h")  # default mapping: Hallway -> corridor
+    with pytest.raises(HouseError, match="'Hallway' maps to class 'corridor', which is not in classes"):
+        validate_house(h, "h", classes=["kitchen", "bedroom"])
+    with pytest.raises(HouseError, match="unknown room type 'Hallway': map it to a class in env.room_types"):
+        validate_house(h, "h", room_types={"Kitchen": "kitchen"})
+    scene = rasterise_house(House("h", h), resolution=0.1, classes=["corridor", "kitchen"])
+    assert scene.instance_classes.tolist() == [0]
