@@ -285,3 +285,19 @@ def test_bad_inputs_give_one_line_naming_file_and_field(tmp_path):
         read_poses(tmp_path / "sim.csv", frame="auto")
     with pytest.raises(ValueError, match="needs the map"):
         read_poses(tmp_path / "sim.csv", frame="pixel")
+
+
+def test_from_file_viewpoints_read_ros_poses(tmp_path):
+    from benchmark.viewpoints import FromFile
+    from envs.maps.scene import Scene
+
+    grid = GridMap(np.ones((10, 10), bool), 0.5, (-1.0, 4.0))
+    scene = Scene("m1", grid, np.zeros(grid.shape, np.int32), np.zeros(grid.shape, np.int32), np.array([0]), ["r"])
+    # ROS (0.25, 1.75, pi) -> world (0.25, 1.75), yaw 270; (9.0, 1.0) lies right of the map (x <= 4)
+    (tmp_path / "m1.csv").write_text(f"x,y,theta\n0.25,1.75,{math.pi}\n9.0,1.0,0\n")
+    vp = FromFile(str(tmp_path / "{house_id}.csv"), off_map="drop", frame="ros")
+    assert np.allclose(vp.generate(scene), [[0.25, 1.75, 270]])
+    with pytest.raises(ValueError, match=r"lacks column\(s\) \['z', 'yaw'\] for frame 'sim'"):
+        FromFile(str(tmp_path / "{house_id}.csv")).generate(scene)  # the default frame is sim
+    with pytest.raises(ValueError, match="viewpoints frame must be one of"):
+        FromFile("p.csv", frame="map")
