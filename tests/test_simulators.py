@@ -659,7 +659,8 @@ def test_gpu_check_without_a_gpu_prints_every_line_skipped(monkeypatch, capsys):
     _block_import(monkeypatch, "habitat_sim")
     assert gpu_check.main([]) == 1
     out = capsys.readouterr().out
-    rows = {line.split("  ")[0].strip(): line for line in out.splitlines()[2:9]}
+    rows = {line.split("  ")[0].strip(): line for line in out.splitlines()[2:10]}
+    assert " pass: core packages import" in rows.pop("roomseg-bench installed")
     assert list(rows) == ["torch + CUDA", "ai2thor render", "habitat-sim scene (optional)", "classifier cnn",
                           "classifier dinov2", "classifier vlm", "end to end (1 house, 2 aggregators)"]
     assert all(" skipped: " in line for line in rows.values()), out
@@ -668,7 +669,30 @@ def test_gpu_check_without_a_gpu_prints_every_line_skipped(monkeypatch, capsys):
     assert "conda install habitat-sim" in rows["habitat-sim scene (optional)"]
     assert "needs the CUDA check to pass" in rows["classifier vlm"]
     assert "needs the ai2thor check to pass" in rows["end to end (1 house, 2 aggregators)"]
-    assert "Traceback" not in out and "0 passed, 0 failed, 7 skipped; required and not passed: torch + CUDA" in out
+    assert "Traceback" not in out and "1 passed, 0 failed, 7 skipped; required and not passed: torch + CUDA" in out
+
+
+def test_gpu_check_runs_on_a_bare_python(tmp_path):
+    """The first step on a bare workstation: the module needs only the standard library, so
+    a Python without the project's packages still prints the table and says what to install."""
+    import subprocess
+
+    from benchmark.commands import gpu_check
+
+    code = ("import builtins, sys\n"
+            "real = builtins.__import__\n"
+            "def no(name, *a, **k):\n"
+            "    if name.split('.')[0] in {'numpy', 'scipy', 'cv2', 'PIL', 'shapely', 'pandas', 'hydra', 'omegaconf',"
+            " 'procthor', 'torch', 'ai2thor', 'habitat_sim'}: raise ImportError('No module named ' + repr(name))\n"
+            "    return real(name, *a, **k)\n"
+            "builtins.__import__ = no\n"
+            "from benchmark.commands.gpu_check import main\n"
+            "sys.exit(main([]))\n")
+    root = inspect.getfile(gpu_check).rsplit("/benchmark/", 1)[0]
+    p = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 1 and "Traceback" not in p.stdout + p.stderr, p.stderr
+    assert "roomseg-bench installed" in p.stdout and "skipped: not installed: numpy, scipy" in p.stdout
+    assert "ai2thor render                           0.0  skipped: needs the roomseg-bench installed check" in p.stdout
 
 
 def test_gpu_check_failures_are_one_line_and_the_exit_status_follows_required_checks(monkeypatch, capsys):
@@ -700,7 +724,7 @@ def test_gpu_check_renders_one_view_through_the_real_controller(thor, monkeypatc
 
     monkeypatch.setenv("DISPLAY", ":0")
     monkeypatch.setattr(gpu_check, "_house_source", lambda ctx: (_house(), "a test house"))
-    ctx = gpu_check.Context(platform="Linux64", commit_id="b" * 40)
+    ctx = gpu_check.Context(platform="Linux64", commit_id="b" * 40, installed=True)
     rows = gpu_check.run_checks(ctx, [("ai2thor render", True, gpu_check.check_ai2thor),
                                       ("classifier vlm", True, gpu_check.classifier_check("vlm"))])
     assert rows[0].status == "pass", rows[0].detail
@@ -709,7 +733,7 @@ def test_gpu_check_renders_one_view_through_the_real_controller(thor, monkeypatc
     assert thor["commit_id"] == "b" * 40 and thor["server"].stopped
     assert ctx.view.shape == (H, W, 3) and rows[1].status == "skipped"
     thor["fail"]["CreateHouse"] = ("", BAD_HOUSE)  # a build that does not match the house: one FAIL line
-    row, = gpu_check.run_checks(gpu_check.Context(platform="Linux64"),
+    row, = gpu_check.run_checks(gpu_check.Context(platform="Linux64", installed=True),
                                 [("ai2thor render", True, gpu_check.check_ai2thor)])
     assert row.status == "FAIL" and row.detail == f"HouseLoadError: house 'house-1': AI2-THOR could not load it " \
                                                   f"(CreateHouse failed): {BAD_HOUSE}"

@@ -2,6 +2,8 @@
 workstation. Checks each real dependency of the paper's runs in order and prints a table:
 one line per check, ``pass``, ``FAIL: why`` or ``skipped: why``, with its time in seconds.
 
+0. ``roomseg-bench installed``: the core packages import (this module itself needs only the
+   standard library, so the table prints on a bare Python too).
 1. ``torch + CUDA``: torch imports, a CUDA GPU is there, a matrix product runs on it.
 2. ``ai2thor render``: ai2thor starts its pinned Unity build (or ``--commit-id``), loads one
    ProcTHOR house (``--house``, else the first house of the shared ProcTHOR file, else
@@ -23,14 +25,13 @@ from __future__ import annotations
 
 import argparse
 import ctypes.util
+import importlib
 import os
 import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import numpy as np
 
 PASS, FAIL, SKIP = "pass", "FAIL", "skipped"
 CLASSIFIERS = ("cnn", "dinov2", "vlm")
@@ -63,10 +64,11 @@ class Context:
     hab_dataset: str | None = None
     hab_scene: str = "ArchitecTHOR-Val-00"
     out: Path | None = None
+    installed: bool = False
     cuda: bool = False
     house: object = None
     house_path: str | None = None
-    view: np.ndarray | None = None
+    view: object = None  # (H, W, 3) uint8 RGB frame of the rendered view
     passed_classifiers: list[str] = field(default_factory=list)
 
 
@@ -81,6 +83,25 @@ def one_line(e: BaseException) -> str:
 def first_line(e: BaseException) -> str:
     """An error's message as one line, without its type (for ``skipped:`` lines)."""
     return (str(e).strip().splitlines() or [type(e).__name__])[0].strip()[:240]
+
+
+CORE = ("numpy", "scipy", "cv2", "PIL", "shapely", "pandas", "hydra", "omegaconf", "procthor")
+
+
+def check_installed(ctx: Context) -> str:
+    """The core packages import (``pip install -e '.[thor,models,gpu]'`` installs them)."""
+    missing = []
+    for m in CORE:
+        try:
+            importlib.import_module(m)
+        except ImportError:
+            missing.append(m)
+    if missing:
+        raise Skip(f"not installed: {', '.join(missing)}: pip install -e '.[thor,models,gpu]' in this environment")
+    import numpy  # noqa: PLC0415
+
+    ctx.installed = True
+    return f"core packages import (numpy {numpy.__version__})"
 
 
 def check_cuda(ctx: Context) -> str:
@@ -128,7 +149,10 @@ def _house_source(ctx: Context):
     return House("procthor-10k-train-0", data), "prior procthor-10k train[0]"
 
 
-def _start_pose(house) -> np.ndarray:
+def _start_pose(house):
+    """(1, 3) pose [x, z, yaw_deg] of the house's agent start (``metadata.agent``)."""
+    import numpy as np  # noqa: PLC0415
+
     agent = (house.data.get("metadata") or {}).get("agent") or {}
     pos, rot = agent.get("position") or {}, agent.get("rotation") or {}
     if "x" not in pos or "z" not in pos:
@@ -138,6 +162,8 @@ def _start_pose(house) -> np.ndarray:
 
 def check_ai2thor(ctx: Context) -> str:
     """ai2thor starts its pinned build, loads one ProcTHOR house and renders one view."""
+    if not ctx.installed:
+        raise Skip("needs the roomseg-bench installed check to pass")
     try:
         from envs.render.thor import AI2THORRenderer, default_commit_id, resolve_platform  # noqa: PLC0415
 
@@ -168,6 +194,10 @@ def check_ai2thor(ctx: Context) -> str:
 
 def check_habitat(ctx: Context) -> str:
     """habitat-sim imports and loads one ArchitecTHOR scene of ai2thor-hab."""
+    if not ctx.installed:
+        raise Skip("needs the roomseg-bench installed check to pass")
+    import numpy as np  # noqa: PLC0415
+
     try:
         from envs.render.habitat import (  # noqa: PLC0415
             DEFAULT_DATASET,
@@ -205,6 +235,8 @@ def classifier_check(name: str) -> Callable[[Context], str]:
     """The check that classifier ``name`` loads its real weights on the GPU and classifies the view."""
 
     def check(ctx: Context) -> str:
+        import numpy as np  # noqa: PLC0415
+
         if not ctx.cuda:
             raise Skip("needs the CUDA check to pass")
         if ctx.view is None:
@@ -266,7 +298,7 @@ def check_end_to_end(ctx: Context) -> str:
 
 def checks() -> list[tuple[str, bool, Callable[[Context], str]]]:
     """(name, required, check) in the order they run."""
-    return [("torch + CUDA", True, check_cuda), ("ai2thor render", True, check_ai2thor),
+    return [("roomseg-bench installed", True, check_installed), ("torch + CUDA", True, check_cuda), ("ai2thor render", True, check_ai2thor),
             ("habitat-sim scene", False, check_habitat),
             *((f"classifier {c}", True, classifier_check(c)) for c in CLASSIFIERS),
             ("end to end (1 house, 2 aggregators)", True, check_end_to_end)]
