@@ -7,6 +7,14 @@ AI2-THOR downloads the build for ``commit_id`` into ``~/.ai2thor/releases/`` on 
 ``platform=CloudRendering`` (Vulkan); desktops with an X display can use ``Linux64``;
 ``auto`` picks Linux64 when ``$DISPLAY`` is set, else CloudRendering.
 
+Loading a house is checked: ai2thor's ``Controller.reset`` sends ``CreateHouse`` (ProcTHOR)
+or ``Reset`` + ``Initialize`` (a scene name) without raising when Unity reports a failure,
+so after every load the last event's ``lastActionSuccess`` is read, and a refused load (or
+one ai2thor raised for) fails that house with :class:`HouseLoadError`, whose one-line
+message carries the simulator's own ``errorMessage``. Nothing is rendered for it, so no
+render cache is written (and a render in which every view was refused is never marked
+complete either, see :mod:`envs.render.cache`).
+
 Each pose is one ``TeleportFull`` (agent at ``agent_y`` metres, ``horizon`` degrees down,
 standing). A teleport the simulator refuses (unreachable, inside an object, bad argument)
 is recorded as ``Observation(meta={"refused": True, "error": ...})`` with no image and the
