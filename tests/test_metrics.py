@@ -11,7 +11,7 @@ from benchmark.metrics import (
     score_semantic,
 )
 
-P0 = MetricParams(min_segment_px=0)
+P0 = MetricParams(min_segment_m2=0)
 
 
 def two_rooms():
@@ -24,7 +24,7 @@ def two_rooms():
 def test_perfect_prediction():
     gt, cls = two_rooms()
     pred = np.where(gt == 0, 1, 2)
-    s = score_semantic(pred, gt, cls, P0)
+    s = score_semantic(pred, gt, cls, P0, resolution=1.0)
     assert (s["iou"], s["precision"], s["recall"], s["accuracy"]) == (1.0, 1.0, 1.0, 1.0)
     assert s["n_pred_segments"] == 2 and s["n_gt_segments"] == 2
 
@@ -33,7 +33,7 @@ def test_shifted_boundary():
     gt, cls = two_rooms()
     pred = np.full(gt.shape, 2)
     pred[:, :3] = 1  # boundary one column too far left
-    s = score_semantic(pred, gt, cls, P0)
+    s = score_semantic(pred, gt, cls, P0, resolution=1.0)
     # A1 = 12 px inside room 0 (16 px): IoU 12/16, P 1, R 12/16
     # A2 = 20 px, overlaps room 1 (16) by 16: IoU 16/20, P 16/20, R 1
     assert s["iou"] == pytest.approx((12 / 16 + 16 / 20) / 2)
@@ -45,7 +45,7 @@ def test_shifted_boundary():
 def test_merged_rooms():
     gt, cls = two_rooms()
     pred = np.full(gt.shape, 1)
-    s = score_semantic(pred, gt, cls, P0)
+    s = score_semantic(pred, gt, cls, P0, resolution=1.0)
     # one segment of 32 px; best match room 0 (IoU 16/32, tie broken to the lower id)
     assert s["n_pred_segments"] == 1
     assert (s["iou"], s["precision"], s["recall"]) == (0.5, 0.5, 1.0)
@@ -56,7 +56,7 @@ def test_split_room():
     gt, cls = two_rooms()
     pred = np.where(gt == 0, 1, 2)
     pred[:2, 4:] = 0  # room 1 split into two label regions (class 0 and class 2)
-    s = score_semantic(pred, gt, cls, P0)
+    s = score_semantic(pred, gt, cls, P0, resolution=1.0)
     # segments: room 0 exact (1,1,1); two halves of room 1, each IoU 8/16, P 1, R 8/16
     assert s["n_pred_segments"] == 3
     assert s["iou"] == pytest.approx((1 + 0.5 + 0.5) / 3)
@@ -67,7 +67,7 @@ def test_split_room():
 
 def test_empty_prediction():
     gt, cls = two_rooms()
-    s = score_semantic(np.full(gt.shape, -1), gt, cls, P0)
+    s = score_semantic(np.full(gt.shape, -1), gt, cls, P0, resolution=1.0)
     assert (s["iou"], s["precision"], s["recall"], s["accuracy"], s["n_pred_segments"]) == (0, 0, 0, 0, 0)
 
 
@@ -75,13 +75,13 @@ def test_min_segment_and_connectivity():
     gt, cls = two_rooms()
     pred = np.where(gt == 0, 1, 2)
     pred[0, 0] = 2  # a 1-px island of class 2 in room 0
-    assert score_semantic(pred, gt, cls, MetricParams(min_segment_px=0))["n_pred_segments"] == 3
-    assert score_semantic(pred, gt, cls, MetricParams(min_segment_px=2))["n_pred_segments"] == 2
+    assert score_semantic(pred, gt, cls, MetricParams(min_segment_m2=0), resolution=1.0)["n_pred_segments"] == 3
+    assert score_semantic(pred, gt, cls, MetricParams(min_segment_m2=2), resolution=1.0)["n_pred_segments"] == 2
     diag = np.full((3, 3), -1)
     diag[0, 0] = diag[1, 1] = 0
     g = np.zeros((3, 3), np.int32)
-    assert score_instances(diag, g, MetricParams(connectivity=4, min_segment_px=0))["n_pred_segments"] == 2
-    assert score_instances(diag, g, MetricParams(connectivity=8, min_segment_px=0))["n_pred_segments"] == 1
+    assert score_instances(diag, g, MetricParams(connectivity=4, min_segment_m2=0, instances="connected"), resolution=1.0)["n_pred_segments"] == 2
+    assert score_instances(diag, g, MetricParams(connectivity=8, min_segment_m2=0, instances="connected"), resolution=1.0)["n_pred_segments"] == 1
 
 
 def test_overlap_matching_differs_from_iou():
@@ -89,11 +89,11 @@ def test_overlap_matching_differs_from_iou():
     gt[0, 6:] = 1  # room 0: 6 px, room 1: 4 px
     pred = np.full((1, 10), -1)
     pred[0, 3:10] = 0  # 7 px: overlap 3 with room 0 (IoU 3/10), 4 with room 1 (IoU 4/7)
-    a = score_instances(pred, gt, MetricParams(match="iou", min_segment_px=0))
-    b = score_instances(pred, gt, MetricParams(match="overlap", min_segment_px=0))
+    a = score_instances(pred, gt, MetricParams(match="iou", min_segment_m2=0), resolution=1.0)
+    b = score_instances(pred, gt, MetricParams(match="overlap", min_segment_m2=0), resolution=1.0)
     assert a["iou"] == pytest.approx(4 / 7) and b["iou"] == pytest.approx(4 / 7)
     pred[0, 0:10] = 0  # 10 px: overlap 6 with room 0 (IoU .6), 4 with room 1 (IoU .4)
-    assert score_instances(pred, gt, MetricParams(match="overlap", min_segment_px=0))["recall"] == 1.0
+    assert score_instances(pred, gt, MetricParams(match="overlap", min_segment_m2=0), resolution=1.0)["recall"] == 1.0
     assert np.isnan(a["accuracy"])
 
 
@@ -130,8 +130,8 @@ def test_fast_equals_reference_on_random_maps(seed):
     pred = rng.integers(-1, 3, gt.shape)
     for match in ("iou", "overlap"):
         for min_px in (0, 3):
-            params = MetricParams(match=match, min_segment_px=min_px, connectivity=4)
-            got = score_instances(pred, gt, params)
+            params = MetricParams(match=match, min_segment_m2=min_px, connectivity=4, instances="connected")
+            got = score_instances(pred, gt, params, resolution=1.0)
             ref = _reference(segments(pred, 4), gt, min_px, match)
             assert (got["iou"], got["precision"], got["recall"]) == pytest.approx(ref)
 
@@ -140,7 +140,7 @@ def test_per_class_iou():
     gt, cls = two_rooms()
     pred = np.full(gt.shape, 2)
     pred[:, :3] = 1
-    s = score_semantic(pred, gt, cls, P0, classes=["a", "b", "c"])
+    s = score_semantic(pred, gt, cls, P0, classes=["a", "b", "c"], resolution=1.0)
     assert s["iou_b"] == pytest.approx(12 / 16) and s["iou_c"] == pytest.approx(16 / 20)
     assert np.isnan(s["iou_a"])
 
@@ -148,13 +148,13 @@ def test_per_class_iou():
 def test_bad_inputs():
     gt, cls = two_rooms()
     with pytest.raises(ValueError, match="prediction shape"):
-        score_semantic(np.zeros((3, 3)), gt, cls)
+        score_semantic(np.zeros((3, 3)), gt, cls, resolution=1.0)
     with pytest.raises(ValueError, match="no room pixel"):
-        score_semantic(np.zeros((4, 8)), np.full((4, 8), -1), cls)
+        score_semantic(np.zeros((4, 8)), np.full((4, 8), -1), cls, resolution=1.0)
     with pytest.raises(ValueError, match="non-empty"):
-        score_instances(np.zeros((0, 0)), np.zeros((0, 0)))
+        score_instances(np.zeros((0, 0)), np.zeros((0, 0)), resolution=1.0)
     with pytest.raises(ValueError, match="outside"):
-        score_semantic(np.full((4, 8), 9), gt, cls, classes=["a", "b", "c"])
+        score_semantic(np.full((4, 8), 9), gt, cls, classes=["a", "b", "c"], resolution=1.0)
     with pytest.raises(ValueError, match="match"):
         MetricParams(match="dice")
 
@@ -163,4 +163,5 @@ def test_resample_and_describe():
     a = np.arange(4).reshape(2, 2)
     assert resample_nearest(a, (4, 4)).tolist() == [[0, 0, 1, 1], [0, 0, 1, 1], [2, 2, 3, 3], [2, 2, 3, 3]]
     assert resample_nearest(resample_nearest(a, (4, 4)), (2, 2)).tolist() == a.tolist()
-    assert "50 px" in describe(MetricParams())
+    assert "50 px at 0.05 m/px" in describe(MetricParams(), 0.05)
+    assert "313 px at 0.02 m/px" in describe(MetricParams(), 0.02) and "500 px" in describe(MetricParams(), 0.02, colours=True)
