@@ -107,3 +107,101 @@ def test_bad_input(tmp_path, capsys):
     assert main(["fig4", "--house-index", "0", "--out", str(tmp_path / "x.png"), "classifier"]) == 2
     assert "key=value" in capsys.readouterr().out
     assert not (tmp_path / "x.png").exists()
+
+
+def test_segment_borders_between_touching_segments_only():
+    from benchmark.reports.plotting import label_segments, segment_borders
+
+    seg = np.array([[0, 0, 1, 1],
+                    [0, 0, 1, 1],
+                    [-1, -1, -1, -1],
+                    [2, 2, 2, 2]])
+    b = segment_borders(seg)
+    # one pixel wide, left of the 0|1 line; nothing against the wall row (-1)
+    assert b.tolist() == [[False, True, False, False], [False, True, False, False],
+                          [False] * 4, [False] * 4]
+    # labels: two regions of the same class apart are two segments, touching labels differ
+    labels = np.array([[3, 3, -1, 3], [3, 5, -1, 3]])
+    s = label_segments(labels)
+    assert s[0, 0] == s[1, 0] and s[0, 0] != s[0, 3] and s[1, 1] not in (s[0, 0], s[0, 3]) and s[0, 2] == -1
+
+
+def test_touching_rooms_of_one_class_show_a_border(tmp_path):
+    from benchmark.reports.plotting import BORDER_COLOR
+
+    s = hand_scene()
+    s.instance_classes[:] = 2  # both rooms bedrooms: only the border tells them apart
+    same = Scene("same", s.grid, s.rooms, s.instances, np.array([2, 2]), ["r0", "r1"])
+    paths = figure_postprocess(same, same.semantic, same.semantic, tmp_path / "f.png")
+    rgb = np.round(imread(paths[0])[..., :3] * 255).astype(int)
+    n_border = int((rgb == np.array(BORDER_COLOR)).all(-1).sum())
+    assert n_border > 50  # the ground-truth panel's line between the two rooms
+    paths = figure_postprocess(same, same.semantic, same.semantic, tmp_path / "g.png")
+    assert paths == [tmp_path / "g.png"]
+
+
+def test_figures_in_png_pdf_and_svg(tmp_path, capsys):
+    s = hand_scene()
+    paths = figure_postprocess(s, s.semantic, s.semantic, tmp_path / "fig3.png", "title",
+                               formats=("png", "pdf", "svg"))
+    assert [p.suffix for p in paths] == [".png", ".pdf", ".svg"]
+    assert paths[1].read_bytes()[:5] == b"%PDF-"
+    assert b"<svg" in paths[2].read_bytes()[:2000]
+    png_ok(paths[0], s.grid.shape)
+    from benchmark.reports.plotting import parse_formats
+
+    assert parse_formats("png, PDF,svg") == ("png", "pdf", "svg")
+    with pytest.raises(ValueError, match="png, pdf, svg"):
+        parse_formats("png,jpeg")
+    assert main(["fig3", "--format", "gif", "--out", str(tmp_path / "x.png")]) == 2
+    assert "expected a comma-separated list" in capsys.readouterr().out
+
+
+def test_view_labels_never_overlap():
+    from benchmark.reports.figures import place_labels
+
+    rng = np.random.default_rng(0)
+    anchors = np.vstack([rng.normal(50, 2, (12, 2)), [[0, 0], [99, 99]]])  # a cluster and two corners
+    w, h = 6.0, 4.0
+    spots = place_labels(anchors, (w, h), (0, 0, 100, 100))
+    for i in range(len(spots)):
+        for j in range(i):
+            assert abs(spots[i, 0] - spots[j, 0]) >= w or abs(spots[i, 1] - spots[j, 1]) >= h
+    assert (spots[:, 0] >= w / 2).all() and (spots[:, 0] <= 100 - w / 2).all()
+    assert np.allclose(spots[-2], [w / 2, h / 2]) and np.allclose(spots[-1], [100 - w / 2, 100 - h / 2])
+
+
+def test_titles_in_words():
+    from benchmark.reports.figures import describe, house_title
+
+    names = {"env": "procthor_shared", "classifier": "oracle", "aggregator": "vision_cone", "postprocess": "default"}
+    assert house_title(names, "h80") == "ProcTHOR (shared val) house h80"
+    assert describe(names, 0.8, 0.764) == ("oracle classifier (set to 80 % accuracy, 76 % of views right), "
+                                           "vision cone, post-processed")
+    names.update(classifier="objects", aggregator="graph_knn", postprocess="none")
+    assert describe(names, None, float("nan")) == "objects classifier, graph KNN, no post-processing"
+
+
+@pytest.mark.slow
+def test_from_run_draws_the_chosen_houses(tmp_path, capsys):
+    import subprocess
+    import sys
+
+    res = tmp_path / "res"
+    subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "-m", "env=synthetic", "env.resolution=0.1",
+                    "classifier=oracle", "aggregator=graph_knn,vision_cone", "postprocess=default",
+                    "run.limit=3", "run.name=figs", f"run.results_dir={res}", "hydra.launcher.n_jobs=1"],
+                   check=True, capture_output=True)
+    out = tmp_path / "figs"
+    assert main(["from-run", str(res / "runs" / "figs"), "--out", str(out), "--house", "synthetic-s000002",
+                 "--house", "synthetic-s000000", "--format", "png,svg"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    # per house: Fig. 3 for each of 2 aggregators and one Fig. 4, in 2 formats
+    assert len(names) == 2 * 3 * 2
+    assert sum("synthetic-s000002" in n for n in names) == 6 and not any("s000001" in n for n in names)
+    capsys.readouterr()
+    assert main(["from-run", str(res / "runs" / "figs"), "--out", str(out), "--house", "nope"]) == 2
+    assert "no job of" in capsys.readouterr().out
+    default = tmp_path / "default"
+    assert main(["from-run", str(res / "runs" / "figs"), "--out", str(default)]) == 0
+    assert {p.name.split("_")[1] for p in default.iterdir()} == {"synthetic-s000000"}

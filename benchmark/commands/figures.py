@@ -6,37 +6,47 @@ import argparse
 from pathlib import Path
 
 from benchmark.reports.figures import fig3, fig4, from_run, house_figures
+from benchmark.reports.plotting import parse_formats
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="the paper's figures (Fig. 3, Fig. 4) from the runner's caches")
+    ap = argparse.ArgumentParser(description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
     sub = ap.add_subparsers(dest="cmd", required=True)
     helps = {"fig3": "ground truth | raw | post-processed for one house",
              "fig4": "ground truth + viewpoints | graph KNN | vision cone for one house",
              "house": "Fig. 2, 3, 4 and one view's cone for one house into a folder"}
+    fmt_help = "comma-separated file formats: png, pdf, svg (default png)"
     for name, text in helps.items():
         p = sub.add_parser(name, help=text, description=text + "; trailing key=value arguments are Hydra "
                            "overrides of conf/ (e.g. classifier=objects env.resolution=0.02 run.results_dir=...)")
         p.add_argument("--house-index", type=int, default=80, help="position of the house in the env")
         default_out = "docs/figures" if name == "house" else f"results/figures/{name}.png"
-        p.add_argument("--out", type=Path, default=Path(default_out), help="PNG path (house: a folder)")
+        p.add_argument("--out", type=Path, default=Path(default_out),
+                       help="file path (its suffix is replaced by each --format); house: a folder")
+        p.add_argument("--format", default=None, help=fmt_help)
         if name == "fig4":
             p.add_argument("--max-poses", type=int, default=60, help="viewpoints drawn on the first panel")
         p.add_argument("overrides", nargs="*", help="Hydra overrides, key=value")
-    r = sub.add_parser("from-run", help="Fig. 3 and 4 for every configuration of a finished sweep's cached maps")
+    r = sub.add_parser("from-run", help="Fig. 3 and 4 for every configuration of a finished sweep's saved maps")
     r.add_argument("run_dir", type=Path)
-    r.add_argument("--house", default=None)
+    r.add_argument("--house", action="append", default=None,
+                   help="house id to draw (repeatable; default: the first house every job scored)")
     r.add_argument("--out", type=Path, default=Path("results/figures"))
+    r.add_argument("--format", default=None, help=fmt_help)
     a = ap.parse_args(argv)
     try:
+        formats = parse_formats(a.format) if a.format else None
         if a.cmd == "fig3":
-            paths = [fig3(a.house_index, a.out, a.overrides)]
+            paths = fig3(a.house_index, a.out, a.overrides, formats)
         elif a.cmd == "fig4":
-            paths = [fig4(a.house_index, a.out, a.overrides, a.max_poses)]
+            paths = fig4(a.house_index, a.out, a.overrides, a.max_poses, formats)
         elif a.cmd == "house":
-            paths = house_figures(a.house_index, a.out, a.overrides)
+            paths = house_figures(a.house_index, a.out, a.overrides, formats)
         else:
-            paths = from_run(a.run_dir, a.out, a.house)
+            paths = from_run(a.run_dir, a.out, a.house, formats)
+            if not paths:
+                print(f"error: no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
+                return 2
     except (ValueError, FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}")
         return 2

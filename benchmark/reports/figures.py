@@ -1,9 +1,10 @@
-"""The paper's figures, in fixed class colours with a legend and a scale bar on every map.
+"""The paper's figures, in fixed colour-blind-safe class colours, with room borders, a legend
+and a scale bar on every map, titled in words, as PNG, PDF and/or SVG.
 
 * Fig. 3: ground truth | raw prediction | post-processed, for one house.
 * Fig. 4: ground truth with sample viewpoints | graph KNN | vision cone, for one house.
 * Fig. 2: the autotrace path and its sampled viewpoints on the map; and one view's cone
-  with the objects it sees.
+  with the objects it sees (numbered on the map, listed beside it: no label overlaps).
 
 Fig. 3 and Fig. 4 are drawn from the runner's caches: the command composes the Hydra
 config of ``conf/`` with the given overrides, runs the house through
@@ -13,34 +14,97 @@ label maps, and computes and caches whatever is missing) and draws the cached ma
     python -m benchmark.commands.figures fig3 --house-index 80 --out docs/figures/fig3.png
     python -m benchmark.commands.figures fig4 --house-index 80 --out docs/figures/fig4.png classifier=objects
     python -m benchmark.commands.figures house --house-index 80 --out docs/figures   # Fig. 2, 3, 4 + one view
-    python -m benchmark.commands.figures from-run results/runs/bench --out DIR       # every config of a sweep
+    python -m benchmark.commands.figures from-run results/runs/bench --out DIR --house ID --format png,pdf
 
 Defaults: ``env=procthor_shared classifier=oracle`` (80 % accuracy), Fig. 3 with
 ``aggregator=vision_cone postprocess=default``, Fig. 4 with ``postprocess=none`` (the
-aggregators' raw output). The figure functions take arrays only.
+aggregators' raw output). The figure functions take arrays only; each returns the files
+it wrote (``path`` with each requested format's suffix).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from benchmark.reports.plotting import add_legend, draw_poses, save, show_map
+from benchmark.reports.plotting import (
+    PNG_DPI,
+    add_legend,
+    add_scale_bar,
+    draw_poses,
+    save,
+    show_map,
+)
 from envs.maps.scene import Scene
 
-#: dots per inch of the Fig. 3 / Fig. 4 PNGs (their pixel size is ``figure_size(...) * DPI``).
-DPI = 110
+#: dots per inch of the PNGs (their pixel size is ``figure_size(...) * DPI``).
+DPI = PNG_DPI
 #: height of one map panel, inches; its width follows the map's aspect ratio (clipped).
-PANEL_H = 4.2
-_TITLE_H, _LEGEND_W = 0.45, 1.45
+PANEL_H = 3.6
+_TITLE_H, _LEGEND_W = 0.55, 1.85
 
 FIG3_DEFAULTS = {"env": "procthor_shared", "classifier": "oracle", "aggregator": "vision_cone",
                  "postprocess": "default"}
 FIG4_DEFAULTS = {"env": "procthor_shared", "classifier": "oracle", "postprocess": "none"}
+
+#: stage options in words (titles).
+DATASET_WORDS = {"procthor_shared": "ProcTHOR (shared val)", "procthor": "ProcTHOR-10k", "synthetic": "generated",
+                 "architecthor": "ArchitecTHOR", "maps": "user map"}
+CLASSIFIER_WORDS = {"objects": "objects classifier", "objects_procthor": "objects classifier (ProcTHOR-trained)",
+                    "oracle": "oracle classifier", "cnn": "ResNet-50", "dinov2": "DINOv2 + MLP", "vlm": "Qwen2.5-VL"}
+AGGREGATOR_WORDS = {"graph_knn": "graph KNN", "vision_cone": "vision cone", "euclidean_knn": "Euclidean KNN"}
+
+
+def describe(names: Mapping[str, str], oracle_accuracy: float | None = None,
+             view_accuracy: float | None = None, aggregator: bool = True, post: bool = True) -> str:
+    """A configuration in words, e.g. ``oracle classifier (set to 80 % accuracy, 78 % of views
+    right), vision cone, post-processed``.
+
+    ``oracle_accuracy``: the oracle's configured accuracy (0-1); ``view_accuracy``: the share
+    of this house's views classified right (0-1); either may be None or NaN (left out).
+    """
+    clf = CLASSIFIER_WORDS.get(names.get("classifier", ""), names.get("classifier", ""))
+    acc = []
+    if oracle_accuracy is not None and not math.isnan(oracle_accuracy):
+        acc.append(f"set to {oracle_accuracy:.0%} accuracy")
+    if view_accuracy is not None and not math.isnan(view_accuracy):
+        acc.append(f"{view_accuracy:.0%} of views right")
+    parts = [clf + (f" ({', '.join(acc)})" if acc else "")]
+    if aggregator and names.get("aggregator"):
+        parts.append(AGGREGATOR_WORDS.get(names["aggregator"], names["aggregator"]))
+    if post and names.get("postprocess") is not None:
+        parts.append("no post-processing" if names["postprocess"] in ("none", "") else
+                     ("post-processed" if names["postprocess"] == "default" else f"post-processing {names['postprocess']}"))
+    return ", ".join(parts).replace("%", " %").replace("  %", " %")
+
+
+def house_title(names: Mapping[str, str], house_id: str) -> str:
+    """``<dataset in words> house <id>``."""
+    env = names.get("env", "")
+    return f"{DATASET_WORDS.get(env, env)} house {house_id}"
+
+
+def view_accuracy(row: Mapping) -> float | None:
+    """The share of a house's views whose class is right: against the room each view sees
+    (``view_accuracy_seen``) where the row has it, else against the room it stands in."""
+    for k in ("view_accuracy_seen", "view_accuracy"):
+        v = _float(row.get(k))
+        if v is not None:
+            return v
+    return None
+
+
+def _float(v) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(f) else f
 
 
 def figure_size(map_shape: tuple[int, int], n_panels: int = 3) -> tuple[float, float]:
@@ -60,17 +124,20 @@ def _panels(scene: Scene, n: int = 3):
     axes = [fig.add_subplot(gs[0, i]) for i in range(n)]
     leg = fig.add_subplot(gs[0, n])
     leg.axis("off")
-    add_legend(leg, scene.classes, loc="center left", bbox_to_anchor=(0.0, 0.5))
+    add_legend(leg, scene.classes, loc="center left", bbox_to_anchor=(0.0, 0.5),
+               extra=[("border between rooms", (25, 25, 25))])
     return fig, axes
 
 
-def _save_fixed(fig, path: str | Path, title: str) -> None:
-    """Title, then save at :data:`DPI` without cropping (the PNG is exactly figure_size * DPI)."""
-    fig.suptitle(title, fontsize=9, y=1 - 0.12 / fig.get_figheight())
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+def _save_fixed(fig, path: str | Path, title: str, formats: Sequence[str] | None = None) -> list[Path]:
+    """Title (wrapped to the figure width), then save at :data:`DPI` without cropping (the PNG
+    is exactly figure_size * DPI)."""
+    import textwrap
+
+    chars = max(int(fig.get_figwidth() * 72 / 5.2), 30)  # 9 pt text: about 5.2 pt per character
+    fig.suptitle("\n".join(textwrap.wrap(title, chars)[:2]), fontsize=9, y=1 - 0.06 / fig.get_figheight(),
+                 va="top")
+    return save(fig, path, formats, tight=False)
 
 
 def _check_map(name: str, labels: np.ndarray, scene: Scene) -> np.ndarray:
@@ -81,25 +148,36 @@ def _check_map(name: str, labels: np.ndarray, scene: Scene) -> np.ndarray:
     return labels.astype(np.int32)
 
 
-def figure_postprocess(scene: Scene, raw: np.ndarray, post: np.ndarray, path: str | Path, title: str = "") -> None:
+def figure_postprocess(scene: Scene, raw: np.ndarray, post: np.ndarray, path: str | Path, title: str = "",
+                       formats: Sequence[str] | None = None) -> list[Path]:
     """Fig. 3: ground truth | raw prediction | post-processed. ``raw`` and ``post`` are (H, W)
-    label maps on ``scene.grid``; writes a PNG of ``figure_size(scene.grid.shape) * DPI`` px."""
+    label maps on ``scene.grid``; the ground truth shows borders between room instances.
+
+    Returns:
+        the files written: ``path`` (or ``path`` with each of ``formats``), the PNG
+        ``figure_size(scene.grid.shape) * DPI`` pixels.
+    """
     raw, post = _check_map("raw", raw, scene), _check_map("post-processed", post, scene)
     fig, axes = _panels(scene)
     res, walk, cls = scene.grid.resolution, scene.grid.walkable, scene.classes
-    show_map(axes[0], scene.semantic, cls, walk, res, "ground truth")
+    show_map(axes[0], scene.semantic, cls, walk, res, "ground truth", segments=scene.instances)
     show_map(axes[1], raw, cls, walk, res, "raw prediction")
     show_map(axes[2], post, cls, walk, res, "post-processed")
-    _save_fixed(fig, path, title or scene.house_id)
+    return _save_fixed(fig, path, title or scene.house_id, formats)
 
 
 def figure_aggregators(scene: Scene, poses: np.ndarray, knn: np.ndarray, cone: np.ndarray, path: str | Path,
-                       proba: np.ndarray | None = None, max_poses: int = 60, title: str = "") -> None:
+                       proba: np.ndarray | None = None, max_poses: int = 60, title: str = "",
+                       formats: Sequence[str] | None = None) -> list[Path]:
     """Fig. 4: ground truth with sample viewpoints | graph KNN | vision cone.
 
     ``poses`` (N, 3) [x, z, yaw_deg]; up to ``max_poses`` of them, evenly spread, are drawn
     with heading arrows, coloured by their predicted class when ``proba`` (N, C) is given.
-    ``knn`` and ``cone`` are (H, W) label maps on ``scene.grid``."""
+    ``knn`` and ``cone`` are (H, W) label maps on ``scene.grid``.
+
+    Returns:
+        the files written.
+    """
     from envs.world.classes import class_colors
 
     knn, cone = _check_map("graph KNN", knn, scene), _check_map("vision cone", cone, scene)
@@ -108,9 +186,11 @@ def figure_aggregators(scene: Scene, poses: np.ndarray, knn: np.ndarray, cone: n
         raise ValueError(f"proba has {len(proba)} rows, expected one per pose ({len(poses)})")
     fig, axes = _panels(scene)
     res, walk, cls = scene.grid.resolution, scene.grid.walkable, scene.classes
-    show_map(axes[0], scene.semantic, cls, walk, res, f"ground truth + viewpoints ({len(poses)} views)")
+    n_drawn = min(max_poses, len(poses))
+    show_map(axes[0], scene.semantic, cls, walk, res, f"ground truth, {n_drawn} of {len(poses)} views",
+             segments=scene.instances)
     if len(poses):
-        pick = np.unique(np.linspace(0, len(poses) - 1, min(max_poses, len(poses))).astype(int))
+        pick = np.unique(np.linspace(0, len(poses) - 1, n_drawn).astype(int))
         r, c = scene.grid.world_to_pixel(poses[pick, 0], poses[pick, 1])
         colors = None
         if proba is not None:
@@ -118,42 +198,85 @@ def figure_aggregators(scene: Scene, poses: np.ndarray, knn: np.ndarray, cone: n
         draw_poses(axes[0], r - 0.5, c - 0.5, poses[pick, 2], colors=colors, size=14)
     show_map(axes[1], knn, cls, walk, res, "graph KNN")
     show_map(axes[2], cone, cls, walk, res, "vision cone")
-    _save_fixed(fig, path, title or scene.house_id)
+    return _save_fixed(fig, path, title or scene.house_id, formats)
 
 
 def figure_autotrace(scene: Scene, paths: Sequence[np.ndarray], poses: np.ndarray, path: str | Path,
-                     labels: np.ndarray | None = None) -> None:
-    """Fig. 2: the autotrace path and its viewpoints, coloured by a per-point label if given."""
+                     labels: np.ndarray | None = None, title: str = "",
+                     formats: Sequence[str] | None = None) -> list[Path]:
+    """Fig. 2: the autotrace path (``paths``: (M, 2) row/col contours) and its viewpoints
+    (``poses`` (N, 3)), coloured by a per-point class index ``labels`` (N,) if given.
+
+    Returns:
+        the files written.
+    """
     from envs.world.classes import class_colors
 
-    fig, ax = plt.subplots(figsize=(7, 6))
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
     ax.imshow(scene.grid.walkable, cmap="gray", interpolation="nearest")
     for cnt in paths:
         closed = np.vstack([cnt, cnt[:1]])
-        ax.plot(closed[:, 1], closed[:, 0], color="tab:blue", lw=0.8)
+        ax.plot(closed[:, 1], closed[:, 0], color="#0072B2", lw=0.8)
     r, c = scene.grid.world_to_pixel(poses[:, 0], poses[:, 1])
     colors = None if labels is None else np.array(class_colors(scene.classes))[labels] / 255
     draw_poses(ax, r - 0.5, c - 0.5, poses[:, 2], colors=colors, size=10, arrow_px=5)
     ax.set_xticks([])
     ax.set_yticks([])
-    ax.set_title(f"{scene.house_id}: autotrace path, {len(poses)} poses", fontsize=10)
-    from benchmark.reports.plotting import add_scale_bar
+    import textwrap
 
-    add_scale_bar(ax, scene.grid.resolution, color="tab:red")
+    ax.set_title("\n".join(textwrap.wrap(title or f"{scene.house_id}: autotrace path, {len(poses)} viewpoints", 80)),
+                 fontsize=9)
+    add_scale_bar(ax, scene.grid.resolution, color="white")
     if labels is not None:
         add_legend(ax, scene.classes, unlabelled=False)
-    save(fig, path)
+    return save(fig, path, formats)
+
+
+def place_labels(anchors: np.ndarray, size: tuple[float, float], bounds: tuple[float, float, float, float]
+                 ) -> np.ndarray:
+    """Non-overlapping positions for boxes of ``size`` (w, h) near ``anchors`` (N, 2) x, y.
+
+    Greedy: each box in turn takes the first of a spiral of offsets around its anchor that
+    overlaps no box placed before and stays inside ``bounds`` (x0, y0, x1, y1); when none
+    does, the free candidate nearest the anchor in a wider search. Returns (N, 2) centres.
+    """
+    w, h = size
+    x0, y0, x1, y1 = bounds
+    offsets = [(0.0, 0.0)]
+    for ring in range(1, 40):
+        for k in range(8 * ring):
+            a = 2 * np.pi * k / (8 * ring)
+            offsets.append((ring * w * 0.6 * np.cos(a), ring * h * 0.9 * np.sin(a)))
+    placed: list[tuple[float, float]] = []
+    for ax_, ay in np.asarray(anchors, float).reshape(-1, 2):
+        best = None
+        for dx, dy in offsets:
+            cx = float(np.clip(ax_ + dx, x0 + w / 2, x1 - w / 2))
+            cy = float(np.clip(ay + dy, y0 + h / 2, y1 - h / 2))
+            if all(abs(cx - px) >= w or abs(cy - py) >= h for px, py in placed):
+                best = (cx, cy)
+                break
+        placed.append(best if best is not None else (float(ax_), float(ay)))
+    return np.array(placed).reshape(-1, 2)
 
 
 def figure_view(scene: Scene, pose, path: str | Path, fov: float = 90.0, max_range: float = 6.0,
-                occluder_height: float = 1.2) -> None:
-    """One view: the floor cells its camera sees, and the objects it sees with their share of rays."""
+                occluder_height: float = 1.2, formats: Sequence[str] | None = None) -> list[Path]:
+    """One view: the floor cells its camera sees (lightened), the objects it sees outlined and
+    numbered on the map (numbers placed so that none overlaps another), and beside the map
+    the list ``number. object type: share of rays``.
+
+    ``pose`` (x, z, yaw_deg). Returns the files written.
+    """
     from envs.render.floorplan import occluders, view_from
 
     v = view_from(scene, occluders(scene, occluder_height), pose, fov, max_range / scene.grid.resolution)
-    fig, ax = plt.subplots(figsize=(8, 6.5))
+    fig = plt.figure(figsize=(9.0, 5.6))
+    gs = fig.add_gridspec(1, 2, width_ratios=[3.2, 1.3], wspace=0.03, left=0.01, right=0.99, top=0.92, bottom=0.02)
+    ax, side = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[0, 1])
     show_map(ax, scene.semantic, scene.classes, scene.grid.walkable, scene.grid.resolution,
-             f"{scene.house_id}: one view ({fov:g} deg, {max_range:g} m)")
+             f"{scene.house_id}: what one camera sees ({fov:g}° field of view, up to {max_range:g} m)",
+             segments=scene.instances)
     seen = np.zeros(scene.grid.shape, bool)
     seen[v.rows, v.cols] = True
     overlay = np.zeros((*scene.grid.shape, 4))
@@ -161,15 +284,33 @@ def figure_view(scene: Scene, pose, path: str | Path, fov: float = 90.0, max_ran
     ax.imshow(overlay, interpolation="nearest")
     r, c = scene.grid.world_to_pixel(pose[0], pose[1])
     draw_poses(ax, np.array([r - 0.5]), np.array([c - 0.5]), np.array([pose[2]]), size=40, arrow_px=12)
-    for k, n in sorted(v.object_rays.items(), key=lambda t: -t[1]):
+    items = sorted(v.object_rays.items(), key=lambda t: -t[1])
+    h_px, w_px = scene.grid.shape
+    centres = []
+    for k, _ in items:
         o = scene.objects[k]
-        cr, cc = scene.grid.world_to_pixel(*o.center)
         corners = np.array([scene.grid.world_to_pixel(x, z) for x, z in o.corners()])
-        ax.fill(corners[:, 1] - 0.5, corners[:, 0] - 0.5, facecolor="none", edgecolor="k", lw=1.2)
-        ax.text(cc, cr, f"{o.object_type}\n{n / max(v.n_rays, 1):.0%}", fontsize=7, ha="center", va="center",
-                bbox=dict(facecolor="white", alpha=0.8, pad=1, lw=0))
-    add_legend(ax, scene.classes)
-    save(fig, path)
+        ax.fill(corners[:, 1] - 0.5, corners[:, 0] - 0.5, facecolor="none", edgecolor="k", lw=1.0)
+        cr, cc = scene.grid.world_to_pixel(*o.center)
+        centres.append((cc, cr))
+    box = (0.045 * max(h_px, w_px), 0.04 * max(h_px, w_px))  # label box in map pixels (w, h)
+    spots = place_labels(np.array(centres, float).reshape(-1, 2), box, (0, 0, w_px, h_px))
+    for i, ((cx, cy), (sx, sy)) in enumerate(zip(centres, spots), start=1):
+        if abs(sx - cx) + abs(sy - cy) > 1:
+            ax.plot([cx, sx], [cy, sy], color="k", lw=0.5)
+        ax.text(sx, sy, str(i), fontsize=6, ha="center", va="center",
+                bbox=dict(boxstyle="circle,pad=0.15", facecolor="white", edgecolor="k", lw=0.5))
+    ax.set_xlim(-0.5, w_px - 0.5)
+    ax.set_ylim(h_px - 0.5, -0.5)
+    side.axis("off")
+    lines = [f"{i:>2}. {scene.objects[k].object_type}: {n / max(v.n_rays, 1):.0%}"
+             for i, (k, n) in enumerate(items, start=1)]
+    side.text(0.0, 1.0, "objects seen (share of rays)\n" + "\n".join(lines[:40]) +
+              (f"\n... and {len(lines) - 40} more" if len(lines) > 40 else ""),
+              va="top", ha="left", fontsize=7, family="monospace", transform=side.transAxes)
+    add_legend(side, scene.classes, loc="lower left", bbox_to_anchor=(0.0, 0.0),
+               extra=[("seen by the camera", (245, 245, 245))])
+    return save(fig, path, formats)
 
 
 def merge_overrides(defaults: dict[str, str], overrides: Sequence[str]) -> list[str]:
@@ -196,12 +337,14 @@ def compose_config(overrides: Sequence[str]):
     return cfg, choices
 
 
-def house_maps(overrides: Sequence[str], house_index: int) -> tuple[Scene, dict[str, np.ndarray], dict[str, str]]:
+def house_maps(overrides: Sequence[str], house_index: int
+               ) -> tuple[Scene, dict[str, np.ndarray], dict[str, str], dict]:
     """Run house number ``house_index`` of the configured env through the cached pipeline.
 
-    Returns (scene, maps, names): ``maps`` holds the cached ``raw`` and ``post`` (H, W) label
-    maps, ``poses`` (N, 3) and ``proba`` (N, C); ``names`` the stage names. Cached stages are
-    reused; missing ones are computed and cached (``run.cache_dir``)."""
+    Returns (scene, maps, names, row): ``maps`` holds the cached ``raw`` and ``post`` (H, W)
+    label maps, ``poses`` (N, 3) and ``proba`` (N, C); ``names`` the stage names; ``row`` the
+    house's metrics row. Cached stages are reused; missing ones are computed and cached
+    (``run.cache_dir``)."""
     from benchmark.harness.cache import load_npz
     from benchmark.harness.runner import build_pipeline
 
@@ -224,53 +367,60 @@ def house_maps(overrides: Sequence[str], house_index: int) -> tuple[Scene, dict[
         raise RuntimeError(f"house {hid!r} failed in the pipeline: {row.get('error')}")
     maps = load_npz(pipe.maps_path(hid))
     maps["raw"], maps["post"] = maps["raw"].astype(np.int32), maps["post"].astype(np.int32)
-    return pipe.env.scene(hid), maps, dict(pipe.names)
+    return pipe.env.scene(hid), maps, dict(pipe.names), row
 
 
-def _describe(names: dict[str, str], cfg_acc: float | None = None) -> str:
-    clf = names["classifier"] + (f" at {cfg_acc:.0%} accuracy" if cfg_acc is not None else "")
-    return f"{names['env']}, {names['viewpoints']}, {names['renderer']}, {clf}"
+def fig3(house_index: int, out: str | Path, overrides: Sequence[str] = (),
+         formats: Sequence[str] | None = None) -> list[Path]:
+    """Fig. 3 for one house and configuration (defaults :data:`FIG3_DEFAULTS`).
 
-
-def fig3(house_index: int, out: str | Path, overrides: Sequence[str] = ()) -> Path:
-    """Fig. 3 for one house and configuration (defaults :data:`FIG3_DEFAULTS`) -> ``out`` PNG."""
+    Returns:
+        the files written (``out``, or ``out`` with each of ``formats``)."""
     ov = merge_overrides(FIG3_DEFAULTS, overrides)
     cfg, _ = compose_config(ov)
     if cfg.get("postprocess") is None or str(cfg.postprocess.get("_target_", "")).endswith("NoPostProcess"):
         raise ValueError("fig3 compares raw and post-processed maps: it needs a post-processing config "
                          "(postprocess=default), not postprocess=none")
-    scene, maps, names = house_maps(ov, house_index)
-    acc = cfg.classifier.get("accuracy")
-    title = (f"{scene.house_id}: {_describe(names, acc)}, {names['aggregator']}, "
-             f"post-processing {names['postprocess']}")
-    figure_postprocess(scene, maps["raw"], maps["post"], out, title)
-    return Path(out)
+    scene, maps, names, row = house_maps(ov, house_index)
+    title = (f"{house_title(names, scene.house_id)}: "
+             f"{describe(names, _float(cfg.classifier.get('accuracy')), view_accuracy(row), post=False)}")
+    return figure_postprocess(scene, maps["raw"], maps["post"], out, title, formats)
 
 
-def fig4(house_index: int, out: str | Path, overrides: Sequence[str] = (), max_poses: int = 60) -> Path:
+def fig4(house_index: int, out: str | Path, overrides: Sequence[str] = (), max_poses: int = 60,
+         formats: Sequence[str] | None = None) -> list[Path]:
     """Fig. 4 for one house and configuration (defaults :data:`FIG4_DEFAULTS`): the same views
-    aggregated by ``aggregator=graph_knn`` and ``aggregator=vision_cone`` -> ``out`` PNG."""
+    aggregated by ``aggregator=graph_knn`` and ``aggregator=vision_cone``.
+
+    Returns:
+        the files written."""
     if any(o.lstrip("+~").split("=", 1)[0] == "aggregator" for o in overrides):
         raise ValueError("fig4 draws both graph_knn and vision_cone; do not override aggregator=")
     ov = merge_overrides(FIG4_DEFAULTS, overrides)
     cfg, _ = compose_config(ov)
-    scene, knn, names = house_maps([*ov, "aggregator=graph_knn"], house_index)
-    _, cone, _ = house_maps([*ov, "aggregator=vision_cone"], house_index)
+    scene, knn, names, row = house_maps([*ov, "aggregator=graph_knn"], house_index)
+    _, cone, _, _ = house_maps([*ov, "aggregator=vision_cone"], house_index)
     which = "post" if names["postprocess"] != "none" else "raw"
-    title = (f"{scene.house_id}: {_describe(names, cfg.classifier.get('accuracy'))}, "
-             f"post-processing {names['postprocess']}; viewpoints coloured by predicted class")
-    figure_aggregators(scene, knn["poses"], knn[which], cone[which], out, knn["proba"], max_poses, title)
-    return Path(out)
+    title = (f"{house_title(names, scene.house_id)}: "
+             f"{describe(names, _float(cfg.classifier.get('accuracy')), view_accuracy(row), aggregator=False)}"
+             f"; viewpoints coloured by predicted class")
+    return figure_aggregators(scene, knn["poses"], knn[which], cone[which], out, knn["proba"], max_poses, title,
+                              formats)
 
 
-def house_figures(house_index: int, out: Path, overrides: Sequence[str] = ()) -> list[Path]:
+def house_figures(house_index: int, out: Path, overrides: Sequence[str] = (),
+                  formats: Sequence[str] | None = None) -> list[Path]:
     """Fig. 2 (autotrace), Fig. 3, Fig. 4 and one view's cone for one house into folder ``out``:
-    ``fig2_autotrace.png``, ``fig3.png``, ``fig4.png``, ``view_cone.png``."""
+    ``fig2_autotrace``, ``fig3``, ``fig4``, ``view_cone`` (.png, or each of ``formats``).
+
+    Returns:
+        the files written."""
     from hydra.utils import instantiate
 
     out = Path(out)
-    paths = [fig3(house_index, out / "fig3.png", overrides), fig4(house_index, out / "fig4.png", overrides)]
-    cfg, _ = compose_config(merge_overrides(FIG4_DEFAULTS, overrides))
+    paths = [*fig3(house_index, out / "fig3.png", overrides, formats),
+             *fig4(house_index, out / "fig4.png", overrides, formats=formats)]
+    cfg, choices = compose_config(merge_overrides(FIG4_DEFAULTS, overrides))
     env = instantiate(cfg.env)
     hid = env.house_ids()[house_index]
     scene, house = env.scene(hid), env.house(hid)
@@ -280,37 +430,49 @@ def house_figures(house_index: int, out: Path, overrides: Sequence[str] = ()) ->
         clf = instantiate(cfg.classifier)
         if hasattr(clf, "setup"):
             clf.setup([hid])
+        if hasattr(clf, "set_scene"):
+            clf.set_scene(scene)
         obs = instantiate(cfg.renderer).render(house, scene, poses[::3])
         proba = clf.predict_proba(obs)
-        figure_autotrace(scene, at.path(scene.grid), poses[::3], out / "fig2_autotrace.png",
-                         np.argmax(proba, axis=1))
-        paths.insert(0, out / "fig2_autotrace.png")
+        names = {"env": choices.get("env", ""), "classifier": choices.get("classifier", "")}
+        title = (f"{house_title(names, hid)}: autotrace path and every third of its {len(poses)} viewpoints, "
+                 f"coloured by the {describe(names, _float(cfg.classifier.get('accuracy')), aggregator=False, post=False)}")
+        paths[:0] = figure_autotrace(scene, at.path(scene.grid), poses[::3], out / "fig2_autotrace.png",
+                                     np.argmax(proba, axis=1), title, formats)
         n_seen = [len(o.objects) for o in obs]
-        figure_view(scene, poses[::3][int(np.argmax(n_seen))], out / "view_cone.png")
-        paths.append(out / "view_cone.png")
+        paths += figure_view(scene, poses[::3][int(np.argmax(n_seen))], out / "view_cone.png", formats=formats)
     return paths
 
 
-def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
-    """Fig. 3 and Fig. 4 for one house from a sweep's cached maps (the first house if none given)."""
+def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None,
+             formats: Sequence[str] | None = None) -> list[Path]:
+    """Fig. 3 (every configuration with post-processing) and Fig. 4 (every classifier x
+    post-processing with both graph KNN and vision cone) from a finished sweep's saved maps.
+
+    ``houses``: house ids to draw (per dataset, those the dataset has); default the first
+    house every job of a dataset scored. Maps are read through the run store
+    (:meth:`benchmark.harness.store.Job.maps_path`).
+
+    Returns:
+        the files written.
+
+    Raises:
+        ValueError: a requested house that no job of the run scored.
+    """
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
 
     from benchmark.harness.cache import load_npz
     from benchmark.harness.store import find_jobs, safe_name
 
+    if isinstance(houses, str):
+        houses = [houses]
     jobs = []
     for job in find_jobs([run_dir]):
-        jobs.append((job.config(), job.summary(), pd.read_csv(job.metrics_path), job))
-    written = []
+        df = pd.read_csv(job.metrics_path)
+        df["house_id"] = df["house_id"].astype(str)
+        jobs.append((job, job.config(), job.summary(), df))
     scenes: dict[tuple, Scene] = {}
-
-    def maps_for(job, hid):
-        try:
-            p = job.maps_path(hid)  # the run store knows the entry (key, house content)
-        except KeyError:
-            return None
-        return load_npz(p) if p.exists() else None
 
     def scene_for(cfg, hid):
         key = (OmegaConf.to_yaml(cfg.env), hid)
@@ -318,34 +480,58 @@ def from_run(run_dir: Path, out: Path, house: str | None = None) -> list[Path]:
             scenes[key] = instantiate(cfg.env).scene(hid)
         return scenes[key]
 
-    # one house per dataset: the first house every job of that dataset scored
     ok_by_env: dict[str, list[set]] = {}
-    for _, summary, df, _ in jobs:
+    for _, _, summary, df in jobs:
+        if summary["names"].get("segmenter"):
+            continue
         ok_by_env.setdefault(summary["names"]["env"], []).append(set(df.loc[df["status"] == "ok", "house_id"]))
-    picks = {env: house or (sorted(set.intersection(*ids)) or [None])[0] for env, ids in ok_by_env.items()}
+    if houses:
+        scored = set().union(*(s for sets in ok_by_env.values() for s in sets)) if ok_by_env else set()
+        missing = [h for h in houses if h not in scored]
+        if missing:
+            raise ValueError(f"--house {missing[0]!r}: no job of {run_dir} scored it; scored houses are e.g. "
+                             f"{sorted(scored)[:3]}")
+        picks = {env: [h for h in houses if any(h in s for s in sets)] for env, sets in ok_by_env.items()}
+    else:
+        picks = {env: (sorted(set.intersection(*ids)) or [])[:1] for env, ids in ok_by_env.items()}
+    written: list[Path] = []
     groups: dict[tuple, dict[str, tuple]] = {}
-    for cfg, summary, _, job in jobs:
+    for job, cfg, summary, df in jobs:
         names = summary["names"]
-        pick = picks.get(names["env"])
-        if names.get("segmenter") or pick is None:
+        if names.get("segmenter"):
             continue
-        m = maps_for(job, pick)
-        if m is None:
-            continue
-        label = "_".join(names[k] for k in ("env", "classifier", "aggregator", "postprocess"))
-        if names["postprocess"] != "none":
-            path = out / f"fig3_{safe_name(pick)}_{label}.png"
-            figure_postprocess(scene_for(cfg, pick), m["raw"], m["post"], path, f"{pick}: {label}")
-            written.append(path)
-        key = (names["env"], names["classifier"], names["postprocess"])
-        groups.setdefault(key, {})[names["aggregator"]] = (cfg, m)
-    for (env, clf, post), by_agg in groups.items():
-        pick = picks[env]
+        for hid in picks.get(names["env"], []):
+            row = df[df["house_id"] == hid]
+            if row.empty or row["status"].iloc[0] != "ok":
+                continue
+            try:
+                p = job.maps_path(hid)
+            except KeyError:
+                continue
+            if not p.exists():
+                continue
+            m = load_npz(p)
+            row = row.iloc[0].to_dict()
+            acc = _float(row.get("oracle_accuracy"))
+            slug = "_".join(names[k] for k in ("env", "classifier", "aggregator", "postprocess"))
+            if acc is not None:
+                slug = slug.replace(f"_{names['classifier']}_", f"_{names['classifier']}{acc:g}_", 1)
+            if names["postprocess"] != "none":
+                title = f"{house_title(names, hid)}: {describe(names, acc, view_accuracy(row), post=False)}"
+                written += figure_postprocess(scene_for(cfg, hid), m["raw"], m["post"],
+                                              out / f"fig3_{safe_name(hid)}_{slug}.png", title, formats)
+            key = (names["env"], names["classifier"], acc, names["postprocess"], hid)
+            groups.setdefault(key, {})[names["aggregator"]] = (cfg, m, row, names)
+    for (env, clf, acc, post, hid), by_agg in groups.items():
         if "graph_knn" in by_agg and "vision_cone" in by_agg:
-            cfg, mk = by_agg["graph_knn"]
-            _, mc = by_agg["vision_cone"]
-            path = out / f"fig4_{safe_name(pick)}_{env}_{clf}_{post}.png"
-            figure_aggregators(scene_for(cfg, pick), mk["poses"], mk["post"], mc["post"], path, mk["proba"],
-                               title=f"{pick}: {env}, {clf}, post-processing {post}")
-            written.append(path)
+            cfg, mk, row, names = by_agg["graph_knn"]
+            _, mc, _, _ = by_agg["vision_cone"]
+            title = (f"{house_title(names, hid)}: "
+                     f"{describe(names, acc, view_accuracy(row), aggregator=False)}; "
+                     f"viewpoints coloured by predicted class")
+            which = "post" if post != "none" else "raw"
+            clf_slug = clf + (f"{acc:g}" if acc is not None else "")
+            written += figure_aggregators(scene_for(cfg, hid), mk["poses"], mk[which], mc[which],
+                                          out / f"fig4_{safe_name(hid)}_{env}_{clf_slug}_{post}.png", mk["proba"],
+                                          title=title, formats=formats)
     return written

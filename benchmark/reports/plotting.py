@@ -1,4 +1,11 @@
-"""Shared figure helpers: class colours, legend, scale bar, map display (matplotlib)."""
+"""Shared figure helpers: class colours, legend, scale bar, segment borders, map display,
+saving in several formats (matplotlib).
+
+Colours come from one place, :data:`envs.world.classes.CLASS_COLORS` (Okabe-Ito, colour-blind
+safe); every legend names the grey of unlabelled walkable pixels the same way
+(:data:`UNLABELLED_LABEL`). Borders are drawn between touching segments, so two rooms of the
+same class that touch show as two rooms.
+"""
 
 from __future__ import annotations
 
@@ -15,6 +22,58 @@ from matplotlib.patches import Patch, Rectangle  # noqa: E402
 from envs.maps.label_png import label_colors_rgb  # noqa: E402
 from envs.world.classes import UNLABELLED_COLOR, class_colors  # noqa: E402
 
+#: legend words for the grey of unlabelled walkable pixels (every figure).
+UNLABELLED_LABEL = "unlabelled (walkable)"
+#: colour (RGB 0-255) of the lines between touching segments.
+BORDER_COLOR: tuple[int, int, int] = (25, 25, 25)
+#: dots per inch of every PNG (vector formats ignore it).
+PNG_DPI = 200
+#: the formats ``save`` knows.
+FORMATS = ("png", "pdf", "svg")
+
+
+def parse_formats(text: str | Sequence[str] | None) -> tuple[str, ...]:
+    """``"png,pdf"`` (or a list) -> ("png", "pdf"); an unknown format is one-line error."""
+    if text is None:
+        return ("png",)
+    items = [t.strip().lower().lstrip(".") for t in (text.split(",") if isinstance(text, str) else text)]
+    items = [t for t in items if t]
+    bad = [t for t in items if t not in FORMATS]
+    if bad or not items:
+        raise ValueError(f"--format {text!r}: expected a comma-separated list of {', '.join(FORMATS)}")
+    return tuple(dict.fromkeys(items))
+
+
+def segment_borders(segments: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels on a border between two different segments.
+
+    ``segments`` (H, W) int, one id per segment, negative outside any (walls, background:
+    no border is drawn against them). A pixel is a border pixel when its right or lower
+    neighbour belongs to another segment, so a border is one pixel wide.
+    """
+    s = np.asarray(segments)
+    out = np.zeros(s.shape, bool)
+    right = (s[:, :-1] != s[:, 1:]) & (s[:, :-1] >= 0) & (s[:, 1:] >= 0)
+    down = (s[:-1, :] != s[1:, :]) & (s[:-1, :] >= 0) & (s[1:, :] >= 0)
+    out[:, :-1] |= right
+    out[:-1, :] |= down
+    return out
+
+
+def label_segments(labels: np.ndarray) -> np.ndarray:
+    """(H, W) int segment ids of a label map: connected regions (4-connected) of one label;
+    -1 where the label is negative."""
+    from scipy import ndimage
+
+    labels = np.asarray(labels)
+    out = np.full(labels.shape, -1, np.int64)
+    nxt = 0
+    for k in np.unique(labels[labels >= 0]):
+        comp, n = ndimage.label(labels == k)
+        out[comp > 0] = comp[comp > 0] - 1 + nxt
+        nxt += n
+    return out
+
 
 def colorize(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None = None) -> np.ndarray:
     """(H, W) label map -> (H, W, 3) uint8 RGB in the fixed class colours (-1: grey on
@@ -22,13 +81,14 @@ def colorize(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | 
     return label_colors_rgb(labels, classes, walkable)
 
 
-def add_legend(ax, classes: Sequence[str], unlabelled: bool = True, unlabelled_label: str = "unlabelled",
-               **kw) -> None:
+def add_legend(ax, classes: Sequence[str], unlabelled: bool = True, unlabelled_label: str = UNLABELLED_LABEL,
+               extra: Sequence[tuple[str, tuple[int, int, int]]] = (), **kw) -> None:
     """Class colour legend on ``ax`` (outside the axes, right); ``unlabelled_label`` names the
-    grey of -1 pixels on walkable ground."""
+    grey of -1 pixels on walkable ground; ``extra`` adds (label, RGB) entries."""
     handles = [Patch(color=np.array(c) / 255, label=n.replace("_", " ")) for c, n in zip(class_colors(classes), classes)]
     if unlabelled:
         handles.append(Patch(color=np.array(UNLABELLED_COLOR) / 255, label=unlabelled_label))
+    handles += [Patch(color=np.array(c) / 255, label=t) for t, c in extra]
     opts = dict(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     opts.update(kw)
     ax.legend(handles=handles, **opts)
@@ -57,13 +117,24 @@ def add_scale_bar(ax, resolution: float, length_m: float | None = None, color: s
 
 
 def show_map(ax, labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None = None,
-             resolution: float | None = None, title: str | None = None) -> None:
-    """Draw a label map in class colours (with a scale bar when ``resolution`` is given)."""
-    ax.imshow(colorize(labels, classes, walkable), interpolation="nearest")
+             resolution: float | None = None, title: str | None = None, segments: np.ndarray | None = None,
+             borders: bool = True) -> None:
+    """Draw a label map in class colours, with borders between touching segments and a scale
+    bar when ``resolution`` (m/px) is given.
+
+    ``labels`` (H, W) class index or -1; ``segments`` (H, W) segment ids (e.g. room
+    instances of the ground truth); by default the connected regions of one label.
+    """
+    rgb = colorize(labels, classes, walkable)
+    if borders:
+        seg = label_segments(labels) if segments is None else np.asarray(segments)
+        rgb = rgb.copy()
+        rgb[segment_borders(seg)] = BORDER_COLOR
+    ax.imshow(rgb, interpolation="nearest")
     ax.set_xticks([])
     ax.set_yticks([])
     if title:
-        ax.set_title(title, fontsize=10)
+        ax.set_title(title, fontsize=9)
     if resolution:
         add_scale_bar(ax, resolution)
 
@@ -79,11 +150,27 @@ def draw_poses(ax, rows: np.ndarray, cols: np.ndarray, yaw_deg: np.ndarray | Non
                   scale=1, width=0.002, color="k", zorder=3)
 
 
-def save(fig, path) -> None:
-    """Save and close a figure (creates the folder)."""
+def output_paths(path, formats: Sequence[str] | None = None) -> list:
+    """The files a figure is saved to: ``path`` with each of ``formats`` as suffix (``path``
+    itself when ``formats`` is None)."""
     from pathlib import Path
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130, bbox_inches="tight")
+    if not formats:
+        return [path]
+    return [path.with_suffix("." + f) for f in parse_formats(formats)]
+
+
+def save(fig, path, formats: Sequence[str] | None = None, tight: bool = True) -> list:
+    """Save ``fig`` to ``path`` (in each of ``formats``: png at :data:`PNG_DPI`, pdf, svg;
+    the folder is created) and close it. ``tight`` crops to the drawn content.
+
+    Returns:
+        list of the paths written.
+    """
+    paths = output_paths(path, formats)
+    for p in paths:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(p, dpi=PNG_DPI, **({"bbox_inches": "tight"} if tight else {}))
     plt.close(fig)
+    return paths
