@@ -135,11 +135,15 @@ def _compose(tmp_path: Path, folder: Path, *overrides: str):
 
 
 def test_runner_scores_distance_segmenter_on_a_map_folder(tmp_path):
-    folder = make_folder(tmp_path / "maps")
-    cfg, ch = _compose(tmp_path, folder, "segmenter=distance")
+    folder = make_folder(tmp_path / "maps", ["office_a", "office_b", "office_c"])
+    (folder / "office_c_gt.png").unlink()  # a map without ground truth fails alone
+    cfg, ch = _compose(tmp_path, folder, "segmenter=distance", "run.allow_failures=true")
     df = run(cfg, tmp_path / "out", ch)
-    assert len(df) == 2 and (df["status"] == "ok").all(), df[["house_id", "status", "error"]]
-    assert sorted(df["house_id"]) == ["office_a", "office_b"]
+    assert sorted(df["house_id"]) == ["office_a", "office_b", "office_c"]
+    bad = df[df["house_id"] == "office_c"].iloc[0]
+    assert bad["status"] == "failed" and "office_c_gt.png" in bad["error"], bad["error"]
+    df = df[df["house_id"] != "office_c"]
+    assert (df["status"] == "ok").all(), df[["house_id", "status", "error"]]
     # three 3 x 3 m rooms joined by 0.8 m doors: the distance transform finds them
     assert (df["iou"] > 0.9).all() and (df["n_gt_segments"] == 3).all() and (df["n_pred_segments"] == 3).all()
 
