@@ -32,7 +32,12 @@ PROG = "roomseg-bench"
 def app(cfg: DictConfig) -> float:
     """One job: run the configuration, record its failed houses. Returns its mean IoU."""
     out_dir = Path(HydraConfig.get().runtime.output_dir)
-    df = run(cfg, out_dir)
+    sweep.clear_error(out_dir)
+    try:
+        df = run(cfg, out_dir)
+    except (ConfigError, StageError) as e:  # nothing ran: one line, and exit status 2 at the end
+        sweep.record_error(_one_line(e), out_dir)
+        return float("nan")
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
     ok = df[df["status"] == "ok"] if "status" in df else df
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
@@ -61,6 +66,10 @@ def main() -> int:
         print(f"{PROG}: error: cannot write {where} ({e.strerror or e})", file=sys.stderr)
         return 2
     out = sweep.OUTCOME
+    if out["errors"]:
+        for msg in dict.fromkeys(out["errors"]):
+            print(f"{PROG}: error: {msg}", file=sys.stderr)
+        return 2
     if out["n_failed"] and not out["allow_failures"]:
         print(f"{PROG}: {out['n_failed']} house(s) failed in {out['jobs']} job(s) (see the failed rows of "
               f"metrics.csv); run.allow_failures=true exits 0", file=sys.stderr)

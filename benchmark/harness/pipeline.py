@@ -93,16 +93,19 @@ def house_content(env: Environment, house_id: str) -> str:
     ``input_files(house_id) -> list of paths``, those files' fingerprints
     (:func:`benchmark.harness.cache.file_fingerprint`).
 
+    A house that ``env.house`` refuses (malformed) gets the hash of that error instead: its
+    failure is logged under that content, and a repaired house has new content.
+
     Returns:
         A hex string (16 digits for the default rule).
-
-    Raises:
-        Whatever ``env.house`` raises for a malformed house (the house then fails alone).
     """
     own = getattr(env, "content_key", None)
     if callable(own):
         return str(own(house_id))
-    house = env.house(house_id)
+    try:
+        house = env.house(house_id)
+    except Exception as e:  # noqa: BLE001 - the house fails alone when its scene is built
+        return content_hash(["unreadable house", _one_line(e)])
     parts: list[Any] = [getattr(house, "data", house)]
     files = getattr(env, "input_files", None)
     if callable(files):

@@ -26,7 +26,11 @@ from benchmark.harness.store import SWEEP_SUMMARY, Job, find_jobs
 log = logging.getLogger("roomseg-bench")
 
 #: the process's outcome: jobs run, houses failed, failures allowed (``run.allow_failures``).
-OUTCOME: dict[str, Any] = {"jobs": 0, "n_failed": 0, "allow_failures": False}
+OUTCOME: dict[str, Any] = {"jobs": 0, "n_failed": 0, "allow_failures": False, "errors": []}
+
+#: a job that could not run (bad setting, unwritable folder, stage not built) leaves this
+#: one-line file in its Hydra output folder, so that the launching process can report it.
+JOB_ERROR = "job_error.txt"
 
 METRICS = ("iou", "precision", "recall", "accuracy")
 
@@ -36,6 +40,24 @@ def record(n_failed: int, allow_failures: bool) -> None:
     OUTCOME["jobs"] += 1
     OUTCOME["n_failed"] += int(n_failed)
     OUTCOME["allow_failures"] = bool(allow_failures)
+
+
+def record_error(message: str, out_dir: Path) -> None:
+    """A job that could not run: keep its one-line reason in :data:`OUTCOME` and in
+    ``<out_dir>/job_error.txt`` (read by :class:`SweepSummary` in the launching process)."""
+    OUTCOME["errors"].append(message)
+    try:
+        atomic_write_text(Path(out_dir) / JOB_ERROR, message + "\n")
+    except OSError:
+        pass  # the folder itself is unwritable: the message is in OUTCOME (and the job's log)
+
+
+def clear_error(out_dir: Path) -> None:
+    """Remove an earlier job's error note from ``out_dir``."""
+    try:
+        (Path(out_dir) / JOB_ERROR).unlink()
+    except OSError:
+        pass
 
 
 def sweep_table(jobs: Sequence[Job], root: Path) -> pd.DataFrame:
@@ -92,10 +114,13 @@ class SweepSummary(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_summary(sweep_dir, since=self.t0)
+        errors = [p for p in sorted(sweep_dir.rglob(JOB_ERROR)) if self.t0 is None or p.stat().st_mtime >= self.t0]
+        OUTCOME["errors"] = [p.read_text(encoding="utf-8").strip() for p in errors]
         OUTCOME["jobs"] = len(table)
         OUTCOME["n_failed"] = int(table["failed"].fillna(0).sum()) if len(table) else 0
         OUTCOME["allow_failures"] = bool(config.run.get("allow_failures", False))
         print((sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8"), flush=True)
 
 
-__all__ = ["SweepSummary", "OUTCOME", "record", "sweep_table", "write_summary"]
+__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "clear_error", "record", "record_error", "sweep_table",
+           "write_summary"]
