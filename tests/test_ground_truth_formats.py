@@ -65,8 +65,12 @@ def test_ipa_style_ground_truth_misread_as_instances_warns(tmp_path):
     Image.fromarray(gt_img).save(tmp_path / "ipa_gt.png")
     # read as one colour per room, the white is a single "room" in three separate regions:
     # each region's IoU with it is its share of the white, so the mean is exactly 1/3
+    # white is not a room colour by default: no room at all, with a hint at the right format
+    with pytest.raises(ValueError, match=r"ipa_gt.png: no room found reading it as format 'instance' \(rooms drawn "
+                                         r"white between black lines are format 'rooms_white'"):
+        read_ground_truth(tmp_path / "ipa_gt.png", "instance", resolution=RES)
     with pytest.warns(UserWarning, match=r"ipa_gt.png: the ground truth scored against itself gives IoU 33.3 %"):
-        g = read_ground_truth(tmp_path / "ipa_gt.png", "instance", resolution=RES)
+        g = read_ground_truth(tmp_path / "ipa_gt.png", "instance", resolution=RES, not_room_colours=["#000000"])
     assert len(g.instance_classes) == 1 and g.self_iou == pytest.approx(1 / 3)
     params = MetricParams(instances="connected")
     assert score_instances(g.instances, g.instances, params, resolution=RES)["iou"] == pytest.approx(1 / 3)

@@ -105,7 +105,7 @@ class MapsEnv(Environment):
         free_thresh, occupied_thresh, negate: plain images: occupancy thresholds as in ROS.
         mode: override every ROS YAML's ``mode`` (null: each YAML's own).
         unknown_as: ``obstacle`` | ``free``: unknown map cells.
-        min_room_m2, light_threshold, fill_distance: ground-truth reading
+        min_room_m2, light_threshold, fill_distance, not_room_colours: ground-truth reading
             (:func:`envs.maps.ground_truth.read_ground_truth`).
         classes: ordered class names (label ground truth maps onto them).
         name: dataset name in tables.
@@ -117,7 +117,8 @@ class MapsEnv(Environment):
                  origin: Sequence[float] | None = None, free_thresh: float = 0.25, occupied_thresh: float = 0.65,
                  negate: bool = False, mode: str | None = None, unknown_as: str = "obstacle",
                  min_room_m2: float = 0.2, light_threshold: int = 230, fill_distance: float | None = 0.5,
-                 classes: Sequence[str] = PAPER_CLASSES, name: str = "maps"):
+                 not_room_colours: Sequence = ("#000000", "#ffffff"), classes: Sequence[str] = PAPER_CLASSES,
+                 name: str = "maps"):
         if dir is None or str(dir) in ("", "???"):
             raise ValueError("env.dir is not set; expected the folder of maps (env.dir=DIR)")
         self.dir = Path(str(dir)).expanduser()
@@ -135,7 +136,8 @@ class MapsEnv(Environment):
         self.png = dict(free_thresh=free_thresh, occupied_thresh=occupied_thresh, negate=bool(negate),
                         unknown_as=unknown_as)
         self.mode, self.unknown_as = mode, unknown_as
-        self.gt_opts = dict(min_room_m2=min_room_m2, light_threshold=light_threshold, fill_distance=fill_distance)
+        self.gt_opts = dict(min_room_m2=min_room_m2, light_threshold=light_threshold, fill_distance=fill_distance,
+                            not_room_colours=tuple(not_room_colours))
         patterns = {"ground_truth": ground_truth, "poses": poses, "labels": labels, "images": images}
         if manifest:
             entries = self._from_manifest(Path(str(manifest)).expanduser())

@@ -2,10 +2,10 @@
 
 Formats (``format=``):
 
-* ``"instance"``: one colour per room, black = not a room (the SeLRoS release, VRF, ROSE²),
-  read by :func:`envs.maps.label_png.read_instance_png`; colours on less than
-  ``min_room_m2`` are anti-aliasing and join the nearest room. No room classes
-  (``instance_classes`` are -1).
+* ``"instance"``: one colour per room (the SeLRoS release, VRF, ROSE²), read by
+  :func:`envs.maps.label_png.read_instance_png`; ``not_room_colours`` (black and white by
+  default) are never a room; colours on less than ``min_room_m2`` are anti-aliasing and
+  join the nearest room. No room classes (``instance_classes`` are -1).
 * ``"label"``: a class label map: a colour PNG written by
   :func:`envs.maps.label_png.write_label_png` (with its ``.json`` sidecar naming the
   classes), or a single-channel index PNG (pixel value = class index into ``classes``,
@@ -218,7 +218,8 @@ def carry_onto_grid(instances: np.ndarray, grid: GridMap, fill_distance: float |
 def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None, *,
                       classes: Sequence[str] | None = None, resolution: float | None = None,
                       min_room_m2: float = 0.2, light_threshold: int = 230, unlabelled_value: int = 255,
-                      fill_distance: float | None = 0.5, warn: bool = True) -> GroundTruth:
+                      not_room_colours: Sequence = ("#000000", "#ffffff"), fill_distance: float | None = 0.5,
+                      warn: bool = True) -> GroundTruth:
     """Read a ground-truth room map in the given format (see the module doc).
 
     Args:
@@ -231,6 +232,8 @@ def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None
         min_room_m2: smallest room (rooms_white) or colour (instance), square metres.
         light_threshold: rooms_white: grey value (0..255) from which a pixel is a room.
         unlabelled_value: label index PNGs: the pixel value of "no room".
+        not_room_colours: instance format: colours that are never a room (``"#rrggbb"``,
+            ``[r, g, b]`` or packed ints); black is always one.
         fill_distance: metres, see :func:`carry_onto_grid`.
         warn: emit the sanity-check warnings.
 
@@ -251,7 +254,7 @@ def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None
     min_px = _min_pixels(min_room_m2, res)
     gt_classes: tuple[str, ...] | None = None
     if format == "instance":
-        inst = read_instance_png(path, min_pixels=min_px)
+        inst = read_instance_png(path, min_pixels=min_px, not_room=tuple(not_room_colours))
         n_col = _n_colours(_open_rgb(path))
         cls = np.full(int(inst.max()) + 1 if (inst >= 0).any() else 0, -1, np.int64)
     elif format == "rooms_white":
@@ -260,7 +263,9 @@ def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None
     else:
         inst, cls, gt_classes, n_col = _label(path, classes, unlabelled_value)
     if not (inst >= 0).any():
-        raise ValueError(f"{path}: no room found reading it as format {format!r}")
+        hint = (" (rooms drawn white between black lines are format 'rooms_white'; white is a not-room colour "
+                "of format 'instance')" if format == "instance" else "")
+        raise ValueError(f"{path}: no room found reading it as format {format!r}{hint}")
     score = self_iou(inst, min_px)
     if warn and format == "instance" and n_col - 1 > MANY_COLOURS:
         warnings.warn(f"{path}: {n_col} distinct colours, {len(cls)} became rooms; is it instance-coloured "
