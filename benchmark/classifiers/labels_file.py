@@ -37,6 +37,7 @@ file order. Class names are kept as written (case and spaces stripped at the end
 from __future__ import annotations
 
 import json
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -261,7 +262,7 @@ class LabelsFileClassifier(Classifier):
         if "id" not in df.columns:
             raise ValueError(f"{path}: match=id needs an 'id' column, found columns {list(df.columns)}")
         ids = [str(v).strip() for v in df["id"].tolist()]
-        dup = sorted({i for i in ids if ids.count(i) > 1})
+        dup = sorted(k for k, n in Counter(ids).items() if n > 1)
         if dup:
             raise ValueError(f"{path}: column 'id' repeats {dup[:5]}; expected one row per view")
         where = {v: k for k, v in enumerate(ids)}

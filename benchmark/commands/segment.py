@@ -229,18 +229,20 @@ def _overview(path: Path, grid, rgb: np.ndarray, legend: list[tuple[str, tuple[i
     from benchmark.reports.plotting import add_scale_bar, draw_poses, save  # noqa: PLC0415
 
     h, w = grid.shape
+    k = max(1, int(np.ceil(max(h, w) / 1000)))  # the figure is ~800 px wide: draw every k-th pixel
+    shown = rgb[::k, ::k]
     side = 6.0
     fig, ax = plt.subplots(figsize=(side * min(w / h, 2.0) + 2.2, side * min(h / w, 1.0) + 0.4))
-    ax.imshow(rgb, interpolation="nearest")
+    ax.imshow(shown, interpolation="nearest")
     ax.set_xticks([])
     ax.set_yticks([])
     ax.set_title(title, fontsize=9)
-    add_scale_bar(ax, grid.resolution)
+    add_scale_bar(ax, grid.resolution * k)
     if poses is not None and len(poses):
         r, c = grid.world_to_pixel(poses[:, 0], poses[:, 1])
         step = max(1, len(poses) // 400)  # at most ~400 markers
-        draw_poses(ax, r[::step] - 0.5, c[::step] - 0.5, poses[::step, 2], size=3.0,
-                   arrow_px=max(3.0, 0.02 * max(h, w)))
+        draw_poses(ax, r[::step] / k - 0.5, c[::step] / k - 0.5, poses[::step, 2], size=3.0,
+                   arrow_px=max(3.0, 0.02 * max(shown.shape)))
     if legend:
         handles = [Patch(color=np.array(col) / 255, label=name.replace("_", " ")) for name, col in legend]
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)

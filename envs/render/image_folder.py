@@ -21,6 +21,7 @@ and ``tolerance_deg`` degrees.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -162,7 +163,7 @@ class ImageFolderRenderer(Renderer):
             ids = [str(v).strip() for v in df[self.id_column].tolist()]
         else:
             ids = names
-        dup = sorted({v for v in ids if ids.count(v) > 1})
+        dup = sorted(k for k, n in Counter(ids).items() if n > 1)
         if dup:
             raise ValueError(f"{pose_file}: view id(s) {dup[:5]} repeat (column "
                              f"{self.id_column if self.id_column in df.columns else self.image_column!r}); "
