@@ -5,6 +5,7 @@ maps to houses (FFT placement checked against a brute-force search)."""
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -12,6 +13,7 @@ import pytest
 from PIL import Image
 
 from benchmark.baselines.external import (
+    ExternalMethod,
     Pair,
     onto_grid,
     pairs_by_pattern,
@@ -73,7 +75,8 @@ def handmade(tmp_path):
 
 def test_external_scores_on_handmade_maps(handmade):
     gt_dir, pred_dir = handmade
-    df = score_directory(gt_dir, "{id}_gt.png", pred_dir, "{id}_out.png", "X", MetricParams(min_segment_px=0))
+    df = score_directory(gt_dir, "{id}_gt.png", pred_dir, "{id}_out.png", "X", MetricParams(min_segment_m2=0),
+                         resolution=0.05)
     assert list(df["house_id"]) == ["a", "b", "c"]
     a, b, c = (df.iloc[i] for i in range(3))
     for k, v in KNOWN.items():
@@ -99,11 +102,12 @@ def test_manifest_label_png_and_resolution(handmade, tmp_path):
                                     f"c,{gt_dir / 'c_gt.png'},\n")
     pairs = pairs_from_manifest(tmp_path / "m.csv")
     assert pairs == [Pair("a", gt_dir / "a_gt.png", tmp_path / "a_labels.png"), Pair("c", gt_dir / "c_gt.png", None)]
-    params = MetricParams(min_segment_px=0)
-    df = score_pairs(pairs, "L", params, pred_format="label")
+    params = MetricParams(min_segment_m2=0)
+    df = score_pairs(pairs, "L", params, pred_format="label", resolution=0.05)
     assert df.iloc[0]["iou"] == pytest.approx(KNOWN["iou"]) and df.iloc[1]["status"] == "failed"
+    # 200-px rooms at 0.1 m/px = 2 m², above the 0.2 m² colour threshold (20 px there)
     coarse = score_pairs([Pair("a", gt_dir / "a_gt.png", tmp_path / "a_coarse.png")], "C", params,
-                         min_pixels=100, resolution=0.05, pred_resolution=0.1)  # 200 px rooms: not blends
+                         resolution=0.05, pred_resolution=0.1)
     assert coarse.iloc[0]["iou"] == pytest.approx(KNOWN["iou"])
     # scaling about the top-left corner: a 0.1 m/px map half as wide covers the left half only
     half = onto_grid(np.zeros((20, 15), np.int32), (40, 60), 0.05, 0.1)
@@ -112,59 +116,107 @@ def test_manifest_label_png_and_resolution(handmade, tmp_path):
         (tmp_path / "bad.csv").write_text("id,gt\na,b\n")
         pairs_from_manifest(tmp_path / "bad.csv")
     with pytest.raises(ValueError, match="format"):
-        score_pairs(pairs, "L", params, pred_format="jpeg")
+        score_pairs(pairs, "L", params, pred_format="jpeg", resolution=0.05)
+    with pytest.raises(ValueError, match="resolution"):
+        score_pairs(pairs, "L", params, resolution=None)
     with pytest.raises(FileNotFoundError, match="prediction folder"):
         pairs_by_pattern(gt_dir, "{id}_gt.png", tmp_path / "nowhere", "{id}.png")
     with pytest.raises(ValueError, match="{id}"):
         pairs_by_pattern(gt_dir, "gt.png", pred_dir, "{id}.png")
 
 
-def test_score_cli_without_preset_lists_missing(handmade, tmp_path, capsys):
-    from benchmark.commands.baselines import main
+def _score_app(overrides: list[str]) -> int:
+    """The score app's body on a config composed like ``python -m ...baselines_score``."""
+    from benchmark.commands.baselines_score import run
+    from benchmark.commands.selros import compose_score
 
+    out = [o for o in overrides if o.startswith("out=")]
+    cfg = compose_score([o for o in overrides if not o.startswith("out=")])
+    return run(cfg, Path(out[0][4:]) if out else None)
+
+
+def test_score_app_without_preset_lists_missing(handmade, tmp_path, capsys):
     gt_dir, pred_dir = handmade
     out = tmp_path / "out"
-    args = ["score", "--min-segment-px", "0", "--out", str(out), "--set", f"gt_dir={gt_dir}", f"pred_dir={pred_dir}",
-            "gt_pattern={id}_gt.png", "pred_pattern={id}_out.png", "method=Hand", "resolution=0.05"]
-    assert main(args) == 0
+    args = ["external=rose2", f"external.gt_dir={gt_dir}", f"external.pred_dir={pred_dir}",
+            "external.gt_pattern='{id}_gt.png'", "external.pred_pattern='{id}_out.png'", "external.method=Hand",
+            "external.resolution=0.05", "metrics.min_segment_m2=0", f"out={out}"]
+    assert _score_app(args) == 1  # c has no prediction
     df = pd.read_csv(out / "metrics.csv")
-    assert len(df) == 3 and df.loc[df["house_id"] == "a", "iou"].item() == pytest.approx(KNOWN["iou"])
+    assert len(df) == 3 + 3 * 3  # + one_room, gt_geometry, grid on each ground truth
+    assert df.loc[(df["house_id"] == "a") & (df["method"] == "Hand"), "iou"].item() == pytest.approx(KNOWN["iou"])
+    # one_room on two equal rooms: IoU 1/2 (paper), matched 1/2 / (1 + 2 - 1), PQ 0
+    one = df[(df["method"] == "one_room")].iloc[0]
+    assert (one["iou"], one["matched_iou"], one["pq"]) == (0.5, 0.25, 0.0)
+    assert (df.loc[df["method"] == "gt_geometry", "pq"] == 1.0).all()
+    # the reader's counts: two colours became rooms, nothing anti-aliased or unassigned
+    a = df[(df["house_id"] == "a") & (df["method"] == "Hand")].iloc[0]
+    assert (a["pred_rooms"], a["gt_rooms"], a["pred_antialias_px"], a["pred_unassigned_px"]) == (2, 2, 0, 0)
     text = (out / "table5.md").read_text()
     assert "Failed or missing maps (1)" in text and "c_out.png" in text and "z_out.png" in text
     assert "c_out.png" in capsys.readouterr().out
-    assert main(["score", "--set", f"gt_dir={gt_dir}"]) == 2  # no method / prediction folder: clear error
-    assert main(["score", "--preset", "nope"]) == 2
+    assert _score_app(["external=rose2", "external.pred_dir=null"]) == 2  # no prediction folder: one line
+    assert "pred_dir" in capsys.readouterr().err
 
 
-def test_selros_and_vrf_presets_over_30_maps(selros_dir, tmp_path):
-    from benchmark.commands.baselines import main
+def test_white_is_unassigned_and_counted(tmp_path):
+    gt = two_rooms_gt()
+    _png(tmp_path / "a_gt.png", gt, [RED, GREEN])
+    pred = gt.copy()
+    pred[0, :] = 2  # a 60-px white line along the top edge
+    _png(tmp_path / "a_out.png", pred, [BLUE, YELLOW, (255, 255, 255)])
+    m = ExternalMethod("W", 0.05, str(tmp_path), "{id}_gt.png", str(tmp_path), "{id}_out.png")
+    row = m.score(MetricParams(min_segment_m2=0, min_colour_m2=0.1)).iloc[0]  # 0.1 m² = 40 px
+    # white is no room: 2 segments of 39 x 30 px, each inside its room: precision 1, recall 39/40
+    assert (row["pred_rooms"], row["pred_unassigned_px"], row["n_pred_segments"]) == (2, 60, 2)
+    assert row["precision"] == 1.0 and row["recall"] == pytest.approx(39 / 40)
+    row = m.score(MetricParams(min_segment_m2=0, min_colour_m2=0.1, not_room_colours=["#000000"])).iloc[0]
+    assert (row["pred_rooms"], row["n_pred_segments"]) == (3, 3)  # white read as a room
+    row = m.score(MetricParams(min_segment_m2=0, min_colour_m2=0.2, not_room_colours=["#000000"])).iloc[0]
+    # 0.2 m² = 80 px: the 60 white pixels are anti-aliasing and join the room below them
+    assert (row["pred_rooms"], row["pred_antialias_px"], row["iou"]) == (2, 60, 1.0)
+
+
+def test_presets_are_hydra_configs_over_30_maps(selros_dir, tmp_path):
+    from hydra.utils import instantiate
+
+    from benchmark.commands.selros import compose_score
 
     for preset, method in (("selros", "SeLRoS"), ("vrf", "VRF")):
-        assert main(["score", "--preset", preset, "--out", str(tmp_path / preset)]) == 0
-        df = pd.read_csv(tmp_path / preset / "metrics.csv", dtype={"house_id": str})
-        assert len(df) == 30 and set(df["method"]) == {method} and (df["status"] == "ok").all()
-        assert list(df["house_id"]) == [f"{i:02d}" for i in range(1, 31)]
-        assert df["iou"].between(0, 1).all() and (df["n_gt_segments"] >= 2).all()
+        cfg = compose_score([f"external={preset}", f"paths.selros_dir={selros_dir}"])
+        assert cfg.external._target_ == "benchmark.baselines.external.ExternalMethod"
+        m = instantiate(cfg.external)
+        assert m.method == method and m.resolution == 0.02
+        assert [p.map_id for p in m.pairs()] == [f"{i:02d}" for i in range(1, 31)]
 
 
+@pytest.mark.slow
 def test_table5_cli_on_a_partial_copy(selros_dir, tmp_path):
-    """The table5 command on three SeLRoS maps, one VRF output removed: five methods, the gap listed."""
+    """The table5 command on three SeLRoS maps renamed office_*, one VRF output removed: every
+    method and sanity row, ids kept whole, the gap listed."""
     from benchmark.commands.baselines import main
 
     for sub, pattern in (("ground_truth", "{}_ground_truth.png"), ("selros", "{}_output.png"),
                          ("vrf", "{}_segmented.png")):
         (tmp_path / "data" / sub).mkdir(parents=True)
-        for mid in ("01", "05", "22"):
+        for mid, new in (("01", "office_a"), ("05", "office_b"), ("22", "office_c")):
             if not (sub == "vrf" and mid == "05"):
-                shutil.copy(selros_dir / sub / pattern.format(mid), tmp_path / "data" / sub)
-    assert main(["table5", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "out")]) == 0
+                shutil.copy(selros_dir / sub / pattern.format(mid), tmp_path / "data" / sub / pattern.format(new))
+    assert main(["table5", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "out"),
+                 "--resolution", "0.02", "metrics.connectivity=8"]) == 0
     df = pd.read_csv(tmp_path / "out" / "metrics.csv", dtype={"house_id": str})
-    assert set(df["method"]) == {"SeLRoS", "VRF", "morphological", "distance", "voronoi"}
-    assert len(df) == 15 and (df["status"] != "ok").sum() == 1
-    assert df.loc[df["status"] != "ok", ["method", "house_id"]].values.tolist() == [["VRF", "05"]]
-    geo = df[df["method"].isin(["morphological", "distance", "voronoi"])]
+    assert set(df["method"]) == {"SeLRoS", "VRF", "morphological", "distance", "voronoi", "one_room",
+                                 "gt_geometry", "grid"}
+    assert set(df["house_id"]) == {"office_a", "office_b", "office_c"}
+    assert len(df) == 24 and (df["status"] != "ok").sum() == 4  # VRF and the geometric rows of office_b
+    bad = df.loc[df["status"] != "ok"]
+    assert sorted(bad["method"]) == ["VRF", "distance", "morphological", "voronoi"]
+    assert (bad["house_id"] == "office_b").all()
+    geo = df[df["method"].isin(["morphological", "distance", "voronoi"]) & (df["status"] == "ok")]
     assert geo["accuracy"].isna().all() and geo["iou"].between(0, 1).all()
-    assert "05_segmented.png" in (tmp_path / "out" / "table5.md").read_text()
+    assert "office_b_segmented.png" in (tmp_path / "out" / "table5.md").read_text()
+    assert "8-connected" in df["metric_params"].iloc[0]
+    assert main(["table5", "--data", str(tmp_path / "data"), "--bogus"]) == 2
 
 
 # ---------------------------------------------------------------- geometric segmenters
@@ -201,7 +253,7 @@ def test_split_at_the_doors(seg, margin, scale):
     assert inst.dtype == np.int32
     assert (inst[grid.walkable] >= 0).all() and (inst[~grid.walkable] == -1).all()
     assert inst.max() + 1 == 3
-    s = score_instances(inst, gt, MetricParams(min_segment_px=0))
+    s = score_instances(inst, gt, MetricParams(min_segment_m2=0), resolution=grid.resolution)
     assert s["iou"] > 0.9 and np.isnan(s["accuracy"])
     for room in range(3):  # each room is (nearly all) one segment, and a different one
         vals, counts = np.unique(inst[gt == room], return_counts=True)
@@ -260,7 +312,7 @@ def test_geometric_on_shared_maps(shared_scenes, selros_dir):
         for seg in SEGMENTERS:
             inst = seg(grid)
             assert inst.shape == grid.shape and (inst[grid.walkable] >= 0).all() and (inst[~grid.walkable] == -1).all()
-            s = score_instances(inst, gt)
+            s = score_instances(inst, gt, resolution=grid.resolution)
             assert 0 < s["iou"] <= 1 and s["n_pred_segments"] >= 1
 
 
@@ -332,7 +384,7 @@ def test_carry_house_ground_truth_onto_a_matched_map(shared_houses):
     assert carried.shape == walk.shape
     inside = gt >= 0
     assert np.mean(carried[inside] == gt[inside]) > 0.9
-    assert score_instances(np.where(inside, carried, -1), gt)["iou"] > 0.85
+    assert score_instances(np.where(inside, carried, -1), gt, resolution=0.02)["iou"] > 0.85
 
 
 def test_match_cli_reports_the_house(procthor_file, shared_houses, tmp_path, capsys):
