@@ -26,7 +26,9 @@ import pandas as pd
 METRIC_LABELS: dict[str, str] = {
     "iou": "IoU", "accuracy": "acc", "precision": "P", "recall": "R", "matched_iou": "matched IoU",
     "room_iou": "room IoU", "room_recall": "room R", "pq": "PQ", "sq": "SQ", "rq": "RQ",
-    "pq_semantic": "semantic PQ", "segment_count_error": "segment count error",
+    "pq_semantic": "semantic PQ", "segment_count_error": "segment count error", "class_iou": "class IoU",
+    "view_accuracy": "view acc", "view_accuracy_seen": "view acc (seen)", "count_error": "segments - rooms",
+    "ipa_precision": "ipa P", "ipa_recall": "ipa R", "matched_precision": "matched P", "matched_recall": "matched R",
 }
 #: metric column -> words for a caption or a plot axis.
 METRIC_WORDS: dict[str, str] = {"iou": "IoU", "accuracy": "pixel accuracy", "precision": "precision",

@@ -1,0 +1,32 @@
+"""``python -m benchmark.commands.report RUN_DIR [RUN_DIR ...] --out report.html``: a sweep as
+one static HTML page (see :mod:`benchmark.reports.html_report`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from benchmark.reports.html_report import write_report
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="a sweep as one static HTML page: configurations (sortable), "
+                                 "failures, and ground truth | raw | post-processed maps per house")
+    ap.add_argument("run_dirs", nargs="+", type=Path, help="sweep or job folders (results/runs/<name>)")
+    ap.add_argument("--out", type=Path, default=Path("report.html"), help="the HTML file to write")
+    ap.add_argument("--house", action="append", default=None, help="house id to draw (repeatable)")
+    ap.add_argument("--max-houses", type=int, default=2, help="houses drawn when no --house is given")
+    a = ap.parse_args(argv)
+    try:
+        out = write_report(a.run_dirs, a.out, a.house, a.max_houses)
+    except (FileNotFoundError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

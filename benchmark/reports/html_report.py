@@ -1,0 +1,380 @@
+"""A sweep as one static HTML page: configurations with their mean metrics (sortable), the
+failures with their errors, and per house the ground truth beside the raw and
+post-processed maps of every configuration.
+
+``python -m benchmark.commands.report RUN_DIR --out report.html [--house ID ...]``
+
+The page needs no server and no network: maps are PNGs embedded as data URIs (drawn at the
+map's own resolution, scaled by the browser without smoothing), the sorting is a few lines
+of inline JavaScript, and the page logs nothing to the console. Runs are read only through
+the run store (:mod:`benchmark.harness.store`); ground truth comes from each job's env.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmark.reports import formatting
+
+#: metric columns shown (those the run has), as fractions in the rows -> percent on the page.
+METRICS = ("iou", "precision", "recall", "accuracy", "matched_iou", "room_iou", "pq", "pq_semantic", "class_iou",
+           "view_accuracy")
+#: count-like columns shown as plain means.
+COUNTS = ("count_error",)
+#: longest side of a map image on the page, CSS pixels.
+MAP_CSS_PX = 260
+
+_CSS = """
+body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:24px;color:#222;background:#fff}
+h1{font-size:22px;margin:0 0 4px}h2{font-size:18px;margin:28px 0 8px;border-bottom:1px solid #ddd}
+h3{font-size:15px;margin:18px 0 6px}.muted{color:#666;font-size:13px}
+table{border-collapse:collapse;font-size:13px}th,td{padding:3px 8px;border-bottom:1px solid #e4e4e4;white-space:nowrap}
+th{background:#f3f3f3;text-align:left;white-space:nowrap}td.num,th.num{text-align:right;font-variant-numeric:tabular-nums}
+table.sortable th{cursor:pointer;user-select:none}table.sortable th[data-dir=asc]::after{content:' \\25B2'}
+table.sortable th[data-dir=desc]::after{content:' \\25BC'}
+.maps{display:grid;gap:6px 10px;align-items:start}.maps figure{margin:0}
+.maps figcaption{font-size:12px;color:#444;margin-bottom:2px}
+.maps img{image-rendering:pixelated;border:1px solid #ccc;display:block}
+.label{font-size:12px;align-self:center;width:190px}.legend span{display:inline-block;margin:0 10px 4px 0;font-size:12px}
+.legend i{display:inline-block;width:12px;height:12px;margin-right:4px;vertical-align:-2px;border:1px solid #999}
+td.err{font-family:ui-monospace,monospace;font-size:12px;max-width:70ch;overflow-wrap:anywhere}
+"""
+
+# Click a header to sort by that column (numbers by value, text alphabetically); again to
+# reverse. Cells carry their sort value in data-v. Marks each table data-sortable="ready".
+_JS = """
+(function () {
+  function key(td) { var v = td.getAttribute('data-v'); if (v === null) return td.textContent;
+    var f = parseFloat(v); return isNaN(f) ? v : f; }
+  function sortBy(table, col, th) {
+    var dir = th.getAttribute('data-dir') === 'asc' ? 'desc' : 'asc';
+    var heads = table.tHead.rows[0].cells;
+    for (var i = 0; i < heads.length; i++) heads[i].removeAttribute('data-dir');
+    th.setAttribute('data-dir', dir);
+    var body = table.tBodies[0], rows = Array.prototype.slice.call(body.rows);
+    rows.sort(function (a, b) {
+      var x = key(a.cells[col]), y = key(b.cells[col]);
+      var nx = typeof x === 'number', ny = typeof y === 'number';
+      var c = nx && ny ? x - y : (nx ? -1 : (ny ? 1 : String(x).localeCompare(String(y))));
+      return dir === 'asc' ? c : -c;
+    });
+    rows.forEach(function (r) { body.appendChild(r); });
+  }
+  var tables = document.querySelectorAll('table.sortable');
+  for (var t = 0; t < tables.length; t++) {
+    (function (table) {
+      var heads = table.tHead.rows[0].cells;
+      for (var i = 0; i < heads.length; i++) {
+        (function (col, th) { th.addEventListener('click', function () { sortBy(table, col, th); }); })(i, heads[i]);
+      }
+      table.setAttribute('data-sortable', 'ready');
+    })(tables[t]);
+  }
+})();
+"""
+
+
+def png_data_uri(rgb: np.ndarray) -> str:
+    """(H, W, 3) uint8 -> ``data:image/png;base64,...``."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgb, dtype=np.uint8)).save(buf, format="PNG", optimize=True)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def map_rgb(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None,
+            segments: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) class labels -> (H, W, 3) uint8 in the class colours with segment borders (as
+    in the figures)."""
+    from benchmark.reports.plotting import BORDER_COLOR, colorize, label_segments, segment_borders
+
+    rgb = colorize(labels, classes, walkable).copy()
+    seg = label_segments(labels) if segments is None else segments
+    rgb[segment_borders(seg)] = BORDER_COLOR
+    return rgb
+
+
+def instances_rgb(instances: np.ndarray) -> np.ndarray:
+    """(H, W) segment ids (a geometric segmenter's output; -1 none) -> RGB, a colour per
+    segment from a fixed cycle, with borders; black where -1."""
+    from benchmark.reports.plotting import BORDER_COLOR, segment_borders
+
+    cycle = np.array([(86, 180, 233), (230, 159, 0), (0, 158, 115), (240, 228, 66), (0, 114, 178),
+                      (213, 94, 0), (204, 121, 167), (153, 153, 153)], np.uint8)
+    inst = np.asarray(instances)
+    rgb = np.zeros((*inst.shape, 3), np.uint8)
+    rgb[inst >= 0] = cycle[inst[inst >= 0] % len(cycle)]
+    rgb[segment_borders(inst)] = BORDER_COLOR
+    return rgb
+
+
+def _esc(x) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _img(uri: str, shape: tuple[int, int], alt: str) -> str:
+    h, w = shape
+    scale = MAP_CSS_PX / max(h, w, 1)
+    return f'<img src="{uri}" width="{round(w * scale)}" height="{round(h * scale)}" alt="{_esc(alt)}">'
+
+
+def job_label(names: dict, oracle_accuracy: float | None) -> str:
+    """A configuration in words (classifier and its accuracy, aggregator, post-processing)."""
+    if names.get("segmenter"):
+        return f"{names['segmenter']} (geometric)"
+    clf = names.get("classifier", "")
+    if oracle_accuracy is not None:
+        clf += f" @ {oracle_accuracy:.0%}"
+    return f"{clf} + {formatting.value_label('aggregator', names.get('aggregator', ''))}"
+
+
+def _num(v) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(f) else f
+
+
+def _config_rows(jobs) -> tuple[list[str], list[dict]]:
+    """Per job: names, counts and mean metrics over its successful houses."""
+    present = set()
+    out = []
+    for job, summary, df in jobs:
+        ok = df[df["status"] == "ok"]
+        names = summary.get("names", {})
+        acc = _num(df["oracle_accuracy"].dropna().iloc[0]) if "oracle_accuracy" in df and df[
+            "oracle_accuracy"].notna().any() else None
+        rec = {"job": job, "names": names, "dataset": str(df["dataset"].iloc[0]) if "dataset" in df and len(df) else "",
+               "oracle_accuracy": acc, "n": len(df), "n_ok": len(ok), "n_failed": len(df) - len(ok),
+               "wall": _num(summary.get("wall_time_s"))}
+        for m in (*METRICS, *COUNTS):
+            if m in ok and len(ok):
+                v = pd.to_numeric(ok[m], errors="coerce")
+                if v.notna().any():
+                    rec[m] = float(v.mean())
+                    present.add(m)
+        out.append(rec)
+    cols = [m for m in (*METRICS, *COUNTS) if m in present]
+    return cols, out
+
+
+def _configs_table(cols: list[str], rows: list[dict]) -> str:
+    heads = [("dataset", False), ("classifier", False), ("aggregator", False), ("post-processing", False)]
+    heads += [(formatting.METRIC_LABELS.get(m, m.replace("_", " ")) + ("" if m in COUNTS else " %"), True) for m in cols]
+    heads += [("houses ok", True), ("failed", True), ("wall s", True), ("job folder", False)]
+    out = ['<table class="sortable" id="configs"><thead><tr>']
+    out += [f'<th class="{"num" if n else ""}">{_esc(h)}</th>' for h, n in heads]
+    out.append("</tr></thead><tbody>")
+    for r in rows:
+        nm = r["names"]
+        clf = nm.get("segmenter") or nm.get("classifier", "")
+        if r["oracle_accuracy"] is not None and not nm.get("segmenter"):
+            clf += f" @ {r['oracle_accuracy']:.0%}"
+        cells = [formatting.value_label("dataset", r["dataset"]), clf,
+                 formatting.value_label("aggregator", nm.get("aggregator", "")) or "–",
+                 formatting.value_label("postprocess", nm.get("postprocess", "")) if not nm.get("segmenter") else "–"]
+        line = "".join(f"<td>{_esc(c)}</td>" for c in cells)
+        for m in cols:
+            v = r.get(m)
+            if v is None:
+                line += '<td class="num" data-v="">–</td>'
+            elif m in COUNTS:
+                line += f'<td class="num" data-v="{v:.6g}">{v:.2f}</td>'
+            else:
+                line += f'<td class="num" data-v="{v:.6g}">{100 * v:.2f}</td>'
+        line += f'<td class="num" data-v="{r["n_ok"]}">{r["n_ok"]} / {r["n"]}</td>'
+        line += f'<td class="num" data-v="{r["n_failed"]}">{r["n_failed"]}</td>'
+        wall = r["wall"]
+        line += f'<td class="num" data-v="{"" if wall is None else wall}">{"–" if wall is None else f"{wall:.1f}"}</td>'
+        line += f"<td>{_esc(r['job'].dir.name)}</td>"
+        out.append(f"<tr>{line}</tr>")
+    out.append("</tbody></table>")
+    return "".join(out)
+
+
+def _failures(jobs) -> str:
+    items = []
+    for job, _, df in jobs:
+        bad = df[df["status"] != "ok"]
+        for _, r in bad.iterrows():
+            items.append((job.dir.name, str(r["house_id"]), str(r.get("error", "") or "")))
+    if not items:
+        return '<p class="muted" id="failures">No failures: every house of every configuration was scored.</p>'
+    out = [f'<p class="muted">{len(items)} failed (house, configuration) pairs.</p>',
+           '<table class="sortable" id="failures"><thead><tr><th>job folder</th><th>house</th><th>error</th></tr>'
+           "</thead><tbody>"]
+    out += [f'<tr><td>{_esc(j)}</td><td>{_esc(h)}</td><td class="err">{_esc(e)}</td></tr>' for j, h, e in items]
+    out.append("</tbody></table>")
+    return "".join(out)
+
+
+def _legend(classes: Sequence[str]) -> str:
+    from benchmark.reports.plotting import BORDER_COLOR, UNLABELLED_LABEL
+    from envs.world.classes import UNLABELLED_COLOR, class_colors
+
+    items = [(c.replace("_", " "), rgb) for c, rgb in zip(classes, class_colors(classes))]
+    items += [(UNLABELLED_LABEL, UNLABELLED_COLOR), ("not walkable", (0, 0, 0)), ("border between segments", BORDER_COLOR)]
+    return '<div class="legend">' + "".join(
+        f'<span><i style="background:rgb{tuple(int(v) for v in rgb)}"></i>{_esc(n)}</span>' for n, rgb in items) + "</div>"
+
+
+def pick_houses(jobs, houses: Sequence[str] | None, max_houses: int) -> list[str]:
+    """The houses to draw: ``houses`` (each scored by some job), else the first
+    ``max_houses`` that every job without failure on them scored.
+
+    Raises:
+        ValueError: a requested house that no job scored."""
+    scored: dict[str, int] = {}
+    order: list[str] = []
+    for _, _, df in jobs:
+        for h in df.loc[df["status"] == "ok", "house_id"].astype(str):
+            if h not in scored:
+                order.append(h)
+            scored[h] = scored.get(h, 0) + 1
+    if houses:
+        missing = [h for h in houses if h not in scored]
+        if missing:
+            raise ValueError(f"--house {missing[0]!r}: no job of the run scored it; scored houses are e.g. {order[:3]}")
+        return list(dict.fromkeys(houses))
+    best = max(scored.values(), default=0)
+    return [h for h in order if scored[h] == best][:max_houses]
+
+
+def _house_section(hid: str, jobs) -> str:
+    """Ground truth, then per configuration (post-processing grouped) raw | post-processed."""
+    from hydra.utils import instantiate
+
+    from benchmark.harness.cache import load_npz
+
+    groups: dict[tuple, dict] = {}
+    scene = None
+    for job, summary, df in jobs:
+        rows = df[(df["house_id"].astype(str) == hid) & (df["status"] == "ok")]
+        if rows.empty:
+            continue
+        try:
+            path = job.maps_path(hid)
+        except KeyError:
+            continue
+        if not path.exists():
+            continue
+        names = summary.get("names", {})
+        if scene is None:
+            cfg = job.config()
+            scene = instantiate(cfg.env).scene(hid)
+        maps = load_npz(path)
+        acc = _num(rows["oracle_accuracy"].iloc[0]) if "oracle_accuracy" in rows else None
+        key = (names.get("env"), names.get("segmenter") or "", names.get("classifier"), acc, names.get("aggregator"))
+        g = groups.setdefault(key, {"label": job_label(names, acc), "cells": {}})
+        if names.get("segmenter"):
+            inst = maps.get("instances", maps.get("post"))
+            if inst is not None:
+                g["cells"]["segments"] = instances_rgb(inst)
+            continue
+        g["cells"].setdefault("raw", map_rgb(maps["raw"], scene.classes, scene.grid.walkable))
+        if names.get("postprocess") not in ("none", ""):
+            g["cells"][f"post-processed ({names['postprocess']})"] = map_rgb(maps["post"], scene.classes,
+                                                                             scene.grid.walkable)
+    if scene is None:
+        return f'<section class="house"><h3>House {_esc(hid)}</h3><p class="muted">No saved maps for this house ' \
+               f"(run with run.save_maps=true).</p></section>"
+    kinds = list(dict.fromkeys(k for g in groups.values() for k in g["cells"]))
+    shape = scene.grid.shape
+    gt_img = _img(png_data_uri(map_rgb(scene.semantic, scene.classes, scene.grid.walkable,
+                                       segments=scene.instances)), shape, f"{hid} ground truth")
+    out = [f'<section class="house" id="house-{_esc(hid)}"><h3>House {_esc(hid)}</h3>',
+           f'<div class="maps" style="grid-template-columns:190px repeat({len(kinds) + 1}, max-content)">']
+    for key in sorted(groups, key=lambda k: tuple("" if v is None else str(v) for v in k)):
+        g = groups[key]
+        out.append(f'<div class="label">{_esc(g["label"])}</div>')
+        out.append(f"<figure><figcaption>ground truth</figcaption>{gt_img}</figure>")
+        for k in kinds:
+            if k in g["cells"]:
+                alt = f"{hid} {g['label']} {k}"
+                out.append(f"<figure><figcaption>{_esc(k)}</figcaption>"
+                           f"{_img(png_data_uri(g['cells'][k]), shape, alt)}</figure>")
+            else:
+                out.append("<div></div>")
+    out.append("</div></section>")
+    return "".join(out)
+
+
+def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = None, max_houses: int = 2,
+                 title: str | None = None) -> str:
+    """The report page's HTML for the jobs under ``run_dirs``.
+
+    Args:
+        run_dirs: sweep or job folders (every finished job under them).
+        houses: house ids to draw; default the first ``max_houses`` scored by every job.
+        max_houses: how many houses by default.
+        title: page title (default: the run folder names).
+
+    Returns:
+        one self-contained HTML document (str).
+
+    Raises:
+        FileNotFoundError: no finished job under ``run_dirs``.
+        ValueError: a requested house no job scored.
+    """
+    from benchmark.harness.store import find_jobs
+
+    jobs = []
+    for job in find_jobs(list(run_dirs)):
+        df = pd.read_csv(job.metrics_path)
+        df["house_id"] = df["house_id"].astype(str)
+        jobs.append((job, job.summary(), df))
+    cols, rows = _config_rows(jobs)
+    chosen = pick_houses(jobs, houses, max_houses)
+    n_rows = sum(len(df) for _, _, df in jobs)
+    n_failed = sum(int((df["status"] != "ok").sum()) for _, _, df in jobs)
+    classes = ()
+    for job, _, _ in jobs:
+        cls = job.config().get("classes")
+        if cls:
+            classes = tuple(cls)
+            break
+    name = title or ", ".join(str(Path(p)) for p in run_dirs)
+    notes = sorted({str(v) for _, _, df in jobs if "metric_params" in df for v in df["metric_params"].dropna()})
+    parts = [
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>roomseg-bench report: {_esc(name)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>Sweep report: {_esc(name)}</h1>",
+        f'<p class="muted">{len(jobs)} configurations, {n_rows} (house, configuration) rows, {n_failed} failed. '
+        "Metrics are means over each configuration's successful houses, in percent. "
+        + (_esc("Metrics: " + "; ".join(notes) + ".") if notes else "") + " Click a column header to sort.</p>",
+        "<h2>Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows), "</div>",
+        "<h2>Failures</h2>", _failures(jobs),
+        "<h2>Maps</h2>",
+        f'<p class="muted">Per house and configuration: the ground truth, the raw label map and the '
+        f"post-processed map(s), side by side at the map's resolution. Houses shown: "
+        f"{_esc(', '.join(chosen)) or 'none'}.</p>",
+        _legend(classes) if classes else "",
+        *(_house_section(h, jobs) for h in chosen),
+        f"<script>{_JS}</script>", "</body></html>", ""]
+    return "\n".join(parts)
+
+
+def write_report(run_dirs: Sequence[str | Path], out: str | Path, houses: Sequence[str] | None = None,
+                 max_houses: int = 2) -> Path:
+    """Write :func:`build_report`'s page to ``out`` atomically; returns ``out``."""
+    from benchmark.harness.cache import atomic_write_text
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out, build_report(run_dirs, houses, max_houses))
+    return out
+
+
+__all__ = ["build_report", "write_report", "pick_houses", "map_rgb", "instances_rgb", "png_data_uri", "job_label",
+           "METRICS"]

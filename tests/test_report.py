@@ -1,0 +1,124 @@
+"""The sweep report: one static HTML file with the configurations (sortable), the failures and
+per house ground truth | raw | post-processed maps; opened in headless Chromium where installed."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+from benchmark.commands.report import main
+
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--hide-scrollbars", "--enable-logging=stderr", "--v=0"]
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    """A 2 x 2 sweep (graph KNN / vision cone x post-processing off / on) on 2 generated houses,
+    plus one hand-made job whose two houses failed."""
+    res = tmp_path_factory.mktemp("report") / "res"
+    subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "-m", "env=synthetic", "env.resolution=0.1",
+                    "classifier=oracle", "aggregator=graph_knn,vision_cone", "postprocess=none,default",
+                    "run.limit=2", "run.name=rep", f"run.results_dir={res}"], check=True, capture_output=True)
+    run = res / "runs" / "rep"
+    jobs = sorted(p.parent for p in run.rglob("metrics.csv"))
+    assert len(jobs) == 4
+    bad = run / "broken_job"
+    bad.mkdir()
+    for name in ("resolved_config.yaml", "summary.json"):
+        shutil.copy(jobs[0] / name, bad / name)
+    df = pd.read_csv(jobs[0] / "metrics.csv")
+    df["status"], df["error"] = "failed", ["HouseError: wall 3 has no points", "ValueError: empty map <b>"]
+    for m in ("iou", "precision", "recall", "accuracy"):
+        df[m] = np.nan
+    df.to_csv(bad / "metrics.csv", index=False)
+    summary = json.loads((bad / "summary.json").read_text())
+    summary.update(n_ok=0, n_failed=2)
+    (bad / "summary.json").write_text(json.dumps(summary))
+    return run, jobs
+
+
+def _images(page: str) -> list[np.ndarray]:
+    return [np.asarray(Image.open(io.BytesIO(base64.b64decode(m))))
+            for m in re.findall(r'src="data:image/png;base64,([^"]+)"', page)]
+
+
+@pytest.mark.slow
+def test_report_holds_configurations_failures_and_maps(sweep, tmp_path, capsys):
+    run, jobs = sweep
+    out = tmp_path / "r" / "report.html"
+    assert main([str(run), "--out", str(out), "--house", "synthetic-s000001"]) == 0
+    page = out.read_text()
+    body = page[page.index('<table class="sortable" id="configs">'):]
+    body = body[:body.index("</table>")]
+    assert body.count("<tr>") == 1 + 5  # header + 4 jobs + the broken one
+    ious = [float(pd.read_csv(j / "metrics.csv")["iou"].mean()) * 100 for j in jobs]
+    for v in ious:
+        assert f">{v:.2f}</td>" in body
+    # failures, escaped
+    assert "HouseError: wall 3 has no points" in page and "empty map &lt;b&gt;" in page and "<b>" not in page
+    # maps: per configuration group (2 aggregators): ground truth, raw, post-processed
+    imgs = _images(page)
+    assert len(imgs) == 2 * 3
+    shapes = {im.shape[:2] for im in imgs}
+    assert len(shapes) == 1
+    assert 'id="house-synthetic-s000001"' in page and "house-synthetic-s000000" not in page
+    assert "<script>" in page and "http://" not in page and "https://" not in page  # nothing fetched
+    assert main([str(run), "--out", str(out), "--house", "nope"]) == 2
+    assert "no job of the run scored it" in capsys.readouterr().err
+
+
+def _chromium_or_skip():
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        pytest.skip("chromium is not installed (Debian: apt-get install -y chromium)")
+    return exe
+
+
+def _chromium(exe, tmp_path, url, *args):
+    p = subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}", *args, url],
+                       capture_output=True, text=True, timeout=120)
+    return p
+
+
+def _console_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if ":CONSOLE" in line]
+
+
+@pytest.mark.slow
+def test_report_in_headless_chromium(sweep, tmp_path):
+    exe = _chromium_or_skip()
+    run, _ = sweep
+    out = tmp_path / "report.html"
+    assert main([str(run), "--out", str(out)]) == 0
+    url = out.resolve().as_uri()
+    shot = tmp_path / "shot.png"
+    p = _chromium(exe, tmp_path, url, f"--screenshot={shot}", "--window-size=1280,1400")
+    assert shot.exists(), p.stderr[-2000:]
+    assert _console_lines(p.stderr) == []
+    rgb = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    assert len({tuple(c) for c in rgb.reshape(-1, 3)[::13]}) > 50  # not blank
+    from envs.world.classes import CLASS_COLORS
+
+    seen = {tuple(c) for c in rgb.reshape(-1, 3)}
+    assert sum(tuple(c) in seen for c in CLASS_COLORS.values()) >= 4  # the maps are drawn
+    top = rgb[:400]
+    assert ((top.sum(-1) < 150).sum()) > 2000  # the heading and the table's text
+    dom = _chromium(exe, tmp_path, url, "--dump-dom").stdout
+    assert dom.count('data-sortable="ready"') == 2  # the inline script ran (configs, failures)
+    # the console check catches an error: a page that throws
+    bad = tmp_path / "bad.html"
+    bad.write_text("<html><body><script>throw new Error('deliberate');</script></body></html>")
+    p = _chromium(exe, tmp_path, bad.resolve().as_uri(), "--dump-dom")
+    assert any("deliberate" in line for line in _console_lines(p.stderr))
