@@ -297,6 +297,7 @@ def test_objects_classifier_fit_save_load_and_training_key(tmp_path):
 # ---------------------------------------------------------------- metrics files
 def test_truncated_or_malformed_metrics_file_is_refused_naming_it(tmp_path):
     f = tmp_path / "metrics.csv"
+    (tmp_path / "summary.json").write_text(json.dumps({"n_houses": 2}))  # a runner job's folder
     f.write_text("house_id,status,iou\nh1,ok,0.5\nh2,ok,0.")
     with pytest.raises(ValueError, match=r"metrics.csv: truncated"):
         read_metrics(f)
@@ -304,6 +305,83 @@ def test_truncated_or_malformed_metrics_file_is_refused_naming_it(tmp_path):
     with pytest.raises(ValueError, match=r"metrics.csv: malformed row 3"):
         read_metrics(f)
     f.write_text("house_id,status,iou\nh1,ok,0.5\n")
-    (tmp_path / "summary.json").write_text(json.dumps({"n_houses": 2}))
     with pytest.raises(ValueError, match=r"metrics.csv: 1 rows but summary.json says 2 houses"):
         read_metrics(f)
+
+
+# ---------------------------------------------------------------- tables: by run, whole sets
+def _fake_job(folder: Path, run_name: str, aggregator: str, ious: list[float]) -> None:
+    """A finished runner job made by hand (known means)."""
+    folder.mkdir(parents=True)
+    n = len(ious)
+    pd.DataFrame({"house_id": [f"h{i}" for i in range(n)], "dataset": "synthetic", "classifier": "oracle",
+                  "aggregator": aggregator, "postprocess": "default", "segmenter": "", "status": "ok", "error": "",
+                  "iou": ious, "accuracy": ious}).to_csv(folder / "metrics.csv", index=False)
+    (folder / "summary.json").write_text(json.dumps({"n_houses": n}))
+    (folder / "resolved_config.yaml").write_text(f"run:\n  name: {run_name}\n")
+
+
+def _tables(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "benchmark.commands.tables", *args], cwd=ROOT, env=ENV,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_tables_group_by_run_and_say_what_they_read(tmp_path):
+    runs = tmp_path / "runs"
+    _fake_job(runs / "sweep" / "aggregator=graph_knn", "sweep", "graph_knn", [0.5, 0.7])
+    _fake_job(runs / "sweep" / "aggregator=vision_cone", "sweep", "vision_cone", [0.2, 0.4])
+    _fake_job(runs / "default", "default", "graph_knn", [0.1])
+    out = _tables(str(runs), "--out", str(tmp_path / "t"), "--table", "table4")
+    assert out.returncode == 0, out.stderr
+    assert "read run 'sweep': 2 metrics file(s), 4 rows" in out.stderr
+    assert "read run 'default': 1 metrics file(s), 1 rows" in out.stderr
+    assert "## Run sweep" in out.stdout and "## Run default" in out.stdout
+    sweep = pd.read_csv(tmp_path / "t" / "sweep" / "table4.csv")
+    assert sweep.set_index("aggregator")["iou_mean"].to_dict() == pytest.approx({"graph_knn": 0.6, "vision_cone": 0.3})
+    alone = pd.read_csv(tmp_path / "t" / "default" / "table4.csv")
+    assert alone["iou_mean"].tolist() == pytest.approx([0.1]) and alone["n"].tolist() == [1]
+    # a truncated metrics file is refused, naming it, and the old outputs stay whole
+    before = {p.relative_to(tmp_path / "t"): p.read_bytes() for p in (tmp_path / "t").rglob("*") if p.is_file()}
+    bad = runs / "default" / "metrics.csv"
+    bad.write_bytes(bad.read_bytes()[:-3])
+    out = _tables(str(runs), "--out", str(tmp_path / "t"), "--table", "table4")
+    assert out.returncode == 2 and out.stderr.strip().splitlines()[-1] == f"error: {bad}: truncated (the last line has no newline)"
+    after = {p.relative_to(tmp_path / "t"): p.read_bytes() for p in (tmp_path / "t").rglob("*") if p.is_file()}
+    assert after == before
+
+
+@pytest.mark.slow
+def test_killed_tables_leave_the_old_set_or_the_new_one(tmp_path):
+    import signal
+    import time
+
+    runs = tmp_path / "runs"
+    rng = np.random.default_rng(0)
+    for j in range(40):
+        _fake_job(runs / "big" / f"job{j:02d}", "big", f"agg{j % 8}", list(rng.random(30).round(4)))
+    args = [str(runs), "--table", "table4", "--table", "table3", "--table", "all", "--out"]
+    ref = _tables(*args, str(tmp_path / "ref"))
+    assert ref.returncode == 0, ref.stderr
+    want = {p.relative_to(tmp_path / "ref"): p.read_bytes() for p in (tmp_path / "ref").rglob("*") if p.is_file()}
+    out = tmp_path / "out"
+    t0 = time.perf_counter()
+    _tables(*args, str(out))
+    full = time.perf_counter() - t0
+    states, killed = set(), 0
+    for k in range(12):
+        if k % 2:
+            import shutil
+
+            shutil.rmtree(out, ignore_errors=True)  # half of the kills hit a first write
+        proc = subprocess.Popen([sys.executable, "-m", "benchmark.commands.tables", *args, str(out)], cwd=ROOT,
+                                env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(full * (0.3 + 0.7 * k / 11))
+        proc.send_signal(signal.SIGKILL)
+        killed += proc.wait() == -signal.SIGKILL
+        if out.exists():
+            got = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+            assert got == want, f"kill {k}: a partial set"
+            states.add("whole")
+        else:
+            states.add("absent")
+    assert killed >= 6  # most runs really were killed before they finished

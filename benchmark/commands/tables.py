@@ -1,4 +1,13 @@
-"""``python -m benchmark.commands.tables``: the command-line front of :mod:`benchmark.reports.tables`."""
+"""``python -m benchmark.commands.tables``: the command-line front of :mod:`benchmark.reports.tables`.
+
+Every ``metrics.csv`` under the given paths is checked first (a truncated or malformed file
+is refused with one line naming it), and the rows are grouped by run (a job's ``run.name``;
+the folder name for files that are not runner jobs): one run gives the tables as before;
+several runs give one section per run (and ``--out DIR/<run>/`` per run), never one table
+mixing them. What was read is said on stderr. With ``--out``, the set of files is written
+as a whole (temporary folder + rename): an interrupted command leaves the old set or the
+new one, never a part.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +16,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmark.harness.cache import atomic_folder
+from benchmark.harness.store import METRICS, Job, iter_metric_files, read_metrics, safe_name
 from benchmark.reports.tables import TABLES, render
 
 
@@ -19,12 +30,45 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--fraction", action="store_true", help="report fractions instead of percent")
     a = ap.parse_args(argv)
     try:
-        text = render(a.paths, a.table, a.out, percent=not a.fraction)
+        runs = _runs(a.paths)
+        for name, files in runs.items():
+            n_rows = sum(len(read_metrics(f)) for f in files)  # refuses a truncated or malformed file
+            where = sorted({str(f.parent.parent if f.parent.parent.name != "runs" else f.parent) for f in files})
+            print(f"read run {name!r}: {len(files)} metrics file(s), {n_rows} rows ({', '.join(where)[:200]})",
+                  file=sys.stderr)
+
+        def make(out: Path | None) -> str:
+            if len(runs) == 1:
+                return render(next(iter(runs.values())), a.table, out, percent=not a.fraction)
+            return "\n".join(f"## Run {name}\n\n" + render(files, a.table, out / safe_name(name) if out else None,
+                                                              percent=not a.fraction)
+                             for name, files in runs.items())
+
+        if a.out is None:
+            text = make(None)
+        else:
+            with atomic_folder(a.out) as tmp:
+                text = make(tmp)
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:
+        print(f"error: cannot write {e.filename or a.out} ({e.strerror or e})", file=sys.stderr)
+        return 2
     print(text)
     return 0
+
+
+def _runs(paths: Sequence[str | Path]) -> dict[str, list[Path]]:
+    """The metrics files under ``paths`` grouped by run, in the order first found."""
+    out: dict[str, list[Path]] = {}
+    files = list(iter_metric_files(paths))
+    if not files:
+        raise FileNotFoundError(f"no metrics.csv under {[str(p) for p in paths]}")
+    for f in files:
+        name = Job(f.parent).run_name() if f.name == METRICS else f.stem
+        out.setdefault(name, []).append(f)
+    return out
 
 
 if __name__ == "__main__":

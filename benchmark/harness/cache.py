@@ -140,6 +140,43 @@ def locked(path: Path, timeout: float = 3600.0) -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def atomic_folder(out: str | Path) -> Iterator[Path]:
+    """Write a set of files as a whole: yield a temporary sibling folder to fill; on success it
+    replaces ``out`` (entries of the old ``out`` that the new set does not have, e.g. a
+    ``figures/`` folder, are carried over); on an exception it is removed and ``out`` is
+    untouched. A process killed at any moment leaves ``out`` as it was, or whole and new
+    (or, killed between the two renames, absent with the old set kept beside it as
+    ``.<name>.old-<pid>``), never a part of the new set.
+
+    Yields:
+        The temporary folder (same parent as ``out``, so the final rename is atomic)."""
+    import shutil
+    import tempfile
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; the set is an ordinary folder
+    try:
+        yield tmp
+        if out.exists():
+            for entry in out.iterdir():
+                if not (tmp / entry.name).exists():
+                    os.replace(entry, tmp / entry.name)
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            os.replace(out, old)
+            os.replace(tmp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
 def atomic_write_json(path: Path, obj: Any) -> None:
     atomic_write_text(path, json.dumps(obj, indent=1, sort_keys=True, default=_json_default))
 

@@ -209,10 +209,10 @@ def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tu
 def read_metrics(path: str | Path):
     """A job's ``metrics.csv`` as a DataFrame, checked whole.
 
-    Checked: it parses; it has ``house_id`` and ``status`` columns; every row has a house id
-    and a status of ``ok`` or ``failed``; the last line ends with a newline (a truncated write
-    does not); where the job's ``summary.json`` is beside it, the row count equals its
-    ``n_houses``.
+    Checked: it parses and its last line ends with a newline (a truncated write does not);
+    for a runner job (``summary.json`` beside it) also: ``house_id`` and ``status`` columns,
+    every row with a house id and a status of ``ok`` or ``failed``, and as many rows as the
+    summary's ``n_houses``.
 
     Raises:
         ValueError: one line naming the file and what is wrong.
@@ -236,6 +236,9 @@ def read_metrics(path: str | Path):
         df = pd.read_csv(io.BytesIO(raw), keep_default_na=True)
     except Exception as e:  # noqa: BLE001 - any parser error is a malformed file
         raise ValueError(f"{path}: malformed CSV ({type(e).__name__}: {str(e).strip()[:120]})") from None
+    summary = path.parent / SUMMARY
+    if not summary.exists():  # not a runner job (e.g. a per-map table of the baselines)
+        return df
     missing = [c for c in ("house_id", "status") if c not in df]
     if missing:
         raise ValueError(f"{path}: malformed metrics file, no column(s) {missing}")
@@ -244,8 +247,7 @@ def read_metrics(path: str | Path):
         i = int(bad.to_numpy().nonzero()[0][0])
         raise ValueError(f"{path}: malformed row {i + 2} (house_id={df['house_id'].iloc[i]!r}, "
                          f"status={df['status'].iloc[i]!r}; expected a house id and ok|failed)")
-    summary = path.parent / SUMMARY
-    if path.name == METRICS and summary.exists():
+    if path.name == METRICS:
         try:
             n = json.loads(summary.read_text(encoding="utf-8")).get("n_houses")
         except ValueError:
