@@ -174,8 +174,8 @@ def _tabular_width(tmp_path, tex: str) -> tuple[float, float, float]:
     tab = tex[tex.index("\\begin{tabular}"):tex.rindex("\\end{tabular}") + len("\\end{tabular}")]
     (tmp_path / "tab.tex").write_text(tab)
     sep = re.search(r"\\tabcolsep\}\{([\d.]+)pt\}", tex).group(1)
-    log = _compile(tmp_path, "\\newsavebox\\tb\\sbox\\tb{\\footnotesize\\setlength{\\tabcolsep}{%spt}\\input{tab.tex}}"
-                   "\\typeout{TABW=\\the\\wd\\tb;COLW=\\the\\columnwidth;TEXTW=\\the\\textwidth;}" % sep)
+    log = _compile(tmp_path, "\\newsavebox\\tb\\sbox\\tb{\\footnotesize\\setlength{\\tabcolsep}{" + sep + "pt}"
+                   "\\input{tab.tex}}\\typeout{TABW=\\the\\wd\\tb;COLW=\\the\\columnwidth;TEXTW=\\the\\textwidth;}")
     m = re.search(r"TABW=([\d.]+)pt;COLW=([\d.]+)pt;TEXTW=([\d.]+)pt;", log)
     return float(m.group(1)), float(m.group(2)), float(m.group(3))
 
@@ -191,7 +191,7 @@ def test_latex_compiles_and_fits_what_its_first_line_says(table4_run, sensitivit
         d = tmp_path / name
         d.mkdir()
         (d / "t.tex").write_text(tex)
-        log = _compile(d, "\\input{t.tex}\n\\ref{tab:%s}" % name)
+        log = _compile(d, "\\input{t.tex}\n\\ref{tab:" + name + "}")
         assert "Overfull \\hbox" not in log, f"{name}: {re.search(r'Overfull.*', log).group(0)}"
         width, col, page = _tabular_width(d, tex)
         est = float(re.search(r"estimated (\d+) pt", tex.splitlines()[0]).group(1))
