@@ -263,3 +263,41 @@ def test_configs_build_each_noise_model():
         clf = instantiate(cfg.classifier)
         assert type(clf.noise) is cls and clf.accuracy == 0.7
     assert not np.allclose(clf.confusion[PAPER_CLASSES.index("kitchen")], 1 / 6 * (1 - np.eye(C)[5]))
+
+
+@pytest.mark.slow
+def test_runner_rows_carry_both_view_accuracies(tmp_path):
+    from benchmark.harness.runner import run
+
+    def rows(name, acc):
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            cfg = compose("config", overrides=[
+                "env=synthetic", "run.limit=2", f"classifier={name}", f"classifier.accuracy={acc}",
+                "aggregator=graph_knn", "postprocess=none", "viewpoints.spacing=1.0", "env.resolution=0.1",
+                f"run.results_dir={tmp_path}", "run.progress=false", "run.save_maps=false"])
+        return run(cfg, tmp_path / f"{name}-{acc}")
+
+    for name in ("oracle", "oracle_room", "oracle_house"):
+        right, wrong = rows(name, 1.0), rows(name, 0.0)
+        assert (right["status"] == "ok").all() and (wrong["status"] == "ok").all()
+        # against what the views see (the oracle's truth) the configured accuracy is exact here
+        assert (right["view_accuracy_seen"] == 1.0).all() and (wrong["view_accuracy_seen"] == 0.0).all()
+    # against the room the robot stands in, a perfect oracle is wrong where a view looks into another room
+    assert (right["view_accuracy"] < 0.95).all() and (right["view_accuracy"] > 0.3).all()
+
+
+@pytest.mark.slow
+def test_sensitivity_plots_one_per_noise_model(tmp_path):
+    import pandas as pd
+
+    from benchmark.classifiers.noise import plot_sensitivity_per_noise
+
+    recs = [{"classifier": c, "oracle_accuracy": a, "aggregator": g, "postprocess": p, "iou_mean": a / 2,
+             "iou_std": 0.05, "accuracy_mean": a, "accuracy_std": 0.01}
+            for c in ("oracle", "oracle_room") for a in (0.5, 1.0) for g in ("graph_knn", "vision_cone")
+            for p in ("none", "default")]
+    written = plot_sensitivity_per_noise(pd.DataFrame(recs), tmp_path)
+    assert sorted(p.name for p in written) == ["sensitivity.png", "sensitivity_oracle.png",
+                                               "sensitivity_oracle_room.png"]
+    assert all(p.stat().st_size > 10_000 for p in written)
+    assert plot_sensitivity_per_noise(pd.DataFrame(recs[:8]), tmp_path / "one") == []
