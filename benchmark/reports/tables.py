@@ -49,8 +49,9 @@ TABLES: dict[str, TableSpec] = {
                         exclude={"postprocess": "none", "segmenter_row": True}),
     "table5": TableSpec("Table V: comparison with baselines", rows=("dataset", "method"),
                         metrics=("iou", "precision", "recall", "accuracy")),
-    "sensitivity": TableSpec("Sensitivity to classifier accuracy (oracle)",
-                             rows=("oracle_accuracy",), cols=("aggregator", "postprocess"),
+    "sensitivity": TableSpec("Sensitivity to classifier accuracy (oracle; classifier = noise model)",
+                             rows=("classifier", "oracle_accuracy"), cols=("aggregator", "postprocess"),
+                             metrics=("iou", "accuracy", "view_accuracy_seen"),
                              exclude={"segmenter_row": True}),
     "all": TableSpec("Every configuration", rows=("dataset", "method"),
                      metrics=("iou", "precision", "recall", "accuracy")),
@@ -196,7 +197,10 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
             atomic_write_text(out_dir / f"{name}.csv", summ.to_csv(index=False))
             atomic_write_text(out_dir / f"{name}.tex", formatting.to_latex(grid, f"tab:{name}", caption.strip()))
         if name == "sensitivity" and out_dir is not None and reason is None:
-            plot_sensitivity(summ, out_dir / "sensitivity.png")
+            from benchmark.classifiers.noise import plot_sensitivity_per_noise  # noqa: PLC0415
+
+            if not plot_sensitivity_per_noise(summ, out_dir):  # one plot per noise model, and an overview
+                plot_sensitivity(summ, out_dir / "sensitivity.png")
     if skipped:
         chunks.append("\n".join(skipped) + "\n")
     failed = df[df["status"] != "ok"]
