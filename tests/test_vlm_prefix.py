@@ -173,7 +173,7 @@ def test_the_bench_command_prints_before_and_after(capsys):
     assert main(["--images", "2", "--batch-size", "2", "--image-size", "28", "--repeats", "1", "--layers", "1",
                  "--width", "32"]) == 0
     out = capsys.readouterr().out
-    rows = [line.split() for line in out.splitlines() if line.startswith(("qwen", "gpt2"))]
-    assert len(rows) == 10
+    rows = [line.split() for line in out.splitlines() if line.startswith(("qwen", "gpt2")) and "against" not in line]
+    assert len(rows) == 10 and out.count("against before (plain, the classifier as it was)") == 2
     qwen_after = next(r for r in rows if r[0] == "qwen" and r[1] == "after" and r[4] == "all")
     assert float(qwen_after[6]) == 1.0 and float(qwen_after[-1]) < 1e-4  # vision once per image, same scores
