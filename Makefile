@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test lint bench perf tables figures report readme-tables clean
+.PHONY: help setup setup-test test lint bench perf sensitivity tables figures report readme-tables clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -48,6 +48,11 @@ bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench, tables
 
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf
+
+sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity (+ docs/figures)
+	$(PY) -m benchmark.commands.bench experiment=sensitivity env=synthetic run.limit=20
+	$(PY) -m benchmark.commands.tables results/runs/sensitivity --table sensitivity --out results/sensitivity
+	mkdir -p docs/figures && cp results/sensitivity/sensitivity*.png docs/figures/
 
 tables: setup  ## paper tables from every run under results/runs -> results/tables
 	$(PY) -m benchmark.commands.tables results/runs --out results/tables
