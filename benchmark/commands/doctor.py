@@ -26,7 +26,7 @@ OPTIONAL = {
     "bitsandbytes": "pip install -e '.[gpu]' (4-bit VLM, CUDA only)",
     "ai2thor": "pip install -e '.[thor]' (AI2-THOR renderer, ProcTHOR via prior)",
     "prior": "pip install -e '.[thor]' (downloads ProcTHOR-10k)",
-    "habitat_sim": "conda install habitat-sim headless -c conda-forge -c aihabitat (no pip wheel for Linux)",
+    "habitat_sim": "conda install habitat-sim withbullet headless -c conda-forge -c aihabitat-nightly (no pip wheel for Linux)",
 }
 OK, MISSING, OPTIONAL_MISSING = "OK", "MISSING", "optional"
 DEFAULT_HAB = "data/ai2thor-hab/ai2thor-hab/ai2thor-hab.scene_dataset_config.json"

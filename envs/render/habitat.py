@@ -1,7 +1,7 @@
 """Habitat-Sim renderer for the ArchitecTHOR houses of the ai2thor-hab scene dataset.
 
 Needs habitat-sim (no pip wheel for Linux: ``conda install habitat-sim headless -c
-conda-forge -c aihabitat``) and the ai2thor-hab scenes (Hugging Face ``hssd/ai2thor-hab``;
+conda-forge -c aihabitat-nightly``, README) and the ai2thor-hab scenes (Hugging Face ``hssd/ai2thor-hab``;
 ``scene_dataset`` is its ``ai2thor-hab.scene_dataset_config.json``). Written against
 habitat-sim's documented Python API (``SimulatorConfiguration``, ``CameraSensorSpec``,
 ``agent.AgentConfiguration``, ``AgentState``, ``Agent.set_state``,
@@ -32,7 +32,8 @@ from envs.maps.poses import check_mirror, pose_to_habitat, wxyz_to_xyzw
 from envs.render.base import Renderer
 from envs.render.observation import Observation, poses_array
 
-INSTALL = "conda install habitat-sim headless -c conda-forge -c aihabitat (no pip wheel for Linux)"
+INSTALL = ("conda install habitat-sim withbullet headless -c conda-forge -c aihabitat-nightly (a Python 3.10 build; "
+           "no pip wheel for Linux)")
 DEFAULT_DATASET = "data/ai2thor-hab/ai2thor-hab/ai2thor-hab.scene_dataset_config.json"
 
 
