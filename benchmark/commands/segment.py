@@ -340,6 +340,16 @@ def _check_out(out: Path, overwrite: bool) -> None:
         raise ValueError(f"out={out} exists and is not empty; choose a new folder or pass overwrite=true")
 
 
+def _readable(folder: Path) -> None:
+    """Give the output folder and its files the usual permissions (the temporary folder and
+    the atomic writers' temporary files start private): 0o777 / 0o666 less the umask."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(folder, 0o777 & ~umask)
+    for p in folder.iterdir():
+        os.chmod(p, 0o666 & ~umask)
+
+
 def _publish(tmp: Path, out: Path) -> None:
     """Move the finished ``tmp`` folder to ``out`` (replacing an old ``out`` only after
     the new set is complete)."""
@@ -444,6 +454,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
         summary["out"] = str(out)
         summary["files"] = sorted(p.name for p in tmp.iterdir()) + ["summary.json"]
         (tmp / "summary.json").write_text(json.dumps(summary, indent=1))
+        _readable(tmp)
         _check_out(out, bool(cfg.overwrite))
         _publish(tmp, out)
     except BaseException:
