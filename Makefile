@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test lint bench perf sensitivity tables figures report readme-tables clean
+.PHONY: help setup setup-test test lint bench bench-publish perf sensitivity tables figures report readme-tables clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -40,11 +40,29 @@ SHARED ?= ../shared/data
 BENCH_HOUSES ?= 20
 BENCH_ENVS := synthetic$(if $(wildcard $(SHARED)/procthor/*.jsonl.gz),$(comma)procthor_shared,)
 BENCH_OUT ?= results/bench
+# where runs and caches go (run.results_dir); bench-publish uses a fresh one
+RESULTS ?= results
 
-bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench, tables + figures -> results/bench
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES)
-	$(PY) -m benchmark.commands.tables results/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
-	$(PY) -m benchmark.commands.figures from-run results/runs/bench --out $(BENCH_OUT)/figures
+bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables, figures, report.html -> results/bench
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
+	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
+	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --out $(BENCH_OUT)/figures
+	$(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --out $(BENCH_OUT)/report.html
+
+report: setup  ## a sweep as one HTML page: RUN=results/runs/<name> (default bench) -> RUN's folder/report.html
+	$(PY) -m benchmark.commands.report $(or $(RUN),$(RESULTS)/runs/bench) --out $(or $(RUN),$(RESULTS)/runs/bench)/report.html
+
+# README numbers: bench-publish runs `make bench` from an empty cache under /usr/bin/time and
+# copies its per-house metrics to results/published/bench (committed); readme-tables writes
+# the README's generated blocks from results/published (tests/test_readme_tables.py checks them).
+PUBLISH_TMP := results/.publish
+bench-publish: setup  ## fresh timed `make bench`, its metrics -> results/published/bench (then: make readme-tables)
+	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
+	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory bench RESULTS=$(PUBLISH_TMP) BENCH_OUT=$(PUBLISH_TMP)/bench
+	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/bench --name bench --time $(PUBLISH_TMP)/time.txt
+
+readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
+	$(PY) -m benchmark.commands.readme_tables write
 
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf

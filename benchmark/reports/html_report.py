@@ -373,6 +373,7 @@ def write_report(run_dirs: Sequence[str | Path], out: str | Path, houses: Sequen
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out, build_report(run_dirs, houses, max_houses))
+    out.chmod(0o644)
     return out
 
 

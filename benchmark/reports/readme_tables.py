@@ -1,0 +1,250 @@
+"""README results that cannot go stale: blocks between markers, written from published runs.
+
+The README holds each generated block between two markers::
+
+    <!-- BEGIN generated: bench-table4 (make readme-tables; do not edit) -->
+    ...
+    <!-- END generated: bench-table4 -->
+
+:data:`BLOCKS` says what each block shows and which published run it reads. A published
+run is a copy of a sweep's per-house ``metrics.csv`` files (timing columns dropped) under
+``results/published/<name>/`` with ``provenance.json`` (command, date, machine, wall time,
+peak memory, commit), committed so that the blocks can be regenerated, and checked by
+``tests/test_readme_tables.py``, without running the sweep. Commands::
+
+    python -m benchmark.commands.readme_tables publish results/runs/bench --name bench [--time FILE]
+    python -m benchmark.commands.readme_tables write      # README.md blocks from results/published
+    python -m benchmark.commands.readme_tables check      # exit 1 when a block differs
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import re
+import shutil
+import subprocess
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from benchmark.reports import formatting
+
+#: where published runs live, relative to the repository root.
+PUBLISHED = Path("results/published")
+PROVENANCE = "provenance.json"
+
+_BEGIN = re.compile(r"<!-- BEGIN generated: ([A-Za-z0-9_.-]+)[^>]*-->\n(.*?)<!-- END generated: \1 -->", re.S)
+
+
+@dataclass(frozen=True)
+class Block:
+    """One README block: a table of :data:`benchmark.reports.tables.TABLES` (``table``) over
+    the published runs ``sources``, or, with ``table`` None, the timing line of ``sources[0]``."""
+
+    name: str
+    sources: tuple[str, ...]
+    table: str | None = None
+
+
+BLOCKS: dict[str, Block] = {b.name: b for b in (
+    Block("bench-timing", ("bench",)),
+    Block("bench-table4", ("bench",), "table4"),
+    Block("bench-table3", ("bench",), "table3"),
+)}
+
+
+def machine() -> str:
+    """This machine in words: CPU model and count, memory, OS (e.g. ``AMD EPYC, 2 cores,
+    23 GiB, Linux 6.1``)."""
+    import os
+
+    cpu = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        cpu = platform.processor()
+    mem = ""
+    try:
+        kb = int(next(ln for ln in Path("/proc/meminfo").read_text().splitlines()
+                      if ln.startswith("MemTotal")).split()[1])
+        mem = f", {kb / 2**20:.0f} GiB"
+    except (OSError, StopIteration, ValueError):
+        pass
+    return f"{cpu or 'unknown CPU'}, {os.cpu_count()} cores{mem}, {platform.system()} {platform.release().split('-')[0]}"
+
+
+def _commit(root: Path) -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: str | Path | None = None,
+            command: str = "make bench") -> Path:
+    """Copy a finished run's per-house metrics into ``<root>/results/published/<name>/``.
+
+    Each job's ``metrics.csv`` keeps its relative folder and every column but the stage
+    timings (``t_*``, which differ run to run). ``provenance.json`` records ``command``,
+    the UTC date, :func:`machine`, the commit and, from ``time_file`` (GNU time's
+    ``-f "%e %M"``: wall seconds and peak RSS in KiB), the wall time and peak memory.
+
+    Returns:
+        the published folder (replaced whole).
+
+    Raises:
+        FileNotFoundError: no finished job under ``run_dir``.
+        ValueError: an unreadable ``time_file``.
+    """
+    from benchmark.harness.cache import atomic_write_json
+    from benchmark.harness.store import find_jobs
+
+    run_dir, root = Path(run_dir), Path(root)
+    jobs = find_jobs([run_dir])
+    dest = root / PUBLISHED / name
+    tmp = dest.with_name(f".{name}.tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    for job in jobs:
+        df = pd.read_csv(job.metrics_path, keep_default_na=True)
+        df = df[[c for c in df.columns if not c.startswith("t_")]]
+        rel = job.dir.relative_to(run_dir) if job.dir != run_dir else Path(".")
+        (tmp / rel).mkdir(parents=True, exist_ok=True)
+        df.to_csv(tmp / rel / "metrics.csv", index=False)
+    prov = {"command": command, "run": str(run_dir), "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
+            "machine": machine(), "commit": _commit(root), "jobs": len(jobs)}
+    if time_file is not None:
+        try:
+            wall, rss_kb = Path(time_file).read_text().split()[-2:]
+            prov["wall_s"], prov["peak_rss_mb"] = round(float(wall), 1), round(int(rss_kb) / 1024)
+        except (OSError, ValueError) as e:
+            raise ValueError(f"{time_file}: expected GNU time's '%e %M' (seconds, KiB), got an error: {e}") from None
+    atomic_write_json(tmp / PROVENANCE, prov)
+    shutil.rmtree(dest, ignore_errors=True)
+    tmp.rename(dest)
+    return dest
+
+
+def provenance(root: str | Path, name: str) -> dict:
+    """A published run's provenance (FileNotFoundError naming how to publish it)."""
+    p = Path(root) / PUBLISHED / name / PROVENANCE
+    if not p.exists():
+        raise FileNotFoundError(f"{p} is missing: publish the run first "
+                                f"(python -m benchmark.commands.readme_tables publish results/runs/{name} --name {name})")
+    return json.loads(p.read_text(encoding="utf-8"))
+
+
+def _source_line(root: Path, sources: Sequence[str]) -> str:
+    provs = [provenance(root, s) for s in sources]
+    p = provs[0]
+    where = ", ".join(f"`{(PUBLISHED / s).as_posix()}`" for s in sources)
+    return f"Source: {where} (`{p['command']}` on {p['date_utc']}, commit {p.get('commit') or '?'})."
+
+
+def render_block(block: Block, root: str | Path = ".") -> str:
+    """The Markdown of one block (ends with a newline).
+
+    Raises:
+        FileNotFoundError: a published run the block reads is missing.
+    """
+    from benchmark.reports.tables import (
+        TABLES,
+        format_cells,
+        load_rows,
+        metric_notes,
+        summarise,
+        why_empty,
+    )
+
+    root = Path(root)
+    if block.table is None:
+        p = provenance(root, block.sources[0])
+        if "wall_s" not in p:
+            return (f"Not timed: `{p['command']}` was published without a time file "
+                    f"(on {p['date_utc']}, {p['machine']}).\n")
+        return (f"Measured with `/usr/bin/time` on {p['date_utc']} on {p['machine']} (after `make setup`): "
+                f"`{p['command']}` took **{p['wall_s']:.0f} s wall, {p['peak_rss_mb']} MB peak RSS** "
+                f"({p['jobs']} configurations).\n")
+    paths = [root / PUBLISHED / s for s in block.sources]
+    for s in block.sources:
+        provenance(root, s)  # a missing published run: one line saying how to publish it
+    df = load_rows(paths)
+    spec = TABLES[block.table]
+    summ = summarise(df, spec)
+    reason = why_empty(df, block.table, summ)
+    if summ.empty:
+        return f"({spec.title}: no rows, {reason}.)\n"
+    grid = format_cells(summ, spec, True, block.table)
+    notes = metric_notes(df)
+    return (formatting.to_markdown(grid) + "\n\n" + "Mean ± std over houses, in percent. " + " ".join(grid.notes)
+            + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n")
+
+
+def blocks_in(text: str) -> dict[str, str]:
+    """name -> current content of every generated block in ``text``.
+
+    Raises:
+        ValueError: a block named twice, or a BEGIN marker without its END."""
+    found: dict[str, str] = {}
+    for m in _BEGIN.finditer(text):
+        if m.group(1) in found:
+            raise ValueError(f"README block {m.group(1)!r} appears twice")
+        found[m.group(1)] = m.group(2)
+    begins = re.findall(r"<!-- BEGIN generated: ([A-Za-z0-9_.-]+)", text)
+    unmatched = [b for b in begins if b not in found]
+    if unmatched:
+        raise ValueError(f"README block {unmatched[0]!r} has no '<!-- END generated: {unmatched[0]} -->' marker")
+    return found
+
+
+def update_text(text: str, root: str | Path = ".") -> tuple[str, list[str]]:
+    """``text`` with every generated block rewritten; also the names of blocks that changed.
+
+    Raises:
+        ValueError: a block name not in :data:`BLOCKS`, or malformed markers."""
+    current = blocks_in(text)
+    unknown = [n for n in current if n not in BLOCKS]
+    if unknown:
+        raise ValueError(f"README block {unknown[0]!r} is not one of {sorted(BLOCKS)}")
+    changed = []
+
+    def sub(m: re.Match) -> str:
+        name = m.group(1)
+        new = render_block(BLOCKS[name], root)
+        if new != m.group(2):
+            changed.append(name)
+        whole, a, b = m.group(0), m.start(2) - m.start(0), m.end(2) - m.start(0)
+        return whole[:a] + new + whole[b:]
+
+    return _BEGIN.sub(sub, text), changed
+
+
+def check(readme: str | Path = "README.md", root: str | Path = ".") -> list[str]:
+    """Names of the README blocks that differ from what :func:`update_text` writes."""
+    return update_text(Path(readme).read_text(encoding="utf-8"), root)[1]
+
+
+def write(readme: str | Path = "README.md", root: str | Path = ".") -> list[str]:
+    """Rewrite the README's blocks in place (atomically); returns the names that changed."""
+    import os
+
+    from benchmark.harness.cache import atomic_write_text
+
+    readme = Path(readme)
+    new, changed = update_text(readme.read_text(encoding="utf-8"), root)
+    if changed:
+        mode = readme.stat().st_mode & 0o777
+        atomic_write_text(readme, new)
+        os.chmod(readme, mode)
+    return changed
+
+
+__all__ = ["BLOCKS", "Block", "PUBLISHED", "publish", "provenance", "render_block", "blocks_in", "update_text",
+           "check", "write", "machine"]

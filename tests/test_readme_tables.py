@@ -1,0 +1,87 @@
+"""README results blocks: written by `make readme-tables` from the committed published runs;
+the test fails when the README says anything else (a number changed by hand included)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from benchmark.reports import readme_tables as rt
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_readme_blocks_are_what_make_readme_tables_writes():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    found = rt.blocks_in(text)
+    assert {"bench-timing", "bench-table4", "bench-table3"} <= set(found)
+    changed = rt.check(ROOT / "README.md", ROOT)
+    assert changed == [], (f"README block(s) {changed} differ from the published runs in results/published/: "
+                           "run `make readme-tables` (after `make bench-publish` for fresh numbers)")
+
+
+def test_a_number_changed_by_hand_is_caught():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    body = rt.blocks_in(text)["bench-table4"]
+    i = next(k for k, ch in enumerate(body) if ch.isdigit() and body[k - 1] == " ")
+    edited = body[:i] + str((int(body[i]) + 1) % 10) + body[i + 1:]
+    new_text = text.replace(body, edited, 1)
+    assert new_text != text
+    fixed, changed = rt.update_text(new_text, ROOT)
+    assert changed == ["bench-table4"]
+    assert fixed == text  # writing the blocks restores the published numbers
+
+
+def _hand_run(root: Path) -> Path:
+    run = root / "runs" / "demo"
+    for agg, iou in (("graph_knn", (0.2, 0.4)), ("vision_cone", (0.6, 0.8))):
+        d = run / f"aggregator={agg}"
+        d.mkdir(parents=True)
+        pd.DataFrame({"house_id": ["a", "b"], "dataset": "synthetic", "classifier": "oracle", "oracle_accuracy": 0.8,
+                      "aggregator": agg, "postprocess": "default", "segmenter": "", "status": "ok", "error": "",
+                      "iou": iou, "accuracy": (0.5, 0.7), "t_score": (0.01, 0.02)}).to_csv(d / "metrics.csv",
+                                                                                       index=False)
+        (d / "summary.json").write_text(json.dumps({"n_houses": 2, "names": {}}))
+        (d / "resolved_config.yaml").write_text("run: {name: demo}\n")
+    return run
+
+
+def test_publish_then_write_a_block(tmp_path, monkeypatch):
+    run = _hand_run(tmp_path)
+    (tmp_path / "time.txt").write_text("Command exited with non-zero status 0\n61.27 349184\n")
+    dest = rt.publish(run, "bench", tmp_path, tmp_path / "time.txt")
+    assert dest == tmp_path / "results" / "published" / "bench"
+    cols = pd.read_csv(dest / "aggregator=graph_knn" / "metrics.csv").columns
+    assert "t_score" not in cols and "iou" in cols
+    prov = json.loads((dest / "provenance.json").read_text())
+    assert prov["wall_s"] == 61.3 and prov["peak_rss_mb"] == 341 and "cores" in prov["machine"]
+    readme = tmp_path / "README.md"
+    readme.write_text("intro\n<!-- BEGIN generated: bench-table4 (do not edit) -->\nold\n"
+                      "<!-- END generated: bench-table4 -->\nmiddle\n"
+                      "<!-- BEGIN generated: bench-timing -->\n<!-- END generated: bench-timing -->\nend\n")
+    readme.chmod(0o644)
+    assert rt.check(readme, tmp_path) == ["bench-table4", "bench-timing"]
+    assert rt.write(readme, tmp_path) == ["bench-table4", "bench-timing"]
+    assert rt.check(readme, tmp_path) == []
+    assert readme.stat().st_mode & 0o777 == 0o644
+    text = readme.read_text()
+    assert "| oracle     | graph KNN   | 30.00 ± 14.14 | 60.00 ± 14.14 |" in text
+    assert "| oracle     | vision cone | 70.00 ± 14.14 | 60.00 ± 14.14 |" in text
+    assert "**61 s wall, 341 MB peak RSS**" in text and text.startswith("intro\n") and text.endswith("end\n")
+
+
+def test_bad_markers_and_missing_inputs(tmp_path):
+    with pytest.raises(ValueError, match="no '<!-- END generated: bench-table4 -->'"):
+        rt.blocks_in("<!-- BEGIN generated: bench-table4 -->\nx\n")
+    with pytest.raises(ValueError, match="not one of"):
+        rt.update_text("<!-- BEGIN generated: nope -->\nx\n<!-- END generated: nope -->\n", tmp_path)
+    with pytest.raises(FileNotFoundError, match="publish the run first"):
+        rt.update_text("<!-- BEGIN generated: bench-table3 -->\n<!-- END generated: bench-table3 -->\n", tmp_path)
+    from benchmark.commands.readme_tables import main
+
+    readme = tmp_path / "R.md"
+    readme.write_text("<!-- BEGIN generated: bench-table3 -->\n<!-- END generated: bench-table3 -->\n")
+    assert main(["check", "--readme", str(readme)]) in (1, 2)
