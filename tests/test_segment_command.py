@@ -329,3 +329,37 @@ def test_images_classified_by_a_cnn_through_the_command(inputs, tmp_path, capsys
     assert s["mode"] == "images" and s["n_views"] == 3 and s["classes"] == ["kitchen", "office"]
     labels = read_index_png(o / "labels.png")
     assert set(np.unique(labels[inputs.grid.walkable]).tolist()) <= {0, 1}
+
+
+@pytest.mark.parametrize("connectivity", [1, 2])
+def test_mask_polygon_is_the_exact_pixel_outline_of_random_shapes(connectivity):
+    """Checked against pixel centres with shapely (no shared code with the tracing): every
+    4- or 8-connected region of random masks, with holes and corner-touching pixels."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(7)
+    rr, cc = np.mgrid[0:13, 0:11]
+    n_regions = 0
+    for t in range(60):
+        m = rng.random((13, 11)) < rng.uniform(0.3, 0.8)
+        if t % 3 == 1:
+            m = ndimage.binary_opening(m)
+        lab, n = ndimage.label(m, ndimage.generate_binary_structure(2, connectivity))
+        for k in range(1, n + 1):
+            region = lab == k
+            g = mask_polygon(region)
+            assert g.is_valid and g.area == region.sum()
+            assert (shapely.contains_xy(g, cc + 0.5, rr + 0.5) == region).all()
+            n_regions += 1
+    assert n_regions > 150
+
+
+def test_a_segment_in_two_pieces_is_one_multipolygon_feature():
+    from envs.maps.gridmap import GridMap
+
+    seg = np.array([[0, -1, 0], [-1, -1, -1], [1, 1, -1]])
+    gj = rooms_geojson(seg, GridMap(seg >= 0, 1.0, (0.0, 3.0)))
+    f0, f1 = gj["features"]
+    assert f0["geometry"]["type"] == "MultiPolygon" and shape(f0["geometry"]).area == 2
+    assert f0["properties"]["class"] is None and f1["properties"]["area_m2"] == 2.0
+    assert shapely.equals(shape(f1["geometry"]), shapely.box(0, 0, 2, 1))
