@@ -290,7 +290,7 @@ def test_runner_rows_carry_both_view_accuracies(tmp_path):
 def test_sensitivity_plots_one_per_noise_model(tmp_path):
     import pandas as pd
 
-    from benchmark.classifiers.noise import plot_sensitivity_per_noise
+    from benchmark.reports.sensitivity_plots import plot_sensitivity_per_noise
 
     recs = [{"classifier": c, "oracle_accuracy": a, "aggregator": g, "postprocess": p, "iou_mean": a / 2,
              "iou_std": 0.05, "accuracy_mean": a, "accuracy_std": 0.01}

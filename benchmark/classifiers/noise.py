@@ -371,6 +371,26 @@ class PerHouse(NoiseModel):
         return out
 
 
+def true_labels(observations: Sequence) -> np.ndarray:
+    """The majority visible class of each observation.
+
+    Returns:
+        (N,) int64 class index, -1 where nothing was seen.
+
+    Raises:
+        ValueError: an observation has no ``visible_classes`` (not the floorplan renderer).
+    """
+    out = np.full(len(observations), -1, dtype=np.int64)
+    for i, o in enumerate(observations):
+        v = o.visible_classes
+        if v is None:
+            raise ValueError(f"observation {i} has no visible_classes: the oracle needs the floorplan renderer")
+        v = np.asarray(v)
+        if v.sum() > 0:
+            out[i] = int(np.argmax(v))
+    return out
+
+
 def seen_accuracy(truth: np.ndarray, proba: np.ndarray) -> float:
     """Share of views whose top class is their true (majority visible) class.
 
@@ -410,8 +430,6 @@ def view_accuracy_seen(render_folder: str | Path, poses: np.ndarray, proba: np.n
         return float("nan")
     if not np.allclose(np.asarray([o.pose for o in obs], dtype=float), np.asarray(poses, dtype=float), atol=1e-6):
         return float("nan")
-    from benchmark.classifiers.oracle import true_labels  # noqa: PLC0415
-
     return seen_accuracy(true_labels(obs), proba)
 
 
@@ -447,7 +465,6 @@ def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Seque
         ((C, C) int64 counts, rows = true class, columns = predicted; number of views that
         saw no floor and were left out).
     """
-    from benchmark.classifiers.oracle import true_labels  # noqa: PLC0415
     from envs.render.observation import poses_array  # noqa: PLC0415
 
     n = len(classifier.classes)
@@ -471,80 +488,5 @@ def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Seque
     return counts, blind
 
 
-#: oracle classifier config -> the noise model's name in plots.
-NOISE_TITLES = {"oracle": "independent", "oracle_room": "per room", "oracle_house": "per house (bias)",
-                "oracle_confusion": "confusion (objects classifier)"}
-
-
-def _curves(ax, part, metric: str) -> None:
-    from benchmark.reports.formatting import combo_label  # noqa: PLC0415
-
-    keys = [c for c in ("aggregator", "postprocess") if c in part]
-    for key, g in part.groupby(keys):
-        g = g.sort_values("oracle_accuracy")
-        key = key if isinstance(key, tuple) else (key,)
-        label = combo_label(keys, key)
-        ax.errorbar(g["oracle_accuracy"] * 100, g[f"{metric}_mean"] * 100, yerr=g[f"{metric}_std"] * 100,
-                    marker="o", capsize=3, label=label, linestyle="--" if "none" in key else "-")
-    ax.set_ylim(0, 100)
-    ax.grid(alpha=0.3)
-
-
-def plot_sensitivity_per_noise(summary, out_dir: str | Path) -> list[Path]:
-    """Sensitivity plots when several noise models (oracle classifier configs) were swept:
-    ``sensitivity_<classifier>.png`` per model (IoU and pixel accuracy against the configured
-    accuracy, one curve per aggregator x post-processing, mean ± std over houses) and
-    ``sensitivity.png``, the IoU (top) and pixel-accuracy (bottom) panels of every model side
-    by side on one scale.
-
-    Args:
-        summary: the sensitivity table's per-cell summary (``classifier``, ``oracle_accuracy``,
-            ``aggregator``, ``postprocess``, ``<metric>_mean``/``_std`` columns; fractions).
-        out_dir: the folder to write to.
-
-    Returns:
-        The paths written; empty (nothing written) when the summary has fewer than two
-        classifiers.
-    """
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
-    from benchmark.reports.plotting import save  # noqa: PLC0415
-
-    if "classifier" not in summary or summary["classifier"].nunique() < 2:
-        return []
-    out_dir = Path(out_dir)
-    written = []
-    parts = list(summary.groupby("classifier"))
-    for name, part in parts:
-        fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
-        for ax, m, words in zip(axes, ("iou", "accuracy"), ("IoU (%)", "pixel accuracy (%)")):
-            _curves(ax, part, m)
-            ax.set_xlabel("configured oracle accuracy (%)")
-            ax.set_ylabel(words)
-        axes[0].legend(fontsize=8)
-        fig.suptitle(f"oracle noise: {NOISE_TITLES.get(str(name), name)} (classifier={name})", fontsize=10)
-        path = out_dir / f"sensitivity_{name}.png"
-        save(fig, path)
-        written.append(path)
-    fig, axes = plt.subplots(2, len(parts), figsize=(3.6 * len(parts), 6.6), sharex=True, sharey=True,
-                             squeeze=False)
-    for j, (name, part) in enumerate(parts):
-        for i, m in enumerate(("iou", "accuracy")):
-            _curves(axes[i][j], part, m)
-        axes[0][j].set_title(NOISE_TITLES.get(str(name), str(name)), fontsize=10)
-        axes[1][j].set_xlabel("configured oracle accuracy (%)")
-    axes[0][0].set_ylabel("IoU (%)")
-    axes[1][0].set_ylabel("pixel accuracy (%)")
-    axes[0][0].legend(fontsize=7)
-    path = out_dir / "sensitivity.png"
-    save(fig, path)
-    written.append(path)
-    return written
-
-
-__all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows",
-           "view_rooms", "seen_accuracy", "view_accuracy_seen", "view_confusion", "classifier_confusion", "plot_sensitivity_per_noise",
-           "pose_key", "text_key", "view_rng", "uniform_confusion"]
+__all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows", "true_labels",
+           "view_rooms", "seen_accuracy", "view_accuracy_seen", "view_confusion", "classifier_confusion", "pose_key", "text_key", "view_rng", "uniform_confusion"]

@@ -27,32 +27,13 @@ from benchmark.classifiers.noise import (
     NoiseModel,
     load_confusion,
     seen_accuracy,
+    true_labels,
     uniform_confusion,
     view_rng,
     wrong_class_rows,
 )
 from benchmark.interfaces import Classifier
 from envs.world.classes import PAPER_CLASSES
-
-
-def true_labels(observations: Sequence) -> np.ndarray:
-    """The majority visible class of each observation.
-
-    Returns:
-        (N,) int64 class index, -1 where nothing was seen.
-
-    Raises:
-        ValueError: an observation has no ``visible_classes`` (not the floorplan renderer).
-    """
-    out = np.full(len(observations), -1, dtype=np.int64)
-    for i, o in enumerate(observations):
-        v = o.visible_classes
-        if v is None:
-            raise ValueError(f"observation {i} has no visible_classes: the oracle needs the floorplan renderer")
-        v = np.asarray(v)
-        if v.sum() > 0:
-            out[i] = int(np.argmax(v))
-    return out
 
 
 class OracleClassifier(Classifier):

@@ -201,7 +201,7 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
             atomic_write_text(out_dir / f"{name}.csv", summ.to_csv(index=False))
             atomic_write_text(out_dir / f"{name}.tex", formatting.to_latex(grid, f"tab:{name}", caption.strip()))
         if name == "sensitivity" and out_dir is not None and reason is None:
-            from benchmark.classifiers.noise import plot_sensitivity_per_noise  # noqa: PLC0415
+            from benchmark.reports.sensitivity_plots import plot_sensitivity_per_noise  # noqa: PLC0415
 
             if not plot_sensitivity_per_noise(summ, out_dir):  # one plot per noise model, and an overview
                 plot_sensitivity(summ, out_dir / "sensitivity.png")
