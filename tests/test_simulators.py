@@ -79,7 +79,8 @@ class StandInUnity:
     def __init__(self, fail=None):
         self.sent = []
         self.stopped = False
-        self.fail = {} if fail is None else fail  # action -> (errorCode, errorMessage): answer it as failed
+        # action -> (errorCode, errorMessage): answer it as failed; "reach_anywhere": True accepts every teleport
+        self.fail = {} if fail is None else fail
 
     def send(self, action):
         self.sent.append(action)
@@ -87,7 +88,7 @@ class StandInUnity:
     def receive(self, timeout=None):
         a = self.sent[-1] if self.sent else {"action": "Start"}
         name = a.get("action")
-        if name in self.fail:
+        if name in self.fail and name != "reach_anywhere":
             code, message = self.fail[name]
             return event({"lastAction": name, "lastActionSuccess": False, "errorCode": code, "errorMessage": message})
         if name == "TeleportFull":
@@ -95,7 +96,8 @@ class StandInUnity:
             if p["z"] > 50:
                 return event({"lastActionSuccess": False, "errorCode": "InvalidArgument",
                               "errorMessage": "position out of the scene bounds"})
-            if not any(abs(q["x"] - p["x"]) < 1e-6 and abs(q["z"] - p["z"]) < 1e-6 for q in REACHABLE):
+            if not self.fail.get("reach_anywhere") and \
+                    not any(abs(q["x"] - p["x"]) < 1e-6 and abs(q["z"] - p["z"]) < 1e-6 for q in REACHABLE):
                 return event({"lastActionSuccess": False, "errorMessage": f"{p} is not a valid position"})
             return event({"lastAction": name}, yaw=yaw)
         if name == "GetScenesInBuild":
@@ -737,3 +739,30 @@ def test_gpu_check_renders_one_view_through_the_real_controller(thor, monkeypatc
                                 [("ai2thor render", True, gpu_check.check_ai2thor)])
     assert row.status == "FAIL" and row.detail == f"HouseLoadError: house 'house-1': AI2-THOR could not load it " \
                                                   f"(CreateHouse failed): {BAD_HOUSE}"
+
+
+@pytest.mark.slow
+def test_gpu_check_end_to_end_through_the_stand_in(thor, monkeypatch, tmp_path, procthor_file):
+    """The last check on a shared ProcTHOR house: the render check, a classifier check with a
+    tiny CNN checkpoint on the CPU, then the runner with both aggregators; one line of
+    scores."""
+    torch = pytest.importorskip("torch")
+    from benchmark.classifiers.cnn import build_resnet
+    from benchmark.classifiers.torch_common import save_checkpoint
+    from benchmark.commands import gpu_check
+
+    classes = ["balcony", "bathroom", "bedroom", "corridor", "dining_room", "kitchen", "living_room"]
+    torch.manual_seed(0)
+    save_checkpoint(tmp_path / "cnn.pt", build_resnet("resnet18", 7, pretrained=False), classes)
+    thor["fail"]["reach_anywhere"] = True
+    monkeypatch.setenv("DISPLAY", ":0")
+    cnn = [f"checkpoint={tmp_path / 'cnn.pt'}", "arch=resnet18", "pretrained=false", "image_size=32"]
+    ctx = gpu_check.Context(house_file=str(procthor_file), platform="Linux64", out=tmp_path / "e2e", device="cpu",
+                            classifier_overrides={"cnn": cnn}, installed=True)
+    rows = gpu_check.run_checks(ctx, [("ai2thor render", True, gpu_check.check_ai2thor),
+                                      ("classifier cnn", True, gpu_check.classifier_check("cnn")),
+                                      ("end to end", True, gpu_check.check_end_to_end)])
+    assert [r.status for r in rows] == ["pass", "pass", "pass"], [r.detail for r in rows]
+    assert rows[1].detail.startswith("cnn: the view is ")
+    assert rows[2].detail.startswith("1 house, cnn: graph_knn IoU ") and "; vision_cone IoU " in rows[2].detail
+    assert list((tmp_path / "e2e").rglob("metrics.csv"))

@@ -64,6 +64,8 @@ class Context:
     hab_dataset: str | None = None
     hab_scene: str = "ArchitecTHOR-Val-00"
     out: Path | None = None
+    device: str = "cuda"  # where the classifiers run (tests: cpu)
+    classifier_overrides: dict = field(default_factory=dict)  # name -> ["key=value", ...] of its config
     installed: bool = False
     cuda: bool = False
     house: object = None
@@ -237,14 +239,14 @@ def classifier_check(name: str) -> Callable[[Context], str]:
     def check(ctx: Context) -> str:
         import numpy as np  # noqa: PLC0415
 
-        if not ctx.cuda:
+        if ctx.device.startswith("cuda") and not ctx.cuda:
             raise Skip("needs the CUDA check to pass")
         if ctx.view is None:
             raise Skip("no rendered view (the ai2thor check did not pass)")
         try:
             from benchmark.classifiers.evaluate import build_classifier  # noqa: PLC0415
 
-            clf, _ = build_classifier(name, ["device=cuda"])
+            clf, _ = build_classifier(name, [f"device={ctx.device}", *ctx.classifier_overrides.get(name, [])])
         except Exception as e:  # noqa: BLE001  Hydra wraps the constructor's error
             msg = one_line(e)
             if any(k in msg for k in ("FileNotFoundError", "ImportError", "ModuleNotFoundError", "could not load",
@@ -281,7 +283,8 @@ def check_end_to_end(ctx: Context) -> str:
     parts = []
     for agg in AGGREGATORS:
         overrides = [*env, "renderer=ai2thor", f"renderer.platform={ctx.platform}", f"classifier={name}",
-                     "classifier.device=cuda",
+                     f"classifier.device={ctx.device}",
+                     *(f"classifier.{o}" for o in ctx.classifier_overrides.get(name, [])),
                      f"aggregator={agg}", f"run.results_dir={out / 'results'}", "run.progress=false"]
         if ctx.commit_id:
             overrides.append(f"renderer.commit_id={ctx.commit_id}")
