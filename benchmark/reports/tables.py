@@ -215,27 +215,41 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
     return "\n".join(chunks)
 
 
-def plot_sensitivity(summary: pd.DataFrame, path: Path) -> None:
-    """IoU and pixel accuracy (mean ± std over houses) against the oracle's accuracy."""
-    import matplotlib
+def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] | None = None) -> list[Path]:
+    """IoU and pixel accuracy (mean ± std over houses) against the oracle's accuracy: one
+    line per aggregator x post-processing, a fixed colour per aggregator (Okabe-Ito) and a
+    solid (post-processed) or dashed (raw) line, labelled in words.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Returns:
+        the files written (``path``, or ``path`` with each of ``formats``).
+    """
+    from benchmark.reports.plotting import plt, save
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
+    colours = {"graph_knn": "#0072B2", "vision_cone": "#D55E00", "euclidean_knn": "#009E73"}
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharex=True)
     groups = [c for c in ("aggregator", "postprocess") if c in summary]
-    for key, g in summary.groupby(groups):
+    keys = sorted(summary.groupby(groups).groups, key=lambda k: tuple(
+        formatting._sort_key(c)(v) for c, v in zip(groups, k if isinstance(k, tuple) else (k,))))
+    for key in keys:
+        kt = key if isinstance(key, tuple) else (key,)
+        g = summary
+        for c, v in zip(groups, kt):
+            g = g[g[c] == v]
         g = g.sort_values("oracle_accuracy")
-        label = " + ".join(str(k) for k in (key if isinstance(key, tuple) else (key,)))
+        vals = dict(zip(groups, kt))
+        label = formatting.combo_label(groups, kt)
+        if vals.get("postprocess") == "none":
+            label += " (raw)"
+        style = "--" if vals.get("postprocess") == "none" else "-"
         for ax, m in zip(axes, ("iou", "accuracy")):
-            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=g[f"{m}_std"] * 100,
-                        marker="o", capsize=3, label=label)
+            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=g[f"{m}_std"] * 100, marker="o",
+                        ms=4, capsize=3, ls=style, color=colours.get(vals.get("aggregator", ""), None), label=label)
     for ax, m in zip(axes, ("IoU (%)", "pixel accuracy (%)")):
-        ax.set_xlabel("classifier (oracle) accuracy (%)")
+        ax.set_xlabel("oracle classifier accuracy (%)")
         ax.set_ylabel(m)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
+    n = int(summary["n"].max()) if "n" in summary and len(summary) else 0
+    fig.suptitle(f"Segmentation quality against classifier accuracy (mean ± std over {n} houses)", fontsize=10)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return save(fig, path, formats)
