@@ -363,3 +363,21 @@ def test_a_segment_in_two_pieces_is_one_multipolygon_feature():
     assert f0["geometry"]["type"] == "MultiPolygon" and shape(f0["geometry"]).area == 2
     assert f0["properties"]["class"] is None and f1["properties"]["area_m2"] == 2.0
     assert shapely.equals(shape(f1["geometry"]), shapely.box(0, 0, 2, 1))
+
+
+@pytest.mark.slow
+def test_labels_matched_by_pose_give_the_same_map_as_by_id(example, tmp_path, capsys):
+    """The pose file without ids, the labels file holding shuffled ROS poses: rows pair by
+    pose (classifier.match=auto), and the result equals the id-matched run."""
+    import pandas as pd
+
+    ex, out, _ = example
+    p = pd.read_csv(ex.poses)
+    lab = pd.read_csv(ex.labels)
+    p[["x", "y", "theta"]].to_csv(tmp_path / "poses.csv", index=False)
+    both = p.merge(lab, on="id").drop(columns="id").sample(frac=1.0, random_state=0)
+    both.to_csv(tmp_path / "labels.csv", index=False)
+    code, _, err = _run([f"map={ex.map_yaml}", f"poses={tmp_path / 'poses.csv'}", "frame=ros",
+                         f"labels={tmp_path / 'labels.csv'}", "figure=false", f"out={tmp_path / 'o'}"], capsys)
+    assert code == 0, err
+    assert (read_index_png(tmp_path / "o" / "labels.png") == read_index_png(out / "labels.png")).all()

@@ -77,7 +77,7 @@ def compose_config(overrides: Sequence[str]):
 def read_map(cfg) -> tuple[Any, tuple[float, float, float], dict]:
     """The input map -> (GridMap, ROS origin (x, y, yaw) for the outputs, description)."""
     from envs.maps.frames import ros_origin_to_grid_origin  # noqa: PLC0415
-    from envs.maps.ros import grid_from_array, occupancy_png, read_ros_map, ros_origin_of  # noqa: PLC0415
+    from envs.maps.ros import grid_from_array, occupancy_png, read_ros_map  # noqa: PLC0415
 
     path = Path(str(cfg.map)).expanduser()
     suffix = path.suffix.lower()
@@ -111,18 +111,18 @@ def read_map(cfg) -> tuple[Any, tuple[float, float, float], dict]:
     else:
         raise ValueError(f"map={path}: unknown map type {suffix!r}; expected a ROS .yaml, an image "
                          f"(.png/.pgm/.bmp) or a .npy array")
-    return grid, ros_origin_of(grid), {"map": str(path), "map_format": fmt}
+    return grid, (ox, oy, 0.0), {"map": str(path), "map_format": fmt}
 
 
-def _pose_ids(path: Path, n: int) -> list[str]:
-    """The pose file's ``id`` column, or the row numbers."""
+def _pose_ids(path: Path, n: int) -> list[str | None]:
+    """The pose file's ``id`` column (None per view without one: labels then pair by pose or order)."""
     from envs.maps.pose_files import _table  # noqa: PLC0415
 
     df = _table(path)
     df.columns = [str(c).strip().lower() for c in df.columns]
     if "id" in df.columns and len(df) == n:
         return [str(v).strip() for v in df["id"].tolist()]
-    return [str(i) for i in range(n)]
+    return [None] * n
 
 
 def on_map(grid, poses: np.ndarray) -> np.ndarray:
@@ -174,7 +174,8 @@ def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.nd
         pose_file = Path(str(cfg.poses)).expanduser()
         poses = read_poses(pose_file, cfg.frame, grid)
         ids = _pose_ids(pose_file, len(poses))
-        obs = [Observation(pose=tuple(float(v) for v in p), meta={"id": i}) for p, i in zip(poses, ids)]
+        obs = [Observation(pose=tuple(float(v) for v in p), meta={"id": i} if i is not None else {})
+               for p, i in zip(poses, ids)]
     else:
         if _is_labels_classifier(cfg):
             raise ValueError(f"images={cfg.images} needs an image classifier: classifier=cnn|dinov2|vlm")
