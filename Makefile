@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test lint bench bench-publish perf sensitivity tables figures report readme-tables clean
+.PHONY: help setup setup-test test lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -66,6 +66,12 @@ readme-tables: setup  ## rewrite the README's generated results blocks from resu
 
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf
+
+# On a GPU workstation: the active environment's python (conda, README) unless .venv exists.
+GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)
+
+gpu-check:  ## GPU workstation, first step: CUDA, AI2-THOR render, Habitat, real classifier weights, 1-house run (pass/FAIL/skipped table)
+	$(GPU_PY) -m benchmark.commands.gpu_check
 
 sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity (+ docs/figures)
 	$(PY) -m benchmark.commands.bench experiment=sensitivity env=synthetic run.limit=20
