@@ -9,7 +9,14 @@ import itertools
 import numpy as np
 import pytest
 
-from benchmark.metrics import METRIC_COLUMNS, MetricParams, area_px, score_instances, score_semantic, segments
+from benchmark.metrics import (
+    METRIC_COLUMNS,
+    MetricParams,
+    area_px,
+    score_instances,
+    score_semantic,
+    segments,
+)
 
 P0 = MetricParams(min_segment_m2=0)
 R = 1.0  # metres per pixel: areas in m² are pixel counts
