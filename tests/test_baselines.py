@@ -403,3 +403,46 @@ def test_match_cli_reports_the_house(procthor_file, shared_houses, tmp_path, cap
     assert df["matched"].item() and df["iou"].item() > 0.9
     assert "1 of 1 maps matched" in capsys.readouterr().out
     assert main(["match", "--houses", str(procthor_file), "--maps", str(tmp_path / "none")]) == 2
+
+
+# ---------------------------------------------------------------- sanity rows
+
+
+def test_sanity_segmenters_by_hand():
+    from benchmark.segmenters.sanity import Grid, GroundTruthGeometry, OneRoom
+
+    walk = np.ones((7, 13), bool)
+    walk[:, 12] = False  # 3.5 m x 6.5 m at 0.5 m/px, the last column blocked
+    grid = GridMap(walk, 0.5, (0.0, 0.0))
+    assert (OneRoom()(grid) == np.where(walk, 0, -1)).all()
+    # 3 m squares: rows 0-5 | 6 and columns 0-5 | 6-11 (| 12 blocked) -> 4 squares in raster order
+    want = np.full(walk.shape, -1)
+    want[:6, :6], want[:6, 6:12], want[6:, :6], want[6:, 6:12] = 0, 1, 2, 3
+    assert (Grid(3.0)(grid) == want).all()
+    with pytest.raises(ValueError, match="size"):
+        Grid(0)
+    inst = np.where(walk, np.arange(13)[None, :] // 4, -1).astype(np.int32)
+    scene = type("Scene", (), {"instances": inst})()
+    assert (GroundTruthGeometry()(grid, scene=scene) == inst).all()
+    with pytest.raises(ValueError, match="needs the scene"):
+        GroundTruthGeometry()(grid)
+
+
+def test_sanity_rows_through_the_runner(tmp_path):
+    """segmenter=gt_geometry gets the scene and scores 100 on every metric; one_room scores the
+    biggest room's share on the paper's IoU but 0 PQ on the generated houses."""
+    from hydra import compose, initialize_config_dir
+
+    from benchmark.harness.runner import CONF_DIR, run
+
+    rows = {}
+    for seg in ("gt_geometry", "one_room"):
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            cfg = compose("config", overrides=[f"segmenter={seg}", "env=synthetic", "run.limit=2",
+                                               f"run.results_dir={tmp_path}", "run.progress=false"])
+        rows[seg] = run(cfg, tmp_path / seg)
+    gt, one = rows["gt_geometry"], rows["one_room"]
+    for k in ("iou", "precision", "recall", "matched_iou", "room_iou", "pq", "ipa_recall", "ipa_precision"):
+        assert (gt[k] == 1.0).all(), k
+    assert (gt["count_error"] == 0).all() and (one["n_pred_segments"] == 1).all()
+    assert (one["pq"] == 0).all() and (one["recall"] == 1.0).all() and (one["iou"] < 0.5).all()
