@@ -162,7 +162,7 @@ class Job:
 def _differences(old: dict[str, Any], new: dict[str, Any], limit: int = 4) -> str:
     keys = sorted(set(old) | set(new))
     diff = [k for k in keys if old.get(k) != new.get(k)]
-    parts = [f"{k}: {old.get(k, '(unset)')!s:.40} -> {new.get(k, '(unset)')!s:.40}" for k in diff[:limit]]
+    parts = [f"{k}: {old.get(k, '(unset)')!s:.60} -> {new.get(k, '(unset)')!s:.60}" for k in diff[:limit]]
     if len(diff) > limit:
         parts.append(f"and {len(diff) - limit} more")
     return "; ".join(parts) or "the house contents"
