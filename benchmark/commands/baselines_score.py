@@ -32,12 +32,9 @@ def run(cfg: DictConfig, out: Path | None) -> int:
         method = instantiate(cfg.external)
         params = instantiate(cfg.metrics)
         df = method.score(params, sanity=bool(cfg.sanity), grid_size=float(cfg.grid_size))
-    except (FileNotFoundError, ValueError, TypeError) as e:
-        msg = str(e.__cause__ or e) if type(e).__name__ == "InstantiationException" else str(e)
-        print(f"error: {msg}", file=sys.stderr)
-        return 2
-    except Exception as e:  # Hydra wraps a target's ValueError in InstantiationException
-        cause = e.__cause__
+    except Exception as e:
+        # Hydra wraps a target's own error (a bad setting) in InstantiationException
+        cause = e.__cause__ if type(e).__name__ == "InstantiationException" and e.__cause__ else e
         if isinstance(cause, (FileNotFoundError, ValueError, TypeError)):
             print(f"error: {cause}", file=sys.stderr)
             return 2
@@ -46,11 +43,17 @@ def run(cfg: DictConfig, out: Path | None) -> int:
     return 0 if (df["status"] == "ok").all() else 1
 
 
+#: exit status of each job of this process (Hydra's basic launcher runs the jobs in-process)
+_STATUS: list[int] = []
+
+
 @hydra.main(config_path=CONF_DIR, config_name="score", version_base=None)
 def main(cfg: DictConfig) -> int:
-    return run(cfg, Path(HydraConfig.get().runtime.output_dir))
+    rc = run(cfg, Path(HydraConfig.get().runtime.output_dir))
+    _STATUS.append(rc)
+    return rc
 
 
 if __name__ == "__main__":
-    rc = main()
-    raise SystemExit(rc if isinstance(rc, int) else 0)
+    main()
+    raise SystemExit(max(_STATUS, default=0))
