@@ -385,3 +385,34 @@ def test_killed_tables_leave_the_old_set_or_the_new_one(tmp_path):
         else:
             states.add("absent")
     assert killed >= 6  # most runs really were killed before they finished
+
+
+def test_house_content_follows_the_house_and_the_env_input_files(tmp_path):
+    from benchmark.harness.pipeline import house_content
+    from envs.world.house import House
+
+    ann = tmp_path / "labels.png"
+    ann.write_bytes(b"one")
+
+    class Env:
+        name = "fake"
+        data = {"rooms": [1]}
+
+        def house(self, hid):
+            if hid == "bad":
+                raise ValueError("house 'bad': rooms: missing")
+            return House(hid, self.data)
+
+        def input_files(self, hid):
+            return [ann]
+
+    env = Env()
+    first = house_content(env, "h")
+    assert house_content(env, "h") == first  # stable
+    ann.write_bytes(b"two")
+    second = house_content(env, "h")
+    assert second != first  # an edited annotation file
+    env.data = {"rooms": [2]}
+    assert house_content(env, "h") not in (first, second)  # an edited house
+    # a malformed house gets the hash of its error (its failure is logged under it)
+    assert house_content(env, "bad") == house_content(env, "bad") != house_content(env, "h")

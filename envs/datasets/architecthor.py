@@ -55,6 +55,12 @@ class ArchitecTHOREnv(Environment):
             raise KeyError(f"no house {house_id!r} in environment {self.name!r}")
         return load_annotation(self.root / house_id, house_id, self.classes)
 
+    def input_files(self, house_id: str) -> list[Path]:
+        """The annotation files the scene of ``house_id`` is read from (the run's caches follow
+        their content: editing an annotation recomputes that house)."""
+        folder = self.root / house_id
+        return sorted(p for p in folder.iterdir() if p.is_file()) if folder.is_dir() else []
+
     def missing(self) -> list[str]:
         """Houses whose annotation folder has no ``labels.png`` yet."""
         return [h for h in self.names if not (self.root / h / "labels.png").is_file()]
