@@ -7,7 +7,8 @@ ground truth, a Hydra app over the ``external`` group (conf/score.yaml).
 
 Each job prints a Table V-style summary with the sanity rows (``sanity=false`` leaves them out)
 and writes ``metrics.csv`` and ``table5.md`` to its output folder
-(``results/scores/<method>[<overrides>]``). The exit status is 0 when every map was scored.
+(``results/scores/<method>``; in a multirun ``results/scores/<method>/<overrides>``). The exit status
+is 0 when every map was scored, 1 when a map failed (listed), 2 on a bad setting.
 """
 
 from __future__ import annotations
