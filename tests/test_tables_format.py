@@ -200,3 +200,9 @@ def test_latex_compiles_and_fits_what_its_first_line_says(table4_run, sensitivit
             assert "full page" in tex.splitlines()[0] and col < width <= page
         else:
             assert "one column" in tex.splitlines()[0] and width <= col
+
+
+def test_method_names_in_words():
+    assert formatting.value_label("method", "oracle@0.8+vision_cone +post") == "oracle@0.8 + vision cone + post"
+    assert formatting.value_label("method", "objects+graph_knn") == "objects + graph KNN"
+    assert formatting.value_label("method", "voronoi") == "voronoi"

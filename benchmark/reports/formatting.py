@@ -68,6 +68,9 @@ def value_label(key: str, value) -> str:
     """Words for one grouping value (``graph_knn`` -> ``graph KNN``; 0.8 -> ``0.8``)."""
     if isinstance(value, float | np.floating):
         return "–" if math.isnan(value) else f"{float(value):g}"
+    if key == "method" and "+" in str(value):  # classifier+aggregator +post -> words
+        parts = [p.strip() for p in str(value).split("+") if p.strip()]
+        return " + ".join(VALUE_LABELS["aggregator"].get(p, p) for p in parts)
     return VALUE_LABELS.get(key, {}).get(str(value), str(value))
 
 
