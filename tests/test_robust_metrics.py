@@ -224,3 +224,29 @@ def test_matched_iou_and_pq_equal_brute_force(seed):
     tp = [v for v in tp if v > 0.5]
     n, m = seg.max() + 1, gt.max() + 1
     assert s["pq"] == pytest.approx(sum(tp) / (len(tp) + (n - len(tp)) / 2 + (m - len(tp)) / 2))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_room_side_scores_equal_a_loop_over_rooms(seed):
+    rng = np.random.default_rng(10 + seed)
+    gt = np.kron(rng.integers(0, 5, (4, 4)), np.ones((3, 3), int)).astype(np.int32)
+    gt = np.unique(gt, return_inverse=True)[1].reshape(gt.shape).astype(np.int32)
+    seg = np.kron(rng.integers(-1, 4, (6, 4)), np.ones((2, 3), int))
+    s = score_instances(seg, gt, P0, resolution=R)
+    room_iou, room_rec, ipa_rec = [], [], []
+    for b in range(gt.max() + 1):
+        B = gt == b
+        best_iou, best_rec, best_ov = 0.0, 0.0, 0.0
+        for a in np.unique(seg[seg >= 0]):
+            A = seg == a
+            iou = np.sum(A & B) / np.sum(A | B)
+            if iou > best_iou:
+                best_iou, best_rec = iou, np.sum(A & B) / np.sum(B)
+            best_ov = max(best_ov, np.sum(A & B) / np.sum(B))
+        room_iou.append(best_iou)
+        room_rec.append(best_rec)
+        ipa_rec.append(best_ov)
+    ipa_prec = [max(np.sum((seg == a) & (gt == b)) for b in range(gt.max() + 1)) / np.sum(seg == a)
+                for a in np.unique(seg[seg >= 0])]
+    assert s["room_iou"] == pytest.approx(np.mean(room_iou)) and s["room_recall"] == pytest.approx(np.mean(room_rec))
+    assert s["ipa_recall"] == pytest.approx(np.mean(ipa_rec)) and s["ipa_precision"] == pytest.approx(np.mean(ipa_prec))
