@@ -21,7 +21,7 @@ def _rows(**fixed):
     base = {"dataset": "synthetic", "env": "synthetic", "viewpoints": "autotrace", "renderer": "floorplan",
             "classifier": "oracle", "oracle_accuracy": 0.8, "aggregator": "graph_knn", "postprocess": "default",
             "segmenter": "", "status": "ok", "error": "", "metric_params": PARAMS, "precision": 0.9,
-            "recall": 0.5}
+            "recall": 0.5, "matched_iou": 0.45, "pq": 0.4, "room_iou": 0.55, "ipa_recall": 0.7, "ipa_precision": 0.8}
     base.update(fixed)
     return base
 
@@ -174,7 +174,8 @@ def _tabular_width(tmp_path, tex: str) -> tuple[float, float, float]:
     tab = tex[tex.index("\\begin{tabular}"):tex.rindex("\\end{tabular}") + len("\\end{tabular}")]
     (tmp_path / "tab.tex").write_text(tab)
     sep = re.search(r"\\tabcolsep\}\{([\d.]+)pt\}", tex).group(1)
-    log = _compile(tmp_path, "\\newsavebox\\tb\\sbox\\tb{\\footnotesize\\setlength{\\tabcolsep}{" + sep + "pt}"
+    size = tex.splitlines()[3]  # \footnotesize or \scriptsize
+    log = _compile(tmp_path, "\\newsavebox\\tb\\sbox\\tb{" + size + "\\setlength{\\tabcolsep}{" + sep + "pt}"
                    "\\input{tab.tex}}\\typeout{TABW=\\the\\wd\\tb;COLW=\\the\\columnwidth;TEXTW=\\the\\textwidth;}")
     m = re.search(r"TABW=([\d.]+)pt;COLW=([\d.]+)pt;TEXTW=([\d.]+)pt;", log)
     return float(m.group(1)), float(m.group(2)), float(m.group(3))
@@ -184,9 +185,9 @@ def _tabular_width(tmp_path, tex: str) -> tuple[float, float, float]:
 def test_latex_compiles_and_fits_what_its_first_line_says(table4_run, sensitivity_run, tmp_path):
     _pdflatex_or_skip()
     out = tmp_path / "out"
-    render([table4_run], ["table4", "table5"], out)
+    render([table4_run], ["table4", "table5", "all"], out)
     render([sensitivity_run], ["sensitivity"], out)
-    for name in ("table4", "table5", "sensitivity"):
+    for name in ("table4", "table5", "all", "sensitivity"):
         tex = (out / f"{name}.tex").read_text()
         d = tmp_path / name
         d.mkdir()
@@ -198,6 +199,7 @@ def test_latex_compiles_and_fits_what_its_first_line_says(table4_run, sensitivit
         assert abs(est - width) < 0.1 * width + 10, (name, est, width)
         if "table*" in tex:
             assert "full page" in tex.splitlines()[0] and col < width <= page
+
         else:
             assert "one column" in tex.splitlines()[0] and width <= col
 

@@ -327,19 +327,27 @@ def _latex_layout(grid: Grid):
     return [c.sub for c in grid.columns] + grid.house_labels, (top if grid.grouped else []), [("", body)]
 
 
-def _tex_cell(c, decimals: int) -> str:
+def _tex_cell(c, decimals: int, std: bool = True) -> str:
     if isinstance(c, str):
         return tex_escape(c)
     if c is None or math.isnan(c[0]):
         return "--"
-    if math.isnan(c[1]):
+    if not std or math.isnan(c[1]):
         return f"${c[0]:.{decimals}f}$"
     return f"${c[0]:.{decimals}f} \\pm {c[1]:.{decimals}f}$"
 
 
-def estimate_width(grid: Grid, decimals: int = 1) -> float:
-    """Estimated width (pt) of :func:`to_latex`'s tabular at \\footnotesize with
-    :data:`TABCOLSEP_PT` (pdflatex's measure is within about 10 %: tests/test_tables_format.py)."""
+#: LaTeX styles tried in order until the table fits: (font size command, its size relative
+#: to \\footnotesize, \\tabcolsep in pt, whether cells show the std).
+LATEX_STYLES = (("\\footnotesize", 1.0, TABCOLSEP_PT, True), ("\\scriptsize", 0.875, 2.0, True),
+                ("\\scriptsize", 0.875, 2.0, False))
+
+
+def estimate_width(grid: Grid, decimals: int = 1, scale: float = 1.0, tabcolsep: float = TABCOLSEP_PT,
+                   std: bool = True) -> float:
+    """Estimated width (pt) of :func:`to_latex`'s tabular: text at \\footnotesize times
+    ``scale``, ``tabcolsep`` pt either side of each column, cells with or without the std
+    (pdflatex's measure is within about 10 %: tests/test_tables_format.py)."""
     heads, _, blocks = _latex_layout(grid)
     widths = []
     for i, key in enumerate(grid.row_keys):
@@ -347,8 +355,8 @@ def estimate_width(grid: Grid, decimals: int = 1) -> float:
     for j, h in enumerate(heads):
         cells = [row[j] for _, b in blocks for row in b]
         widths.append(max([_text_width(x) for x in _header_lines(h)] +
-                          [_text_width(c if isinstance(c, str) else fmt_cell(c, decimals)) for c in cells]))
-    return sum(widths) + 2 * TABCOLSEP_PT * len(widths)
+                          [_text_width(c if isinstance(c, str) else fmt_cell(c, decimals, std)) for c in cells]))
+    return scale * sum(widths) + 2 * tabcolsep * len(widths)
 
 
 def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
@@ -356,19 +364,34 @@ def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
     label; label columns left, numbers right with ``decimals`` decimals (mean $\\pm$ std);
     headers with ``+`` broken over two lines; a by-metric grid as one block of rows per metric.
 
+    The first of :data:`LATEX_STYLES` with the std that fits one column (\\columnwidth of a
+    two-column article) makes a ``table``; otherwise the first with the std that fits the
+    page makes a ``table*``; cells without the std only when nothing else fits (the caption
+    says so); a table wider than the page in every style says so in its first line.
+
     Returns:
-        LaTeX source of a ``table`` (fits \\columnwidth) or ``table*`` (full page) float.
+        LaTeX source of the float.
     """
-    width = estimate_width(grid, decimals)
-    fits_column = width <= COLUMN_WIDTH_PT
-    env = "table" if fits_column else "table*"
-    where = ("fits one column of a two-column article (\\columnwidth)" if fits_column
-             else "full page width (table*, \\textwidth of a two-column article)")
+    styles = [(st, estimate_width(grid, decimals, st[1], st[2], st[3])) for st in LATEX_STYLES]
+    order = [(st, w, env) for keep_std in (True, False) for env, limit in (("table", COLUMN_WIDTH_PT),
+                                                                            ("table*", PAGE_WIDTH_PT))
+             for st, w in styles if st[3] == keep_std and w <= limit]
+    pick = order[0] if order else (*styles[-1], "table*")
+    (size, _, sep, std), width, env = pick
+    if env == "table":
+        where = "fits one column of a two-column article (\\columnwidth)"
+    elif width <= PAGE_WIDTH_PT:
+        where = "full page width (table*, \\textwidth of a two-column article)"
+    else:
+        where = (f"wider than a page (\\textwidth {PAGE_WIDTH_PT:.0f} pt): drop columns, or use a "
+                 "sidewaystable (package rotating)")
+    if not std:
+        caption = caption.rstrip() + " Means only; the standard deviations are in the .csv file."
     heads, top, blocks = _latex_layout(grid)
     nrk, ncols = len(grid.row_keys), len(heads)
     lines = [f"% Needs \\usepackage{{booktabs}} in the preamble. Width: {where}, estimated {width:.0f} pt.",
-             f"\\begin{{{env}}}[t]", "\\centering", "\\footnotesize",
-             f"\\setlength{{\\tabcolsep}}{{{TABCOLSEP_PT:g}pt}}",
+             f"\\begin{{{env}}}[t]", "\\centering", size,
+             f"\\setlength{{\\tabcolsep}}{{{sep:g}pt}}",
              f"\\caption{{{tex_escape(caption)}}}", f"\\label{{{label}}}",
              f"\\begin{{tabular}}{{{'l' * nrk + 'r' * ncols}}}", "\\toprule"]
     if top:
@@ -385,7 +408,8 @@ def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
         if name:
             lines.append(f"\\multicolumn{{{nrk + ncols}}}{{l}}{{\\emph{{{tex_escape(name)}}}}} \\\\")
         for lab, row in zip(grid.rows, body):
-            lines.append(" & ".join([tex_escape(x) for x in lab] + [_tex_cell(c, decimals) for c in row]) + " \\\\")
+            lines.append(" & ".join([tex_escape(x) for x in lab] + [_tex_cell(c, decimals, std) for c in row])
+                         + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", f"\\end{{{env}}}", ""]
     return "\n".join(lines)
 
