@@ -27,7 +27,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_key
+from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
 from benchmark.harness.pipeline import (
     STAGES,
@@ -116,6 +116,23 @@ def _env_classes(env: Any, cfg: DictConfig) -> tuple[str, ...]:
     return ()
 
 
+#: environments built in this process, by resolved config and input-file fingerprints: the
+#: jobs of a sweep that a worker runs one after another share one (a house file is read once).
+_ENVS: dict[str, Any] = {}
+
+
+def _environment(node: DictConfig) -> Any:
+    """``instantiate(cfg.env)``, reused across jobs of this process while its config and the
+    files it names (house file, annotation folder) are unchanged."""
+    plain = _plain(node)
+    key = config_key(plain, config_inputs(plain))
+    if key not in _ENVS:
+        if len(_ENVS) >= 4:
+            _ENVS.pop(next(iter(_ENVS)))
+        _ENVS[key] = instantiate(node)
+    return _ENVS[key]
+
+
 def _builder(node: Any):
     return (lambda: instantiate(node)) if node is not None else None
 
@@ -128,7 +145,7 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
         A :class:`MethodPipeline`, or a :class:`SegmenterPipeline` when ``segmenter`` is set.
     """
     choices = choices if choices is not None else _choices()
-    env = instantiate(cfg.env)
+    env = _environment(cfg.env)
     seg = cfg.get("segmenter")
     names = {"env": choices.get("env", getattr(env, "name", "env"))}
     method_stages = ("viewpoints", "renderer", "classifier", "aggregator", "postprocess")
@@ -165,7 +182,7 @@ NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir",
                 "run.allow_failures", "run.cache_failures", "run.name")
 
 
-def job_identity(cfg: DictConfig, ids: list[str]) -> tuple[str, dict[str, Any]]:
+def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
     """A job's identity: a key over every setting that changes its rows (the resolved config
     without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
     house ids. Editing a house's content keeps the identity (the rerun updates the job).
@@ -173,7 +190,8 @@ def job_identity(cfg: DictConfig, ids: list[str]) -> tuple[str, dict[str, Any]]:
     Returns:
         (key, settings): ``settings`` flat {dotted key: value} for "what differs" messages.
     """
-    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    if plain is None:
+        plain = OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
     flat: dict[str, Any] = {}
 
     def walk(v: Any, key: str) -> None:
@@ -183,7 +201,7 @@ def job_identity(cfg: DictConfig, ids: list[str]) -> tuple[str, dict[str, Any]]:
         else:
             flat[key] = v
 
-    walk(OmegaConf.to_container(body, resolve=True), "")
+    walk(plain, "")
     settings = {k: v for k, v in flat.items() if k not in NON_ROW_KEYS}
     settings["houses"] = f"{len(ids)} houses: {ids[0]} .. {ids[-1]} ({config_key(ids)})"
     return config_key("job", settings, ids), settings
@@ -202,13 +220,15 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         StageError: a stage that cannot be built or does not fit the environment.
     """
     t0 = time.perf_counter()
-    check_config(cfg, STAGES)
+    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    plain = OmegaConf.to_container(body, resolve=True)
+    check_config(plain, STAGES)
     check_writable(cfg.run.results_dir, "run.results_dir")
     check_writable(cfg.run.cache_dir, "run.cache_dir")
     pipe = build_pipeline(cfg, choices)
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     pipe.eval_ids = tuple(ids)
-    key, settings = job_identity(cfg, ids)
+    key, settings = job_identity(cfg, ids, plain)
     try:
         out_dir, note = claim_job_dir(out_dir, key, settings)
     except OSError as e:
@@ -217,7 +237,6 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     if note:
         log.warning(note)
     job = Job(out_dir)
-    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     atomic_write_text(job.config_path, OmegaConf.to_yaml(body, resolve=True))
     clf_cfg = cfg.get("classifier") if cfg.get("segmenter") is None else None
     acc = clf_cfg.get("accuracy") if clf_cfg is not None else None
