@@ -118,8 +118,12 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
         rel = job.dir.relative_to(run_dir) if job.dir != run_dir else Path(".")
         (tmp / rel).mkdir(parents=True, exist_ok=True)
         df.to_csv(tmp / rel / "metrics.csv", index=False)
+    import os
+
     prov = {"command": command, "run": str(run_dir), "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
             "machine": machine(), "commit": _commit(root), "jobs": len(jobs)}
+    if hasattr(os, "getloadavg"):  # other work on the machine while it ran (5-minute load average at the end)
+        prov["load_avg_5min"] = round(os.getloadavg()[1], 1)
     if time_file is not None:
         try:
             wall, rss_kb = Path(time_file).read_text().split()[-2:]
@@ -169,9 +173,11 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         if "wall_s" not in p:
             return (f"Not timed: `{p['command']}` was published without a time file "
                     f"(on {p['date_utc']}, {p['machine']}).\n")
+        load = (f"; load average {p['load_avg_5min']:g} over the last 5 minutes from other work on the machine"
+                if "load_avg_5min" in p else "")
         return (f"Measured with `/usr/bin/time` on {p['date_utc']} on {p['machine']} (after `make setup`): "
                 f"`{p['command']}` took **{p['wall_s']:.0f} s wall, {p['peak_rss_mb']} MB peak RSS** "
-                f"({p['jobs']} configurations).\n")
+                f"({p['jobs']} configurations, from an empty cache{load}).\n")
     paths = [root / PUBLISHED / s for s in block.sources]
     for s in block.sources:
         provenance(root, s)  # a missing published run: one line saying how to publish it
