@@ -102,7 +102,8 @@ def test_sensitivity_markdown_has_a_column_per_aggregator_and_post(sensitivity_r
 
 def test_tables_prints_only_tables_with_data_and_says_why(table4_run):
     text = render([table4_run])
-    assert "### Table IV" in text and "### Table V" in text
+    assert "### Table IV" in text and "### Table V" not in text
+    assert "Table V: comparison with baselines: left out, it compares methods with baselines" in text
     assert "### Table II" not in text and "### Table III" not in text and "### Sensitivity" not in text
     assert "Table II: viewpoint strategies (no post-processing): left out, no rows with postprocess=none" in text
     assert "Table III: post-processing" in text and "the rows read have 1 (post)" in text
@@ -185,7 +186,7 @@ def _tabular_width(tmp_path, tex: str) -> tuple[float, float, float]:
 def test_latex_compiles_and_fits_what_its_first_line_says(table4_run, sensitivity_run, tmp_path):
     _pdflatex_or_skip()
     out = tmp_path / "out"
-    render([table4_run], ["table4", "table5", "all"], out)
+    render([table4_run], ["table4", "table5", "all"], out)  # asked for: table5 printed without baselines
     render([sensitivity_run], ["sensitivity"], out)
     for name in ("table4", "table5", "all", "sensitivity"):
         tex = (out / f"{name}.tex").read_text()
@@ -208,3 +209,13 @@ def test_method_names_in_words():
     assert formatting.value_label("method", "oracle@0.8+vision_cone +post") == "oracle@0.8 + vision cone + post"
     assert formatting.value_label("method", "objects+graph_knn") == "objects + graph KNN"
     assert formatting.value_label("method", "voronoi") == "voronoi"
+
+
+def test_table5_printed_when_a_baseline_is_there(table4_run, tmp_path):
+    rows = [_rows(house_id=f"synthetic{h}", classifier="", aggregator="", postprocess="", oracle_accuracy=None,
+                  segmenter="voronoi", iou=0.3, accuracy=None) for h in range(2)]
+    _write(table4_run / "seg" / "metrics.csv", rows)
+    text = render([table4_run])
+    head, _, body = next(t for t in _md_tables(text) if "method" in t[0])
+    assert [b[1] for b in body if b[0] == "synthetic"][-1] == "voronoi"
+    assert next(b for b in body if b[1] == "voronoi")[2] == "30.00 ± 0.00"

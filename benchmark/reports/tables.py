@@ -143,6 +143,11 @@ def why_empty(df: pd.DataFrame, name: str, summary: pd.DataFrame) -> str | None:
         sel = ", ".join([f"{k}={v}" for k, v in spec.where.items()] +
                         [f"{k}!={v}" for k, v in spec.exclude.items() if k != "segmenter_row"])
         return f"no rows{(' with ' + sel) if sel else ''} among the {len(df)} rows read"
+    if name == "table5":
+        baseline = df["segmenter_row"] | (df["classifier"] == "") if "segmenter_row" in df else df["classifier"] == ""
+        if not baseline.any():
+            return (f"it compares methods with baselines; none of the {len(df)} rows read is a baseline "
+                    "(segmenter=... or scored external maps)")
     if name in NEEDS_VARYING:
         col, words = NEEDS_VARYING[name]
         vals = summary[col].dropna().unique() if col in summary else []
