@@ -117,6 +117,15 @@ def test_report_in_headless_chromium(sweep, tmp_path):
     assert ((top.sum(-1) < 150).sum()) > 2000  # the heading and the table's text
     dom = _chromium(exe, tmp_path, url, "--dump-dom").stdout
     assert dom.count('data-sortable="ready"') == 2  # the inline script ran (configs, failures)
+    # the sorting code sorts: IoU (column 4) descending, as a click on its header twice does
+    p = _chromium(exe, tmp_path, url + "#sort=4,desc", "--dump-dom")
+    assert _console_lines(p.stderr) == []
+    table = p.stdout[p.stdout.index('id="configs"'):]
+    table = table[:table.index("</table>")]
+    values = re.findall(r'<tr><td>(?:(?!</tr>).)*?<td class="num" data-v="([^"]*)"', table)
+    assert len(values) == 5 and values[4] == ""  # the failed job has no IoU: last
+    ious = [float(v) for v in values[:4]]
+    assert ious == sorted(ious, reverse=True) and ious[0] > ious[-1]
     # the console check catches an error: a page that throws
     bad = tmp_path / "bad.html"
     bad.write_text("<html><body><script>throw new Error('deliberate');</script></body></html>")

@@ -50,7 +50,8 @@ td.err{font-family:ui-monospace,monospace;font-size:12px;max-width:70ch;overflow
 
 # Click a header to sort by that column (numbers by value, text alphabetically); again to
 # reverse. Cells carry their sort value in data-v. Marks each table data-sortable="ready".
-_JS = """
+# ``#sort=N[,desc]`` in the address sorts the configurations by column N when the page opens.
+_JS = r"""
 (function () {
   function key(td) { var v = td.getAttribute('data-v'); if (v === null) return td.textContent;
     var f = parseFloat(v); return isNaN(f) ? v : f; }
@@ -62,6 +63,8 @@ _JS = """
     var body = table.tBodies[0], rows = Array.prototype.slice.call(body.rows);
     rows.sort(function (a, b) {
       var x = key(a.cells[col]), y = key(b.cells[col]);
+      var mx = x === '', my = y === '';
+      if (mx || my) return mx === my ? 0 : (mx ? 1 : -1);  // missing values last, either way
       var nx = typeof x === 'number', ny = typeof y === 'number';
       var c = nx && ny ? x - y : (nx ? -1 : (ny ? 1 : String(x).localeCompare(String(y))));
       return dir === 'asc' ? c : -c;
@@ -77,6 +80,14 @@ _JS = """
       }
       table.setAttribute('data-sortable', 'ready');
     })(tables[t]);
+  }
+  // report.html#sort=COLUMN[,desc] opens the configurations sorted (a link to a ranking)
+  var m = /^#sort=(\d+)(,desc)?$/.exec(window.location.hash);
+  var configs = document.getElementById('configs');
+  if (m && configs && +m[1] < configs.tHead.rows[0].cells.length) {
+    var th = configs.tHead.rows[0].cells[+m[1]];
+    sortBy(configs, +m[1], th);
+    if (m[2]) sortBy(configs, +m[1], th);
   }
 })();
 """
