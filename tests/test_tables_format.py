@@ -219,3 +219,12 @@ def test_table5_printed_when_a_baseline_is_there(table4_run, tmp_path):
     head, _, body = next(t for t in _md_tables(text) if "method" in t[0])
     assert [b[1] for b in body if b[0] == "synthetic"][-1] == "voronoi"
     assert next(b for b in body if b[1] == "voronoi")[2] == "30.00 ± 0.00"
+
+
+def test_a_missing_grouping_value_keeps_its_cells():
+    """objects rows have no oracle accuracy (NaN): their cells are found, the value shows as a dash."""
+    summ = pd.DataFrame({"classifier": ["oracle", "objects"], "oracle_accuracy": [0.8, float("nan")],
+                         "iou_mean": [0.5, 0.25], "iou_std": [0.1, float("nan")], "n": [2, 1], "n_failed": [0, 0]})
+    grid = formatting.build_grid(summ, ["classifier", "oracle_accuracy"], [], ["iou"], "t")
+    assert grid.rows == [("objects", "–"), ("oracle", "0.8")]
+    assert [formatting.fmt_cell(r[0], 2) for r in grid.cells] == ["25.00", "50.00 ± 10.00"]

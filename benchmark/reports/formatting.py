@@ -66,8 +66,10 @@ def metric_words(metric: str) -> str:
 
 def value_label(key: str, value) -> str:
     """Words for one grouping value (``graph_knn`` -> ``graph KNN``; 0.8 -> ``0.8``)."""
+    if value is None:
+        return DASH
     if isinstance(value, float | np.floating):
-        return "–" if math.isnan(value) else f"{float(value):g}"
+        return DASH if math.isnan(value) else f"{float(value):g}"
     if key == "method" and "+" in str(value):  # classifier+aggregator +post -> words
         parts = [p.strip() for p in str(value).split("+") if p.strip()]
         return " + ".join(VALUE_LABELS["aggregator"].get(p, p) for p in parts)
@@ -91,12 +93,19 @@ def combo_label(keys: Sequence[str], values: Sequence) -> str:
     return text
 
 
+def _key(v):
+    """A grouping value usable as a dict key: NaN (a missing value) -> None."""
+    return None if isinstance(v, float | np.floating) and math.isnan(v) else v
+
+
 def _sort_key(key: str):
     order = VALUE_ORDER.get(key, ())
 
     def k(v):
+        if v is None:
+            return (2, 0.0, "")
         if isinstance(v, float | np.floating | int) and not isinstance(v, bool):
-            return (0, float(v), "")
+            return (0, float(v), "") if not math.isnan(float(v)) else (2, 0.0, "")
         s = str(v)
         return (1, order.index(s) if s in order else len(order), s)
     return k
@@ -157,7 +166,7 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
     def uniq(keys):
         if not keys:
             return [()]
-        vals = {tuple(t) for t in summary[list(keys)].itertuples(index=False, name=None)}
+        vals = {tuple(_key(v) for v in t) for t in summary[list(keys)].itertuples(index=False, name=None)}
         return sorted(vals, key=lambda t: tuple(_sort_key(k)(v) for k, v in zip(keys, t)))
 
     row_vals, combos = uniq(rows), uniq(cols)
@@ -172,7 +181,7 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
             columns += [Column(g, METRIC_LABELS.get(m, m.replace("_", " ")), m, c) for m in metrics]
     index = {}
     for rec in summary.to_dict("records"):
-        index[(tuple(rec[r] for r in rows), tuple(rec[c] for c in cols))] = rec
+        index[(tuple(_key(rec[r]) for r in rows), tuple(_key(rec[c]) for c in cols))] = rec
     cells, houses = [], []
     for rv in row_vals:
         line = []
