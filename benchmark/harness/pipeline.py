@@ -24,6 +24,7 @@ import logging
 import math
 import time
 import traceback
+from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,6 +53,10 @@ T = TypeVar("T")
 
 #: Stages that ``force`` can name, in pipeline order; forcing one forces those after it.
 STAGES = ("render", "classify", "score")
+
+#: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
+_SCENES: OrderedDict[tuple[str, str], Any] = OrderedDict()
+SCENE_CACHE_SIZE = 64
 
 #: metrics every successful row carries, each in [0, 1] (accuracy may be NaN: segmenters).
 ROW_METRICS = ("iou", "precision", "recall")
@@ -133,6 +138,8 @@ class Pipeline:
         classes: the environment's ordered class names; a classifier with other names or
             another order stops the run (:class:`StageError`).
         eval_ids: the houses of this run (a classifier's ``setup`` refuses training houses).
+        env_key: a key that names ``env``'s config and input files (set by the runner, which
+            reuses environments across jobs): scenes are then cached per process.
     """
 
     env: Environment
@@ -148,6 +155,7 @@ class Pipeline:
     cache_failures: bool = False
     classes: tuple[str, ...] | None = None
     eval_ids: Sequence[str] = ()
+    env_key: str | None = None
     _stages: dict[str, Any] = field(default_factory=dict, repr=False)
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
 
@@ -216,6 +224,22 @@ class Pipeline:
                 out[stage] = acc
             self._contents[hid] = out
         return self._contents[hid]
+
+    def scene(self, hid: str):
+        """``env.scene(hid)``; with ``env_key`` set (the runner's key of a shared environment),
+        kept in a small per-process cache so that the jobs of a sweep in one worker rasterise
+        each house once. Scenes are read-only to every stage."""
+        if self.env_key is None:
+            return self.env.scene(hid)
+        key = (self.env_key, hid)
+        if key in _SCENES:
+            _SCENES.move_to_end(key)
+            return _SCENES[key]
+        scene = self.env.scene(hid)
+        _SCENES[key] = scene
+        while len(_SCENES) > SCENE_CACHE_SIZE:
+            _SCENES.popitem(last=False)
+        return scene
 
     @property
     def store(self) -> CacheStore:
@@ -428,7 +452,7 @@ class MethodPipeline(Pipeline):
         from benchmark.metrics import score_semantic
 
         t = time.perf_counter()
-        scene = self.env.scene(hid)
+        scene = self.scene(hid)
         timings["t_scene"] = time.perf_counter() - t
         poses, proba, n_refused = self._classified(hid, scene, timings)
         t = time.perf_counter()
@@ -465,7 +489,7 @@ class SegmenterPipeline(Pipeline):
         from benchmark.metrics import score_instances
 
         t = time.perf_counter()
-        scene = self.env.scene(hid)
+        scene = self.scene(hid)
         timings["t_scene"] = time.perf_counter() - t
         t = time.perf_counter()
         # sanity rows that need the ground truth (segmenter=gt_geometry) say so with uses_scene

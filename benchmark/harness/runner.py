@@ -121,16 +121,16 @@ def _env_classes(env: Any, cfg: DictConfig) -> tuple[str, ...]:
 _ENVS: dict[str, Any] = {}
 
 
-def _environment(node: DictConfig) -> Any:
+def _environment(node: DictConfig) -> tuple[Any, str]:
     """``instantiate(cfg.env)``, reused across jobs of this process while its config and the
-    files it names (house file, annotation folder) are unchanged."""
+    files it names (house file, annotation folder) are unchanged. Returns (env, its key)."""
     plain = _plain(node)
     key = config_key(plain, config_inputs(plain))
     if key not in _ENVS:
         if len(_ENVS) >= 4:
             _ENVS.pop(next(iter(_ENVS)))
         _ENVS[key] = instantiate(node)
-    return _ENVS[key]
+    return _ENVS[key], key
 
 
 def _builder(node: Any):
@@ -145,7 +145,7 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
         A :class:`MethodPipeline`, or a :class:`SegmenterPipeline` when ``segmenter`` is set.
     """
     choices = choices if choices is not None else _choices()
-    env = _environment(cfg.env)
+    env, env_key = _environment(cfg.env)
     seg = cfg.get("segmenter")
     names = {"env": choices.get("env", getattr(env, "name", "env"))}
     method_stages = ("viewpoints", "renderer", "classifier", "aggregator", "postprocess")
@@ -170,7 +170,7 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
         save_maps=bool(cfg.run.get("save_maps", True)), extra=extra,
         builders={k: _builder(cfg.get(k)) for k in groups},
         inputs={k: _plain(cfg.get(k)) for k in (*groups, "metrics")},
-        cache_failures=bool(cfg.run.get("cache_failures", False)),
+        cache_failures=bool(cfg.run.get("cache_failures", False)), env_key=env_key,
     )
     if seg is not None:
         return SegmenterPipeline(**common)
