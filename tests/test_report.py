@@ -131,3 +131,17 @@ def test_report_in_headless_chromium(sweep, tmp_path):
     bad.write_text("<html><body><script>throw new Error('deliberate');</script></body></html>")
     p = _chromium(exe, tmp_path, bad.resolve().as_uri(), "--dump-dom")
     assert any("deliberate" in line for line in _console_lines(p.stderr))
+
+
+@pytest.mark.slow
+def test_maps_on_another_grid_are_named_not_drawn(sweep, tmp_path):
+    run, _ = sweep
+    res = run.parent.parent
+    subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "env=synthetic", "env.resolution=0.2",
+                    "classifier=oracle", "aggregator=vision_cone", "run.limit=2", "run.name=coarse",
+                    f"run.results_dir={res}"], check=True, capture_output=True)
+    out = tmp_path / "r.html"
+    assert main([str(run), str(res / "runs" / "coarse"), "--out", str(out), "--house", "synthetic-s000000"]) == 0
+    page = out.read_text()
+    assert "Not shown (maps on another grid than this ground truth): coarse." in page
+    assert len(_images(page)) == 2 * 3  # the 0.1 m/px configurations only

@@ -268,6 +268,7 @@ def _house_section(hid: str, jobs) -> str:
     from benchmark.harness.cache import load_npz
 
     groups: dict[tuple, dict] = {}
+    skipped: list[str] = []
     scene = None
     for job, summary, df in jobs:
         rows = df[(df["house_id"].astype(str) == hid) & (df["status"] == "ok")]
@@ -284,6 +285,10 @@ def _house_section(hid: str, jobs) -> str:
             cfg = job.config()
             scene = instantiate(cfg.env).scene(hid)
         maps = load_npz(path)
+        shape = next((np.asarray(maps[k]).shape for k in ("raw", "instances", "post") if k in maps), None)
+        if shape != scene.grid.shape:  # another grid (e.g. env.resolution changed): not beside this one
+            skipped.append(job.dir.name)
+            continue
         acc = _num(rows["oracle_accuracy"].iloc[0]) if "oracle_accuracy" in rows else None
         key = (names.get("env"), names.get("segmenter") or "", names.get("classifier"), acc, names.get("aggregator"))
         g = groups.setdefault(key, {"label": job_label(names, acc), "cells": {}})
@@ -316,7 +321,11 @@ def _house_section(hid: str, jobs) -> str:
                            f"{_img(png_data_uri(g['cells'][k]), shape, alt)}</figure>")
             else:
                 out.append("<div></div>")
-    out.append("</div></section>")
+    out.append("</div>")
+    if skipped:
+        out.append(f'<p class="muted">Not shown (maps on another grid than this ground truth): '
+                   f"{_esc(', '.join(skipped))}.</p>")
+    out.append("</section>")
     return "".join(out)
 
 
