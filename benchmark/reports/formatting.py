@@ -141,6 +141,12 @@ class Grid:
     houses: list[list[str]] = field(default_factory=list)
     by_metric: bool = False
     house_labels: list[str] = field(default_factory=list)
+    pooled: bool = False
+
+    @property
+    def over(self) -> str:
+        """What the mean and std run over: houses, or (pooled tables) maps."""
+        return "maps (house x configuration)" if self.pooled else "houses"
 
     @property
     def grouped(self) -> bool:
@@ -198,7 +204,7 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
                        if (rv, c) in index else DASH for c in combos])
     grid = Grid(title, [KEY_LABELS.get(r, r.replace("_", " ")) for r in rows],
                 [tuple(value_label(k, v) for k, v in zip(rows, rv)) for rv in row_vals], columns, cells,
-                "percent" if percent else "fraction", houses=houses, by_metric=bool(by_metric and cols),
+                "percent" if percent else "fraction", houses=houses, by_metric=bool(by_metric and cols), pooled=pooled,
                 house_labels=[(combo_label(cols, c) + " houses").strip() if cols else "houses" for c in combos])
     counts = {(int(r["n"]), int(r.get("n_failed", 0))) for r in index.values()}
     if len(counts) == 1:

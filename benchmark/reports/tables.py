@@ -194,9 +194,9 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
         grid = format_cells(summ, spec, percent, name)
         notes = metric_notes(df)
         unit = "in percent" if percent else "as fractions"
-        caption = f"{spec.title}. Mean ± std over houses, {unit}. " + " ".join(grid.notes)
+        caption = f"{spec.title}. Mean ± std over {grid.over}, {unit}. " + " ".join(grid.notes)
         md = (f"### {spec.title}\n\n" + formatting.to_markdown(grid) + "\n\n" +
-              f"Mean ± std over houses, {unit}. " + " ".join(grid.notes) +
+              f"Mean ± std over {grid.over}, {unit}. " + " ".join(grid.notes) +
               (" Metrics: " + "; ".join(notes) + "." if notes else "") +
               (f" Note: {reason}." if reason else "") + "\n")
         chunks.append(md)
