@@ -383,7 +383,8 @@ def fig3(house_index: int, out: str | Path, overrides: Sequence[str] = (),
                          "(postprocess=default), not postprocess=none")
     scene, maps, names, row = house_maps(ov, house_index)
     title = (f"{house_title(names, scene.house_id)}: "
-             f"{describe(names, _float(cfg.classifier.get('accuracy')), view_accuracy(row), post=False)}")
+             f"{describe(names, _float(cfg.classifier.get('accuracy')), view_accuracy(row), post=False)}"
+             f"; post-processing '{names['postprocess']}'")
     return figure_postprocess(scene, maps["raw"], maps["post"], out, title, formats)
 
 
@@ -517,7 +518,8 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
             if acc is not None:
                 slug = slug.replace(f"_{names['classifier']}_", f"_{names['classifier']}{acc:g}_", 1)
             if names["postprocess"] != "none":
-                title = f"{house_title(names, hid)}: {describe(names, acc, view_accuracy(row), post=False)}"
+                title = (f"{house_title(names, hid)}: {describe(names, acc, view_accuracy(row), post=False)}"
+                         f"; post-processing '{names['postprocess']}'")
                 written += figure_postprocess(scene_for(cfg, hid), m["raw"], m["post"],
                                               out / f"fig3_{safe_name(hid)}_{slug}.png", title, formats)
             key = (names["env"], names["classifier"], acc, names["postprocess"], hid)
