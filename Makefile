@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check clean
+.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -30,6 +30,9 @@ $(VENV)/.installed-test: $(VENV)/.installed
 
 test: setup-test  ## run the whole test suite (what CI runs)
 	$(PY) -m pytest -q
+
+test-fast: setup-test  ## the suite without tests marked slow (pytest -m "not slow")
+	$(PY) -m pytest -q -m "not slow"
 
 lint: setup-test  ## ruff
 	$(VENV)/bin/ruff check benchmark envs tests

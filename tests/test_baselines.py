@@ -301,6 +301,7 @@ def test_bad_input():
         Voronoi(max_door=0)
 
 
+@pytest.mark.slow
 def test_geometric_on_shared_maps(shared_scenes, selros_dir):
     from envs.maps.label_png import read_instance_png
 

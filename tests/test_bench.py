@@ -6,10 +6,12 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_bench_sweep_tables_and_figures(tmp_path):
     """Runs on generated houses only: no shared data needed."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

@@ -25,6 +25,7 @@ def png_ok(path, map_shape, must_show=()):
         assert tuple(c) in colours, c
 
 
+@pytest.mark.slow
 def test_fig3_and_fig4_commands_on_a_shared_house(procthor_file, tmp_path, capsys):
     from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house

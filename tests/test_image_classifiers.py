@@ -100,6 +100,7 @@ def test_cnn_shapes_batching_and_checkpoint_round_trip(tmp_path):
         clf.predict_proba([Observation(pose=(0, 0, 0), image=imgs[0][..., 0])])
 
 
+@pytest.mark.slow
 @needs_torch
 def test_train_and_table1_commands_on_a_generated_image_folder(tmp_path, capsys):
     from benchmark.classifiers import train

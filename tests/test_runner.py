@@ -115,6 +115,7 @@ def test_select_houses_errors():
         select_houses(["a"], ["zz"], None)
 
 
+@pytest.mark.slow
 def test_killed_multirun_resumes_without_duplicates_or_losses(tmp_path, procthor_file):
     """A real `-m` multirun from the shell, killed midway, then rerun to completion."""
     houses = _houses_file(tmp_path, procthor_file, n=4)

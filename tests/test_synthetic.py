@@ -40,6 +40,7 @@ def test_valid_and_deterministic(houses):
         seed_from_house_id("procthor-1")
 
 
+@pytest.mark.slow
 def test_every_room_reachable(houses):
     for h in houses:
         s = rasterise_house(h, resolution=0.1)
