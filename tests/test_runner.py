@@ -90,8 +90,13 @@ def test_force_redoes_the_named_stage_and_after(tmp_path, procthor_file):
     run(cfg, tmp_path / "o2", ch)
     after = _snapshot(cache)
     changed = {Path(p).parts[-3] for p in before if after.get(p) != before[p]}
-    assert changed == {"classify", "scores", "maps"}
-    assert expand_force(["render"]) == {"render", "classify", "score"}
+    assert changed == {"classify", "aggregate", "scores", "maps"}
+    cfg, ch = _compose(tmp_path, houses, "run.force=[score]")
+    run(cfg, tmp_path / "o3", ch)
+    again = _snapshot(cache)
+    assert {Path(p).parts[-3] for p in after if again.get(p) != after[p]} == {"scores", "maps"}
+    assert expand_force(["render"]) == {"render", "classify", "aggregate", "score"}
+    assert expand_force(["aggregate"]) == {"aggregate", "score"}
     with pytest.raises(ValueError, match="run.force"):
         expand_force(["paint"])
 
@@ -180,3 +185,23 @@ def test_tables_match_hand_computed_means(tmp_path):
     assert "60.00 ± 14.14" in text  # graph_knn IoU in percent
     assert (tmp_path / "tables" / "table4.tex").read_text().count("\\\\") >= 2
     assert "1 of 6 rows failed: HouseError x1" in text
+
+
+def test_postprocessing_variants_share_one_aggregation(tmp_path, procthor_file):
+    """Jobs that differ only in post-processing aggregate once: the second reads the raw map
+    the first cached, and its raw map equals the first job's."""
+    from benchmark.harness.cache import load_npz
+    from benchmark.harness.store import find_jobs
+
+    houses = _houses_file(tmp_path, procthor_file, n=1)
+    cfg, ch = _compose(tmp_path, houses, "postprocess=none")
+    run(cfg, tmp_path / "none", ch)
+    agg = sorted((tmp_path / "results" / "cache" / "aggregate").rglob("*.npz"))
+    assert len(agg) == 1
+    stamp = agg[0].stat().st_mtime_ns
+    cfg, ch = _compose(tmp_path, houses, "postprocess=default")
+    df = run(cfg, tmp_path / "default", ch)
+    assert sorted((tmp_path / "results" / "cache" / "aggregate").rglob("*.npz")) == agg
+    assert agg[0].stat().st_mtime_ns == stamp and "t_aggregate" not in df  # loaded, not recomputed
+    raws = [load_npz(j.maps_path(df["house_id"][0]))["raw"] for j in find_jobs([tmp_path / "none", tmp_path / "default"])]
+    assert np.array_equal(raws[0], raws[1])

@@ -2,59 +2,65 @@
 ignores walls). Each walkable cell takes the vote of its K nearest viewpoints by Euclidean
 distance between cell centres in pixels, voted as in :mod:`benchmark.aggregators.graph_knn`.
 
-"Nearest" is the order (squared pixel distance, viewpoint index), exactly as graph KNN:
-SciPy's cKDTree (over the distinct view pixels) finds the K + 1 nearest positions; where
-the K-th view is not strictly nearer than the last candidate position (the tree may have
-left out an equally far view with a lower index) the cell asks for twice as many, until it
-is or all positions are candidates.
-Memory: (H*W, K + 1), linear in the map size (more only for the tied cells).
+"Nearest" is the order (squared pixel distance, viewpoint index), exactly as graph KNN. A
+numba kernel visits every view for every cell and keeps the K smallest keys
+``d2 * N + index`` by insertion (K is small): exact by construction, no tie handling needed.
+Time O(cells x views); memory (cells, K).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+from numba import njit
 
 from benchmark.aggregators.common import view_cells, vote_neighbours
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
 
 
-def euclidean_neighbours(rows: np.ndarray, cols: np.ndarray, cells: np.ndarray, k: int) -> np.ndarray:
-    """(M, K) int64 view indices for the (M, 2) pixel ``cells``, nearest first by
-    (squared pixel distance, view index). Needs K <= number of views."""
-    pts = np.column_stack([rows, cols]).astype(np.int64)
-    cells = np.asarray(cells, np.int64)
-    n = len(pts)
-    # views sharing a pixel (autotrace puts several headings on one point) are one tree node;
-    # members[u] lists the views at unique position u, -1 padded
-    upos, inv = np.unique(pts, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    order = np.argsort(inv, kind="stable")
-    mult = np.bincount(inv)
-    members = np.full((len(upos), int(mult.max())), -1, np.int64)
-    members[inv[order], np.arange(n) - np.repeat(np.cumsum(mult) - mult, mult)] = order
-    tree = cKDTree(upos.astype(float))
-    out = np.empty((len(cells), k), np.int64)
-    todo = np.arange(len(cells))
-    kq = min(len(upos), k + 1)
-    big = np.iinfo(np.int64).max
-    while len(todo):
-        _, idx = tree.query(cells[todo].astype(float), k=kq)
-        idx = np.asarray(idx, np.int64).reshape(len(todo), kq)
-        d2 = ((cells[todo, None, :] - upos[idx]) ** 2).sum(axis=2)  # exact integer distances
-        views = members[idx].reshape(len(todo), -1)
-        key = np.where(views >= 0, np.repeat(d2, members.shape[1], axis=1) * n + views, big)
-        key.sort(axis=1)  # order by (distance, view index)
-        out[todo] = key[:, :k] % n
-        if kq == len(upos):
-            break
-        # the K-th view must be nearer than the farthest candidate position, else a position
-        # the tree left out may hold an equally far view with a lower index: ask for twice
-        # as many positions there
-        tied = key[:, k - 1] // n >= d2.max(axis=1)
-        todo, kq = todo[tied], min(len(upos), 2 * kq)
+@njit(cache=True, nogil=True)
+def _k_nearest(rows, cols, cells, k):
+    n = rows.shape[0]
+    out = np.empty((cells.shape[0], k), np.int64)
+    best = np.empty(k, np.int64)
+    for j in range(cells.shape[0]):
+        filled = 0
+        for i in range(n):
+            dr = cells[j, 0] - rows[i]
+            dc = cells[j, 1] - cols[i]
+            key = (dr * dr + dc * dc) * n + i
+            if filled < k:
+                pos = filled
+                filled += 1
+            elif key < best[k - 1]:
+                pos = k - 1
+            else:
+                continue
+            while pos > 0 and best[pos - 1] > key:  # insertion into the sorted K best
+                best[pos] = best[pos - 1]
+                pos -= 1
+            best[pos] = key
+        for q in range(k):
+            out[j, q] = best[q] % n
     return out
+
+
+def euclidean_neighbours(rows: np.ndarray, cols: np.ndarray, cells: np.ndarray, k: int) -> np.ndarray:
+    """The K nearest views of each cell by (squared pixel distance, view index).
+
+    Args:
+        rows, cols: (N,) pixel row and column of each view.
+        cells: (M, 2) pixel (row, col) of the cells to label.
+        k: neighbours, 1 <= K <= N.
+
+    Returns:
+        (M, K) int64 view indices, nearest first.
+    """
+    rows = np.ascontiguousarray(rows, np.int64)
+    cols = np.ascontiguousarray(cols, np.int64)
+    if not 1 <= k <= len(rows):
+        raise ValueError(f"k must be in 1..{len(rows)} (the number of views), got {k}")
+    return _k_nearest(rows, cols, np.ascontiguousarray(cells, np.int64), int(k))
 
 
 class EuclideanKNN(Aggregator):

@@ -52,7 +52,7 @@ log = logging.getLogger("roomseg-bench")
 T = TypeVar("T")
 
 #: Stages that ``force`` can name, in pipeline order; forcing one forces those after it.
-STAGES = ("render", "classify", "score")
+STAGES = ("render", "classify", "aggregate", "score")
 
 #: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
 _SCENES: OrderedDict[tuple[str, str], Any] = OrderedDict()
@@ -361,8 +361,9 @@ class Pipeline:
 class MethodPipeline(Pipeline):
     """The method: viewpoints -> render -> classify -> aggregate -> post-process -> score."""
 
-    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (("render", ("viewpoints", "renderer")), ("classify", ("classifier",)),
-                      ("score", ("aggregator", "postprocess", "metrics")))
+    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (
+        ("render", ("viewpoints", "renderer")), ("classify", ("classifier",)), ("aggregate", ("aggregator",)),
+        ("score", ("postprocess", "metrics")))
 
     @property
     def viewpoints(self) -> Viewpoints:
@@ -390,6 +391,27 @@ class MethodPipeline(Pipeline):
     def classify_path(self, hid: str) -> Path:
         return self.store.classify_path(self.keys["classify"], hid, content=self.contents(hid)["classify"])
 
+    def aggregate_path(self, hid: str) -> Path:
+        return self.store.aggregate_path(self.keys["aggregate"], hid, content=self.contents(hid)["aggregate"])
+
+    def _aggregated(self, hid: str, scene, poses: np.ndarray, proba: np.ndarray, timings: dict) -> np.ndarray:
+        """The raw label map, cached per (views, classifier, aggregator): the jobs that differ
+        only in post-processing or metrics aggregate once."""
+
+        def load(path: Path) -> np.ndarray:
+            return check_labels_entry(load_npz(path), scene.grid.shape, proba.shape[1])
+
+        def compute() -> np.ndarray:
+            t = time.perf_counter()
+            raw = np.asarray(self.aggregator(scene.grid, poses, proba))
+            timings["t_aggregate"] = time.perf_counter() - t
+            return raw
+
+        def save(path: Path, raw: np.ndarray) -> None:
+            atomic_save_npz(path, raw=raw.astype(np.int16))
+
+        return self._cached("aggregate", self.aggregate_path(hid), load, compute, save)
+
     def _observations(self, hid: str, scene, timings: dict) -> list:
         from envs.render import cache as render_cache
 
@@ -414,18 +436,22 @@ class MethodPipeline(Pipeline):
         return self._cached("render", self.render_dir(hid), load, compute, render_cache.write_observations,
                             exists=render_cache.is_complete)
 
-    def _classified(self, hid: str, scene, timings: dict) -> tuple[np.ndarray, np.ndarray, int]:
+    def _classified(self, hid: str, scene, timings: dict) -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
+        """(poses (N, 3), proba (N, C), refused views, seen (N,) or None): ``seen`` is each
+        view's majority visible class (-1: no floor seen) where the renderer reports visible
+        classes, kept with the classification so later jobs need not re-read the render."""
+        from benchmark.classifiers.noise import true_labels
         from envs.render import cache as render_cache
 
-        def load(path: Path) -> tuple[np.ndarray, np.ndarray, int]:
+        def load(path: Path) -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
             z = load_npz(path)
             render = self.render_dir(hid)
             views = render_cache.read_poses(render) if render_cache.is_complete(render) else None
             out = check_classified(z, len(self.classes) if self.classes is not None else None, views)
             check_poses(out[0], scene)
-            return out
+            return (*out, check_seen(z, len(out[0]), out[1].shape[1]))
 
-        def compute() -> tuple[np.ndarray, np.ndarray, int]:
+        def compute() -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
             obs = self._observations(hid, scene, timings)
             kept = [o for o in obs if not o.meta.get("refused", False)]
             n_refused = len(obs) - len(kept)
@@ -440,24 +466,24 @@ class MethodPipeline(Pipeline):
             if proba.shape != (len(kept), n_cls):
                 raise ValueError(f"classifier {self.names.get('classifier')!r} returned shape {proba.shape}, "
                                  f"expected ({len(kept)}, {n_cls})")
-            return poses_array([o.pose for o in kept]), proba, n_refused
+            seen = true_labels(kept) if all(o.visible_classes is not None for o in kept) else None
+            return poses_array([o.pose for o in kept]), proba, n_refused, seen
 
-        def save(path: Path, v: tuple[np.ndarray, np.ndarray, int]) -> None:
-            atomic_save_npz(path, poses=v[0], proba=v[1], n_refused=np.array(v[2]))
+        def save(path: Path, v: tuple[np.ndarray, np.ndarray, int, np.ndarray | None]) -> None:
+            extra = {} if v[3] is None else {"seen": np.asarray(v[3], np.int64)}
+            atomic_save_npz(path, poses=v[0], proba=v[1], n_refused=np.array(v[2]), **extra)
 
         return self._cached("classify", self.classify_path(hid), load, compute, save)
 
     def _compute(self, hid: str, timings: dict[str, float]) -> dict[str, Any]:
-        from benchmark.classifiers.noise import view_accuracy_seen
+        from benchmark.classifiers.noise import seen_accuracy, view_accuracy_seen
         from benchmark.metrics import score_semantic
 
         t = time.perf_counter()
         scene = self.scene(hid)
         timings["t_scene"] = time.perf_counter() - t
-        poses, proba, n_refused = self._classified(hid, scene, timings)
-        t = time.perf_counter()
-        raw = self.aggregator(scene.grid, poses, proba)
-        timings["t_aggregate"] = time.perf_counter() - t
+        poses, proba, n_refused, seen = self._classified(hid, scene, timings)
+        raw = self._aggregated(hid, scene, poses, proba, timings)
         t = time.perf_counter()
         post = self.postprocess(raw, scene.grid) if self.postprocess is not None else raw
         timings["t_postprocess"] = time.perf_counter() - t
@@ -468,7 +494,8 @@ class MethodPipeline(Pipeline):
         out["n_views"] = int(len(poses))
         out["n_refused"] = int(n_refused)
         out["view_accuracy"] = _view_accuracy(scene, poses, proba)
-        out["view_accuracy_seen"] = view_accuracy_seen(self.render_dir(hid), poses, proba)  # vs what views see
+        out["view_accuracy_seen"] = (seen_accuracy(seen, proba) if seen is not None  # vs what views see
+                                     else view_accuracy_seen(self.render_dir(hid), poses, proba))
         if self.save_maps:
             atomic_save_npz(self.maps_path(hid), raw=raw.astype(np.int16), post=post.astype(np.int16),
                             poses=poses, proba=proba.astype(np.float32))
@@ -504,6 +531,24 @@ class SegmenterPipeline(Pipeline):
         return out
 
 
+def check_labels_entry(z: Mapping[str, np.ndarray], shape: tuple[int, int], n_classes: int) -> np.ndarray:
+    """A cached raw label map, checked: (H, W) integers in -1..C-1 on the scene's grid.
+
+    Returns:
+        (H, W) int32 labels.
+
+    Raises:
+        BadEntry: a missing array, another shape or dtype, or a label out of range."""
+    if "raw" not in z:
+        raise BadEntry("no 'raw' array")
+    raw = z["raw"]
+    if raw.shape != tuple(shape) or not np.issubdtype(raw.dtype, np.integer):
+        raise BadEntry(f"raw labels {raw.dtype} {raw.shape}, expected integers {tuple(shape)}")
+    if raw.size and (raw.min() < -1 or raw.max() >= n_classes):
+        raise BadEntry(f"raw labels in [{raw.min()}, {raw.max()}], expected -1..{n_classes - 1}")
+    return raw.astype(np.int32)
+
+
 def check_poses(poses: np.ndarray, scene) -> None:
     """Poses (N, 3) must be finite and stand on walkable cells of ``scene.grid``.
 
@@ -532,6 +577,21 @@ def check_render(observations: Sequence, scene) -> None:
         for t, a in o.objects:
             if not isinstance(t, str) or not math.isfinite(a) or a < 0:
                 raise BadEntry(f"view {i}: object entry ({t!r}, {a!r}) is not (type, amount >= 0)")
+
+
+def check_seen(z: Mapping[str, np.ndarray], n_views: int, n_classes: int) -> np.ndarray | None:
+    """The optional ``seen`` array of a classify entry: (N,) integers in -1..C-1, or None.
+
+    Raises:
+        BadEntry: another shape or dtype, or a class out of range."""
+    if "seen" not in z:
+        return None
+    seen = np.asarray(z["seen"])
+    if seen.shape != (n_views,) or not np.issubdtype(seen.dtype, np.integer):
+        raise BadEntry(f"seen has {seen.dtype} {seen.shape}, expected integers ({n_views},)")
+    if seen.size and (seen.min() < -1 or seen.max() >= n_classes):
+        raise BadEntry(f"seen classes in [{seen.min()}, {seen.max()}], expected -1..{n_classes - 1}")
+    return seen
 
 
 def check_classified(z: Mapping[str, np.ndarray], n_classes: int | None,

@@ -62,17 +62,17 @@ def _plain(node: Any) -> Any:
 
 
 def stage_keys(cfg: DictConfig) -> dict[str, str]:
-    """Cache keys of the render, classify and score stages for this config."""
+    """Cache keys of the render, classify, aggregate and score stages for this config."""
     env = {k: v for k, v in (_plain(cfg.env) or {}).items() if k not in SELECTION_KEYS}
     salt = (CACHE_VERSION, cfg.run.get("cache_salt", ""))
     render = config_key("render", salt, env, _plain(cfg.get("viewpoints")), _plain(cfg.get("renderer")))
     classify = config_key("classify", render, _plain(cfg.get("classifier")))
     if cfg.get("segmenter") is not None:
         score = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics))
-    else:
-        score = config_key("score", classify, _plain(cfg.get("aggregator")), _plain(cfg.get("postprocess")),
-                           _plain(cfg.metrics))
-    return {"render": render, "classify": classify, "score": score}
+        return {"render": render, "classify": classify, "score": score}
+    aggregate = config_key("aggregate", classify, _plain(cfg.get("aggregator")))
+    score = config_key("score", aggregate, _plain(cfg.get("postprocess")), _plain(cfg.metrics))
+    return {"render": render, "classify": classify, "aggregate": aggregate, "score": score}
 
 
 def select_houses(all_ids: list[str], houses: Any, limit: Any) -> list[str]:

@@ -16,6 +16,7 @@ the cache may live anywhere)::
     <results_dir>/runs/<run name>/sweep_summary.{md,csv}   a multirun's jobs (callback)
     <cache_dir>/render/<render key>/<entry>/        observations (envs.render.cache layout)
     <cache_dir>/classify/<classify key>/<entry>.npz proba (N, C), poses (N, 3), n_refused
+    <cache_dir>/aggregate/<aggregate key>/<entry>.npz raw label map (shared by post-processing variants)
     <cache_dir>/scores/<score key>/<entry>.json     the house's metrics row (successes only)
     <cache_dir>/failures/<score key>/<entry>.json   the house's last failure (a log, not a result)
     <cache_dir>/maps/<score key>/<entry>.npz        raw / post-processed label maps, poses
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +68,9 @@ class CacheStore:
 
     def classify_path(self, key: str, house_id: str, *, content: str) -> Path:
         return self.root / "classify" / key / f"{entry_name(house_id, content)}.npz"
+
+    def aggregate_path(self, key: str, house_id: str, *, content: str) -> Path:
+        return self.root / "aggregate" / key / f"{entry_name(house_id, content)}.npz"
 
     def score_path(self, key: str, house_id: str, *, content: str) -> Path:
         return self.root / "scores" / key / f"{entry_name(house_id, content)}.json"
@@ -104,10 +109,10 @@ class Job:
         return self.metrics_path.exists() and self.summary_path.exists() and self.config_path.exists()
 
     def config(self):
-        """The job's resolved config (an OmegaConf DictConfig)."""
-        from omegaconf import OmegaConf
-
-        return OmegaConf.load(self.config_path)
+        """The job's resolved config (a read-only OmegaConf DictConfig, read once per file
+        version: reports ask for it many times)."""
+        st = self.config_path.stat()
+        return _load_config(str(self.config_path), st.st_mtime_ns, st.st_size)
 
     def summary(self) -> dict[str, Any]:
         import json
@@ -255,6 +260,15 @@ def read_metrics(path: str | Path):
         if isinstance(n, int) and n != len(df):
             raise ValueError(f"{path}: {len(df)} rows but {summary.name} says {n} houses (truncated?)")
     return df
+
+
+@lru_cache(maxsize=256)
+def _load_config(path: str, mtime_ns: int, size: int):
+    from omegaconf import OmegaConf
+
+    cfg = OmegaConf.load(path)
+    OmegaConf.set_readonly(cfg, True)
+    return cfg
 
 
 def job_dir_for(results_dir: str | Path, run_name: str, subdir: str | None = None) -> Path:
