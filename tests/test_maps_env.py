@@ -164,3 +164,32 @@ def test_multirun_sweeps_three_segmenters_over_the_folder(tmp_path):
     assert len(df) == 6 and (df["status"] == "ok").all()
     assert df["iou"].between(0, 1).all() and (df["n_gt_segments"] == 3).all()
     assert (df[df["segmenter"] == "distance"]["iou"] > 0.9).all()
+
+
+def test_method_on_ground_truth_without_classes_fails_that_house_with_one_line(tmp_path):
+    """Instance ground truth carries no room classes: the method's class scores would be
+    meaningless, so the house fails with a line saying so (segmenters still score it)."""
+    from benchmark.harness.pipeline import MethodPipeline
+    from envs.maps.gridmap import GridMap
+    from envs.maps.scene import Scene
+
+    grid = GridMap(np.ones((4, 4), bool), 0.1, (0.0, 0.4))
+    inst = np.zeros((4, 4), np.int32)
+    scene = Scene(house_id="m", grid=grid, rooms=inst.copy(), instances=inst, instance_classes=np.array([-1]),
+                  room_ids=["r0"], classes=("a", "b"))
+
+    class Env:
+        name = "maps"
+
+        def house_ids(self):
+            return ["m"]
+
+        def house(self, hid):
+            raise AssertionError("not needed")
+
+        def scene(self, hid):
+            return scene
+
+    pipe = MethodPipeline(env=Env(), cache_dir=tmp_path, keys={}, names={}, metric_params=None)
+    with pytest.raises(ValueError, match="1 of 1 ground-truth rooms have no class"):
+        pipe._compute("m", {})

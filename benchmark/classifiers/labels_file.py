@@ -36,7 +36,6 @@ file order. Class names are kept as written (case and spaces stripped at the end
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -46,7 +45,7 @@ import pandas as pd
 
 from benchmark.interfaces import Classifier
 from envs.maps.frames import ros_to_world
-from envs.maps.pose_files import FRAME_COLUMNS
+from envs.maps.pose_files import FRAME_COLUMNS, read_table
 from envs.render.image_folder import match_poses
 
 MATCHES = ("auto", "order", "id", "pose")
@@ -67,24 +66,7 @@ def read_label_table(path: str | Path) -> pd.DataFrame:
     path = Path(path).expanduser()
     if not path.is_file():
         raise FileNotFoundError(f"labels file not found: {path}")
-    if path.suffix.lower() == ".json":
-        try:
-            data = json.loads(path.read_text())
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
-        if isinstance(data, dict):
-            key = next((k for k in ("labels", "views") if k in data), None)
-            data = data[key] if key else data
-        if not isinstance(data, list) or not all(isinstance(d, dict) for d in data):
-            raise ValueError(f"{path}: expected a list of objects (one per view) or {{'labels': [...]}}")
-        df = pd.DataFrame(data)
-    else:
-        try:
-            df = pd.read_csv(path, skipinitialspace=True, dtype=str, keep_default_na=False)
-        except pd.errors.EmptyDataError:
-            raise ValueError(f"{path}: empty labels file; expected a header row and one view per line") from None
-        except pd.errors.ParserError as e:
-            raise ValueError(f"{path}: not a readable CSV ({str(e).splitlines()[0]})") from None
+    df = read_table(path, what="labels", as_text=True)
     df.columns = [str(c).strip().lower() for c in df.columns]
     dup = sorted({c for c in df.columns if list(df.columns).count(c) > 1})
     if dup:

@@ -116,9 +116,9 @@ def read_map(cfg) -> tuple[Any, tuple[float, float, float], dict]:
 
 def _pose_ids(path: Path, n: int) -> list[str | None]:
     """The pose file's ``id`` column (None per view without one: labels then pair by pose or order)."""
-    from envs.maps.pose_files import _table  # noqa: PLC0415
+    from envs.maps.pose_files import read_table  # noqa: PLC0415
 
-    df = _table(path)
+    df = read_table(path)
     df.columns = [str(c).strip().lower() for c in df.columns]
     if "id" in df.columns and len(df) == n:
         return [str(v).strip() for v in df["id"].tolist()]

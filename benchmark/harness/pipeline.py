@@ -457,6 +457,8 @@ class MethodPipeline(Pipeline):
             n_refused = len(obs) - len(kept)
             if not kept:
                 raise ValueError(f"house {hid!r}: every one of {len(obs)} views was refused by the renderer")
+            for o in kept:  # the house id, for classifiers that read per-house files (labels)
+                o.meta.setdefault("house_id", hid)
             if hasattr(self.classifier, "set_scene"):  # the house, for classifiers that need it (oracle noise)
                 self.classifier.set_scene(scene)
             t = time.perf_counter()
@@ -482,6 +484,11 @@ class MethodPipeline(Pipeline):
         t = time.perf_counter()
         scene = self.scene(hid)
         timings["t_scene"] = time.perf_counter() - t
+        unclassed = int((np.asarray(scene.instance_classes) < 0).sum())
+        if unclassed:
+            raise ValueError(f"house {hid!r}: {unclassed} of {len(scene.instance_classes)} ground-truth rooms have no "
+                             f"class, so the method's class scores would be meaningless; give a label ground truth "
+                             f"(env.gt_format=label) or score geometry only with a segmenter")
         poses, proba, n_refused, seen = self._classified(hid, scene, timings)
         raw = self._aggregated(hid, scene, poses, proba, timings)
         t = time.perf_counter()

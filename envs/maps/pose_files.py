@@ -31,21 +31,41 @@ _UNITS = {"ros": "x, y (metres), theta (radians, CCW from +x)", "sim": "x, z (me
           "pixel": "row, col (pixels), yaw (degrees)"}
 
 
-def _table(path: Path) -> pd.DataFrame:
+def read_table(path: str | Path, what: str = "pose", as_text: bool = False) -> pd.DataFrame:
+    """A per-view table (poses, labels, images) from ``.csv`` (header row) or ``.json`` (a
+    list of objects, or ``{"poses" | "labels" | "views": [...]}``): the one reader of such
+    files, used by pose files, the image-folder renderer and the labels-file classifier.
+
+    Args:
+        path: the file.
+        what: what the file holds, for error messages ("pose", "labels", "image pose").
+        as_text: read CSV cells as text (label names stay strings, empty cells stay "").
+
+    Returns:
+        The DataFrame, one row per view in file order.
+
+    Raises:
+        ValueError: unreadable JSON or CSV, an empty file, or JSON of another shape (one line
+            naming the file).
+    """
+    path = Path(path)
     if path.suffix.lower() == ".json":
         try:
             data = json.loads(path.read_text())
         except json.JSONDecodeError as e:
             raise ValueError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
-        if isinstance(data, dict) and "poses" in data:
-            data = data["poses"]
+        if isinstance(data, dict):
+            key = next((k for k in ("poses", "labels", "views") if k in data), None)
+            data = data[key] if key else data
         if not isinstance(data, list) or not all(isinstance(d, dict) for d in data):
-            raise ValueError(f"{path}: expected a list of pose objects or {{'poses': [...]}}")
+            raise ValueError(f"{path}: expected a list of {what} objects (one per view) or "
+                             f"{{'poses' | 'labels' | 'views': [...]}}")
         return pd.DataFrame(data)
     try:
-        return pd.read_csv(path, skipinitialspace=True)
+        kw = {"dtype": str, "keep_default_na": False} if as_text else {}
+        return pd.read_csv(path, skipinitialspace=True, **kw)
     except pd.errors.EmptyDataError:
-        raise ValueError(f"{path}: empty pose file; expected a header row and one pose per line") from None
+        raise ValueError(f"{path}: empty {what} file; expected a header row and one view per line") from None
     except pd.errors.ParserError as e:
         raise ValueError(f"{path}: not a readable CSV ({str(e).splitlines()[0]})") from None
 
@@ -74,7 +94,7 @@ def read_poses(path: str | Path, frame: str, grid: GridMap | None = None) -> np.
     path = Path(path).expanduser()
     if not path.is_file():
         raise FileNotFoundError(f"pose file not found: {path}")
-    df = _table(path)
+    df = read_table(path)
     df.columns = [str(c).strip().lower() for c in df.columns]
     want = FRAME_COLUMNS[frame]
     missing = [c for c in want if c not in df.columns]

@@ -31,7 +31,7 @@ from PIL import Image
 from scipy.spatial import cKDTree
 
 from envs.maps.gridmap import GridMap
-from envs.maps.pose_files import FRAME_COLUMNS, _table, read_poses
+from envs.maps.pose_files import FRAME_COLUMNS, read_poses, read_table
 from envs.maps.scene import Scene
 from envs.render.base import Renderer
 from envs.render.observation import Observation, poses_array
@@ -138,7 +138,7 @@ class ImageFolderRenderer(Renderer):
         """
         pose_file, folder = self._paths(house_id)
         poses = read_poses(pose_file, self.frame, grid)
-        df = _table(pose_file)
+        df = read_table(pose_file)
         df.columns = [str(c).strip().lower() for c in df.columns]
         if self.image_column not in df.columns:
             raise ValueError(f"{pose_file}: no {self.image_column!r} column naming each view's image; found columns "
