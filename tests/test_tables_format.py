@@ -228,3 +228,12 @@ def test_a_missing_grouping_value_keeps_its_cells():
     grid = formatting.build_grid(summ, ["classifier", "oracle_accuracy"], [], ["iou"], "t")
     assert grid.rows == [("objects", "–"), ("oracle", "0.8")]
     assert [formatting.fmt_cell(r[0], 2) for r in grid.cells] == ["25.00", "50.00 ± 10.00"]
+
+
+def test_counts_are_not_scaled_to_percent():
+    """count_error (segments minus rooms) is a count: 1.5 stays 1.5 while IoU 0.5 shows 50."""
+    summ = pd.DataFrame([{"method": "m", "iou_mean": 0.5, "iou_std": 0.1, "count_error_mean": 1.5,
+                          "count_error_std": 0.5, "n": 3, "n_failed": 0}])
+    grid = formatting.build_grid(summ, rows=("method",), cols=(), metrics=("iou", "count_error"), title="t")
+    (line,) = grid.cells
+    assert line[0][:2] == pytest.approx((50.0, 10.0)) and line[1][:2] == pytest.approx((1.5, 0.5))

@@ -52,6 +52,9 @@ VALUE_ORDER: dict[str, tuple[str, ...]] = {
 }
 #: tables whose columns are grouped by metric first (one Markdown table per metric).
 BY_METRIC = frozenset({"sensitivity"})
+#: metrics that are counts, not fractions: shown as they are, never scaled to percent.
+COUNT_METRICS = frozenset({"count_error", "n_pred_segments", "n_gt_segments", "n_views", "n_refused"})
+
 #: tables whose cells pool several configurations (so a cell counts maps, not houses).
 POOLED = frozenset({"table3"})
 
@@ -166,6 +169,7 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
     """
     scale = 100.0 if percent else 1.0
     rows = [r for r in rows if r in summary]
+    col_scale = {m: (1.0 if m in COUNT_METRICS else scale) for m in metrics}
     cols = [c for c in cols if c in summary]
     metrics = [m for m in metrics if f"{m}_mean" in summary]
 
@@ -197,7 +201,8 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
                 line.append(None)
                 continue
             mean, std = rec.get(f"{col.metric}_mean", np.nan), rec.get(f"{col.metric}_std", np.nan)
-            line.append((float(mean) * scale, float(std) * scale, int(rec.get("n", 0)), int(rec.get("n_failed", 0))))
+            s = col_scale.get(col.metric, scale)
+            line.append((float(mean) * s, float(std) * s, int(rec.get("n", 0)), int(rec.get("n_failed", 0))))
         cells.append(line)
         houses.append([f"{int(index[(rv, c)]['n'])}" + (f" ({int(index[(rv, c)]['n_failed'])} failed)"
                                                        if index[(rv, c)].get("n_failed") else "")
