@@ -377,3 +377,19 @@ def test_timing_helpers(procthor_file, tmp_path, capsys):
     assert "post-process median" in capsys.readouterr().out
     with pytest.raises(FileNotFoundError, match="not a finished runner job"):
         time_postprocess_job(tmp_path)
+
+
+def test_timing_on_a_job_that_ran_part_of_its_environment(tmp_path):
+    """``--job`` times the houses the job ran (here 1 of 3), not every house of its env."""
+    from hydra import compose, initialize_config_dir
+
+    from benchmark.commands.perf_postprocess import time_postprocess_job
+    from benchmark.harness.runner import CONF_DIR, run
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose("config", overrides=["env=synthetic", "env.n_houses=3", "env.resolution=0.1", "run.limit=1",
+                                           "classifier=oracle", "postprocess=none", "run.progress=false",
+                                           f"run.results_dir={tmp_path / 'r'}"])
+    run(cfg, tmp_path / "job", {})
+    rows = time_postprocess_job(tmp_path / "job", repeat=1)
+    assert [r["house"] for r in rows] == ["synthetic-s000000"] and rows[0]["ms"] > 0

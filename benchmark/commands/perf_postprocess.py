@@ -53,7 +53,7 @@ def time_postprocess_job(job_dir: str | Path, repeat: int = 3) -> list[dict]:
         raise FileNotFoundError(f"{job_dir} is not a finished runner job (summary.json + resolved_config.yaml)")
     cfg = job.config()
     env, pp, rows = instantiate(cfg.env), PostProcess(classes=list(cfg.classes)), []
-    for hid in env.house_ids():
+    for hid in job.house_ids():
         path = job.maps_path(hid)
         if not path.exists():
             continue
@@ -65,7 +65,8 @@ def time_postprocess_job(job_dir: str | Path, repeat: int = 3) -> list[dict]:
             best = min(best, time.perf_counter() - t)
         rows.append({"house": hid, "pixels": grid.walkable.size, "ms": 1e3 * best})
     if not rows:
-        raise FileNotFoundError(f"no cached label maps of {job_dir} under {job.maps_path('x').parent}")
+        raise FileNotFoundError(f"no cached label maps of the {len(job.house_ids())} houses of {job_dir} "
+                                f"(run.save_maps=false, or the cache under {job.cache().root} was removed)")
     return rows
 
 

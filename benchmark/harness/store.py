@@ -124,6 +124,10 @@ class Job:
         """The cache this job wrote to (its ``run.cache_dir``, wherever that is)."""
         return CacheStore(Path(str(self.config().run.cache_dir)))
 
+    def house_ids(self) -> list[str]:
+        """The houses this job ran, in its order."""
+        return list(self.summary().get("contents", {}))
+
     def maps_path(self, house_id: str) -> Path:
         """The saved label maps of one house of this job (may not exist: ``run.save_maps``).
 
