@@ -48,6 +48,7 @@ RESULTS ?= results
 
 bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables, figures, report.html -> results/bench
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench_sanity env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
 	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
 	@# figures and the report read the finished run side by side (one core each); either failing fails bench
 	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --out $(BENCH_OUT)/figures & fig=$$!; \

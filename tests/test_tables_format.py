@@ -109,8 +109,10 @@ def test_tables_prints_only_tables_with_data_and_says_why(table4_run):
     assert "Table III: post-processing" in text and "the rows read have 1 (post)" in text
     assert re.search(r"Sensitivity to classifier accuracy \(oracle[^\n]*: left out, it compares oracle accuracies", text)
     head, sep, body = _md_tables(text)[0]
-    assert head == ["classifier", "aggregator", "ProcTHOR IoU", "ProcTHOR acc", "synthetic IoU", "synthetic acc"]
-    assert body[0] == ["objects", "graph KNN", "50.00 ± 14.14", "50.00 ± 0.00", "50.00 ± 14.14", "50.00 ± 0.00"]
+    assert head == ["classifier", "aggregator", "ProcTHOR IoU", "ProcTHOR matched IoU", "ProcTHOR PQ", "ProcTHOR acc",
+                    "synthetic IoU", "synthetic matched IoU", "synthetic PQ", "synthetic acc"]
+    assert body[0] == ["objects", "graph KNN", "50.00 ± 14.14", "45.00 ± 0.00", "40.00 ± 0.00", "50.00 ± 0.00",
+                       "50.00 ± 14.14", "45.00 ± 0.00", "40.00 ± 0.00", "50.00 ± 0.00"]
     assert [b[1] for b in body[:3]] == ["graph KNN", "vision cone", "Euclidean KNN"]
 
 
@@ -138,10 +140,10 @@ def test_latex_is_booktabs_with_caption_label_and_right_aligned_numbers(table4_r
     first = tex.splitlines()[0]
     assert first.startswith("%") and "booktabs" in first
     assert "\\caption{Table IV" in tex and "\\label{tab:table4}" in tex
-    assert "\\begin{tabular}{llrrrr}" in tex and "\\toprule" in tex and "\\bottomrule" in tex
+    assert "\\begin{tabular}{llrrrrrrrr}" in tex and "\\toprule" in tex and "\\bottomrule" in tex
     numbers = re.findall(r"\$(\d+\.\d+) \\pm (\d+\.\d+)\$", tex)
-    assert len(numbers) == 24 and all(len(x.split(".")[1]) == 1 for pair in numbers for x in pair)
-    assert "\\multicolumn{2}{c}{ProcTHOR}" in tex
+    assert len(numbers) == 48 and all(len(x.split(".")[1]) == 1 for pair in numbers for x in pair)
+    assert "\\multicolumn{4}{c}{ProcTHOR}" in tex
 
 
 def test_markdown_never_puts_a_pipe_in_a_cell():
@@ -237,3 +239,18 @@ def test_counts_are_not_scaled_to_percent():
     grid = formatting.build_grid(summ, rows=("method",), cols=(), metrics=("iou", "count_error"), title="t")
     (line,) = grid.cells
     assert line[0][:2] == pytest.approx((50.0, 10.0)) and line[1][:2] == pytest.approx((1.5, 0.5))
+
+
+def test_table4_carries_the_sanity_rows(table4_run):
+    """Rows of the sanity segmenters join Table IV as rows of their own (after the method's),
+    other segmenters do not."""
+    rows = [_rows(house_id=f"synthetic{h}", classifier="", aggregator="", postprocess="", segmenter=seg,
+                  oracle_accuracy=None, iou=iou, accuracy=None, matched_iou=0.1, pq=0.05)
+            for seg, iou in (("one_room", 0.4), ("gt_geometry", 1.0), ("voronoi", 0.3)) for h in range(2)]
+    _write(table4_run / "sanity" / "metrics.csv", rows)
+    head, _, body = _md_tables(render([table4_run], ["table4"]))[0]
+    sanity = [b for b in body if b[0] == "(sanity row)"]
+    assert [b[1] for b in sanity] == ["one room", "ground-truth geometry"] and body[-2:] == sanity
+    assert sanity[0][head.index("synthetic IoU")] == "40.00 ± 0.00"
+    assert sanity[1][head.index("synthetic IoU")] == "100.00 ± 0.00"
+    assert sanity[0][head.index("ProcTHOR IoU")] == "–"

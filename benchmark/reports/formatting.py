@@ -39,7 +39,9 @@ KEY_LABELS: dict[str, str] = {"oracle_accuracy": "oracle accuracy", "postprocess
                               "classifier": "classifier", "aggregator": "aggregator"}
 #: (grouping column, value) -> words; values not listed are printed as they are.
 VALUE_LABELS: dict[str, dict[str, str]] = {
-    "aggregator": {"graph_knn": "graph KNN", "vision_cone": "vision cone", "euclidean_knn": "Euclidean KNN"},
+    "aggregator": {"graph_knn": "graph KNN", "vision_cone": "vision cone", "euclidean_knn": "Euclidean KNN",
+                   "one_room": "one room", "gt_geometry": "ground-truth geometry", "grid": "3 m grid"},
+    "classifier": {"sanity": "(sanity row)"},
     "postprocess": {"none": "raw", "default": "post"},
     "dataset": {"procthor": "ProcTHOR", "procthor_shared": "ProcTHOR", "architecthor": "ArchitecTHOR",
                 "synthetic": "synthetic"},
@@ -48,7 +50,8 @@ VALUE_LABELS: dict[str, dict[str, str]] = {
 #: display order of known values (others follow, sorted).
 VALUE_ORDER: dict[str, tuple[str, ...]] = {
     "postprocess": ("none", "default"),
-    "aggregator": ("graph_knn", "vision_cone", "euclidean_knn"),
+    "aggregator": ("graph_knn", "vision_cone", "euclidean_knn", "one_room", "grid", "gt_geometry"),
+    "classifier": ("objects", "oracle", "cnn", "dinov2", "vlm", "sanity"),
 }
 #: tables whose columns are grouped by metric first (one Markdown table per metric).
 BY_METRIC = frozenset({"sensitivity"})

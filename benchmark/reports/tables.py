@@ -36,6 +36,13 @@ class TableSpec:
     metrics: tuple[str, ...] = ("iou", "accuracy")
     where: dict = field(default_factory=dict)
     exclude: dict = field(default_factory=dict)
+    #: keep the sanity segmenters' rows (one room, ground-truth geometry, grid) as rows of
+    #: their own: classifier "sanity", aggregator = the segmenter (README "Metrics").
+    sanity: bool = False
+
+
+#: the sanity segmenters (benchmark/segmenters/sanity.py), shown in comparison tables.
+SANITY_SEGMENTERS = ("one_room", "gt_geometry", "grid")
 
 
 #: the metrics beside the paper's that merging cannot game (README "Metrics"), in every
@@ -51,7 +58,8 @@ TABLES: dict[str, TableSpec] = {
                         rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True}),
     "table4": TableSpec("Table IV: classifier x aggregator per dataset (with post-processing)",
                         rows=("classifier", "aggregator"), cols=("dataset",),
-                        exclude={"postprocess": "none", "segmenter_row": True}),
+                        metrics=("iou", "matched_iou", "pq", "accuracy"),
+                        exclude={"postprocess": "none", "segmenter_row": True}, sanity=True),
     "table5": TableSpec("Table V: comparison with baselines", rows=("dataset", "method"),
                         metrics=("iou", "precision", "recall", *ROBUST_METRICS, "accuracy")),
     "sensitivity": TableSpec("Sensitivity to classifier accuracy (oracle; classifier = noise model)",
@@ -107,6 +115,13 @@ def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
 def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     """Mean, std and count over houses per (rows, cols) cell; ``n_failed`` per cell too."""
     sel = df
+    sanity = None
+    if spec.sanity and "segmenter" in df:
+        sanity = df[df["segmenter"].isin(SANITY_SEGMENTERS)].copy()
+        if not sanity.empty:
+            sanity["classifier"], sanity["aggregator"] = "sanity", sanity["segmenter"]
+            sanity["segmenter_row"], sanity["postprocess"] = False, "default"
+            sel = pd.concat([sel[~sel.index.isin(sanity.index)], sanity], ignore_index=True)
     for k, v in spec.where.items():
         if k in sel:
             sel = sel[sel[k].isin(v if isinstance(v, list | tuple) else [v])]
