@@ -62,17 +62,10 @@ def segment_borders(segments: np.ndarray) -> np.ndarray:
 
 def label_segments(labels: np.ndarray) -> np.ndarray:
     """(H, W) int segment ids of a label map: connected regions (4-connected) of one label;
-    -1 where the label is negative."""
-    from scipy import ndimage
+    -1 where the label is negative (the metrics' own segments, :func:`benchmark.metrics.segments`)."""
+    from benchmark.metrics import segments
 
-    labels = np.asarray(labels)
-    out = np.full(labels.shape, -1, np.int64)
-    nxt = 0
-    for k in np.unique(labels[labels >= 0]):
-        comp, n = ndimage.label(labels == k)
-        out[comp > 0] = comp[comp > 0] - 1 + nxt
-        nxt += n
-    return out
+    return segments(labels, connectivity=4)
 
 
 def colorize(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | None = None) -> np.ndarray:

@@ -135,6 +135,19 @@ def _grey_and_alpha(img: Image.Image, image_path: Path) -> tuple[np.ndarray, np.
     return grey, alpha
 
 
+def _read_grey(image_path: Path, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Open an occupancy image and return :func:`_grey_and_alpha` of it.
+
+    Raises:
+        ValueError: the file cannot be read as an image (``what`` says whose image it is)."""
+    try:
+        with Image.open(image_path) as img:
+            img.load()
+            return _grey_and_alpha(img, image_path)
+    except OSError as e:
+        raise ValueError(f"{image_path}: cannot read {what} ({e})") from None
+
+
 def image_to_occupancy(grey: np.ndarray, alpha: np.ndarray | None, negate: bool, occupied_thresh: float,
                        free_thresh: float, mode: str) -> np.ndarray:
     """Pixel values -> ROS occupancy, as ``map_server`` interprets them (see the module doc).
@@ -231,12 +244,7 @@ def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str
     if not image_path.is_file():
         raise FileNotFoundError(f"{yaml_path}: field 'image' names {meta['image']!r}, which does not exist "
                                 f"(looked for {image_path})")
-    try:
-        with Image.open(image_path) as img:
-            img.load()
-            grey, alpha = _grey_and_alpha(img, image_path)
-    except OSError as e:
-        raise ValueError(f"{image_path}: cannot read the image named by {yaml_path} ({e})") from None
+    grey, alpha = _read_grey(image_path, f"the image named by {yaml_path}")
     occupancy = image_to_occupancy(grey, alpha, negate, occ_th, free_th, mode)
     walkable = walkable_from_occupancy(occupancy, unknown_as)
     grid = GridMap(walkable, resolution, ros_origin_to_grid_origin(origin[:2], occupancy.shape[0], resolution))
@@ -385,12 +393,7 @@ def occupancy_png(path: str | Path, resolution: float, origin: tuple[float, floa
     if not (0.0 <= free_thresh <= occupied_thresh <= 1.0):
         raise ValueError(f"{path}: thresholds free={free_thresh}, occupied={occupied_thresh}; expected "
                          f"0 <= free_thresh <= occupied_thresh <= 1")
-    try:
-        with Image.open(path) as img:
-            img.load()
-            grey, _ = _grey_and_alpha(img, path)
-    except OSError as e:
-        raise ValueError(f"{path}: cannot read the image ({e})") from None
+    grey, _ = _read_grey(path, "the image")
     occ = image_to_occupancy(grey, None, negate, occupied_thresh, free_thresh, "trinary")
     walk = walkable_from_occupancy(occ, unknown_as)
     return GridMap(walk, resolution, _default_origin(origin, walk.shape[0], resolution))
