@@ -48,11 +48,10 @@ RESULTS ?= results
 
 bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables, figures, report.html -> results/bench
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench_sanity env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
-	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all
-	@# figures and the report read the finished run side by side (one core each); either failing fails bench
+	@# the figures, and the tables then the report, read the finished run side by side; any failing fails bench
 	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --out $(BENCH_OUT)/figures & fig=$$!; \
-	$(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --out $(BENCH_OUT)/report.html; rep=$$?; \
+	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all \
+	  && $(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --out $(BENCH_OUT)/report.html; rep=$$?; \
 	wait $$fig && exit $$rep
 
 report: setup  ## a sweep as one HTML page: RUN=results/runs/<name> (default bench) -> RUN's folder/report.html

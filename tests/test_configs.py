@@ -99,8 +99,8 @@ def test_every_option_composes_resolves_and_builds(group, option, tmp_path, monk
 @pytest.mark.parametrize("option", [o for g, o in OPTIONS if g == "experiment"])
 def test_every_experiment_sweeps_existing_options(option):
     cfg = _compose([f"experiment={option}"], hydra_cfg=True)
-    params = cfg.hydra.sweeper.get("params") or {}
-    for key, values in params.items():
+    grids = [cfg.hydra.sweeper.get("params") or {}, *(cfg.hydra.sweeper.get("grids") or [])]
+    for key, values in [kv for grid in grids for kv in grid.items()]:
         if "." in key:  # a value sweep (e.g. classifier.accuracy), not a group
             continue
         for v in str(values).split(","):

@@ -93,6 +93,15 @@ def test_no_import_cycles(graph):
     assert not cycles, f"import cycles: {cycles[:5]}"
 
 
+def test_hydra_plugins_import_no_project_module():
+    """Hydra imports every module under ``hydra_plugins`` when any app starts: the sweeper and
+    launcher stay light (Hydra and the standard library only)."""
+    files = list((ROOT / "hydra_plugins").rglob("*.py"))
+    assert files
+    bad = {module_name(p): imps for p in files if (imps := project_imports(p))}
+    assert not bad, f"hydra_plugins importing the project: {bad}"
+
+
 def test_the_rules_catch_a_bad_import(tmp_path):
     """The checker itself: a made-up envs module importing benchmark is seen."""
     fake = ROOT / "envs" / "_layout_probe_tmp.py"

@@ -33,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="house id to draw (repeatable; default: the first house every job scored)")
     r.add_argument("--out", type=Path, default=Path("results/figures"))
     r.add_argument("--format", default=None, help=fmt_help)
+    r.add_argument("--jobs", type=int, default=None,
+                   help="figures drawn at once in worker processes (default ROOMSEG_JOBS, else the CPU count)")
     a = ap.parse_args(argv)
     try:
         formats = parse_formats(a.format) if a.format else None
@@ -43,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
         elif a.cmd == "house":
             paths = house_figures(a.house_index, a.out, a.overrides, formats)
         else:
-            paths = from_run(a.run_dir, a.out, a.house, formats)
+            paths = from_run(a.run_dir, a.out, a.house, formats, a.jobs)
             if not paths:
                 print(f"error: no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
                 return 2

@@ -57,6 +57,8 @@ STAGES = ("render", "classify", "aggregate", "score")
 #: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
 _SCENES: OrderedDict[tuple[str, str], Any] = OrderedDict()
 SCENE_CACHE_SIZE = 64
+#: house content hashes kept per process, like scenes: (env key, house id) -> hex string.
+_HOUSE_CONTENTS: dict[tuple[str, str], str] = {}
 
 #: metrics every successful row carries, each in [0, 1] (accuracy may be NaN: segmenters).
 ROW_METRICS = ("iou", "precision", "recall")
@@ -214,9 +216,17 @@ class Pipeline:
     # ---- content of a house's entries
     def contents(self, hid: str) -> dict[str, str]:
         """Per cached stage, the content hash of house ``hid``'s entry: the house's content
-        and the input files of every stage up to that one. Memoised per house."""
+        and the input files of every stage up to that one. Memoised per house; with
+        ``env_key`` set and no per-house ``input_files``, the house's own hash is kept per
+        process as scenes are."""
         if hid not in self._contents:
-            acc = house_content(self.env, hid)
+            if self.env_key is None or callable(getattr(self.env, "input_files", None)):
+                acc = house_content(self.env, hid)  # (per-house files are fingerprinted each time)
+            else:  # a shared environment, whose key names its config and input files
+                key = (self.env_key, hid)
+                if key not in _HOUSE_CONTENTS:
+                    _HOUSE_CONTENTS[key] = house_content(self.env, hid)
+                acc = _HOUSE_CONTENTS[key]
             out = {}
             for stage, groups in self.CONTENT_STAGES:
                 files = {g: config_inputs(self.inputs.get(g), hid) for g in groups}

@@ -25,7 +25,9 @@ it wrote (``path`` with each requested format's suffix).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from functools import partial
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -446,13 +448,15 @@ def house_figures(house_index: int, out: Path, overrides: Sequence[str] = (),
 
 
 def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None,
-             formats: Sequence[str] | None = None) -> list[Path]:
+             formats: Sequence[str] | None = None, workers: int | None = None) -> list[Path]:
     """Fig. 3 (every configuration with post-processing) and Fig. 4 (every classifier x
     post-processing with both graph KNN and vision cone) from a finished sweep's saved maps.
 
     ``houses``: house ids to draw (per dataset, those the dataset has); default the first
     house every job of a dataset scored. Maps are read through the run store
-    (:meth:`benchmark.harness.store.Job.maps_path`).
+    (:meth:`benchmark.harness.store.Job.maps_path`). ``workers``: figures drawn at once, in
+    forked worker processes (None: ``ROOMSEG_JOBS``, else the number of CPUs; 1: in this
+    process).
 
     Returns:
         the files written.
@@ -495,7 +499,7 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
         picks = {env: [h for h in houses if any(h in s for s in sets)] for env, sets in ok_by_env.items()}
     else:
         picks = {env: (sorted(set.intersection(*ids)) or [])[:1] for env, ids in ok_by_env.items()}
-    written: list[Path] = []
+    tasks: list[Callable[[], list[Path]]] = []
     groups: dict[tuple, dict[str, tuple]] = {}
     for job, cfg, summary, df in jobs:
         names = summary["names"]
@@ -520,8 +524,8 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
             if names["postprocess"] != "none":
                 title = (f"{house_title(names, hid)}: {describe(names, acc, view_accuracy(row), post=False)}"
                          f"; post-processing '{names['postprocess']}'")
-                written += figure_postprocess(scene_for(cfg, hid), m["raw"], m["post"],
-                                              out / f"fig3_{safe_name(hid)}_{slug}.png", title, formats)
+                tasks.append(partial(figure_postprocess, scene_for(cfg, hid), m["raw"], m["post"],
+                                     out / f"fig3_{safe_name(hid)}_{slug}.png", title, formats))
             key = (names["env"], names["classifier"], acc, names["postprocess"], hid)
             groups.setdefault(key, {})[names["aggregator"]] = (cfg, m, row, names)
     for (env, clf, acc, post, hid), by_agg in groups.items():
@@ -533,7 +537,35 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
                      f"viewpoints coloured by predicted class")
             which = "post" if post != "none" else "raw"
             clf_slug = clf + (f"{acc:g}" if acc is not None else "")
-            written += figure_aggregators(scene_for(cfg, hid), mk["poses"], mk[which], mc[which],
-                                          out / f"fig4_{safe_name(hid)}_{env}_{clf_slug}_{post}.png", mk["proba"],
-                                          title=title, formats=formats)
-    return written
+            tasks.append(partial(figure_aggregators, scene_for(cfg, hid), mk["poses"], mk[which], mc[which],
+                                 out / f"fig4_{safe_name(hid)}_{env}_{clf_slug}_{post}.png", mk["proba"],
+                                 title=title, formats=formats))
+    return [p for paths in _draw(tasks, workers) for p in paths]
+
+
+#: the figures of one ``from_run`` call, for its forked workers.
+_TASKS: list[Callable[[], list[Path]]] = []
+
+
+def _draw_one(i: int) -> list[Path]:
+    return _TASKS[i]()
+
+
+def _draw(tasks: list[Callable[[], list[Path]]], workers: int | None) -> list[list[Path]]:
+    """Each task's result, in order: drawn on ``workers`` forked processes where the platform
+    forks (Linux), else one after the other here."""
+    global _TASKS
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = workers if workers is not None else int(os.environ.get("ROOMSEG_JOBS") or os.cpu_count() or 1)
+    n = max(1, min(n, len(tasks)))
+    if n == 1 or sys.platform != "linux":
+        return [t() for t in tasks]
+    _TASKS = tasks
+    try:
+        with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
+            return list(pool.map(_draw_one, range(len(tasks))))
+    finally:
+        _TASKS = []

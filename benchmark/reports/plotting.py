@@ -28,6 +28,9 @@ UNLABELLED_LABEL = "unlabelled (walkable)"
 BORDER_COLOR: tuple[int, int, int] = (25, 25, 25)
 #: dots per inch of every PNG (vector formats ignore it).
 PNG_DPI = 200
+#: zlib level of every PNG: 1 writes them about 3x faster than the default 6 for files about
+#: a quarter larger (`make bench`'s 20 figures: 2.4 MB instead of 1.9 MB).
+PNG_COMPRESS_LEVEL = 1
 #: the formats ``save`` knows.
 FORMATS = ("png", "pdf", "svg")
 
@@ -155,7 +158,8 @@ def output_paths(path, formats: Sequence[str] | None = None) -> list:
 
 
 def save(fig, path, formats: Sequence[str] | None = None, tight: bool = True) -> list:
-    """Save ``fig`` to ``path`` (in each of ``formats``: png at :data:`PNG_DPI`, pdf, svg;
+    """Save ``fig`` to ``path`` (in each of ``formats``: png at :data:`PNG_DPI` and
+    :data:`PNG_COMPRESS_LEVEL`, pdf, svg;
     the folder is created) and close it. ``tight`` crops to the drawn content.
 
     Returns:
@@ -164,6 +168,7 @@ def save(fig, path, formats: Sequence[str] | None = None, tight: bool = True) ->
     paths = output_paths(path, formats)
     for p in paths:
         p.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(p, dpi=PNG_DPI, **({"bbox_inches": "tight"} if tight else {}))
+        png = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if p.suffix == ".png" else {}
+        fig.savefig(p, dpi=PNG_DPI, **({"bbox_inches": "tight"} if tight else {}), **png)
     plt.close(fig)
     return paths

@@ -1,0 +1,228 @@
+"""roomseg-bench's Hydra sweeper and launcher (``hydra/sweeper: grids``, ``hydra/launcher: local``).
+
+Hydra finds plugins only under the ``hydra_plugins`` namespace, so these two classes live
+here; the module imports Hydra and the standard library only (Hydra imports it at start-up).
+
+``GridsSweeper`` is Hydra's basic sweeper plus two things:
+
+- ``grids``: more grids of ``key: values`` beside ``params``. The jobs are the cartesian
+  product of ``params``, then the product of each extra grid, in that order (a job already
+  listed is not repeated). Command-line sweep arguments apply to every grid. ``make bench``
+  uses this to run the method grid and the Table IV sanity segmenters in one multirun.
+- ``validate: cover`` (the default): before launching, it composes enough jobs that every
+  ``key=value`` of the batch is composed at least once (about one job per value, instead of
+  every job twice). ``validate: all`` is Hydra's own check (every job); ``none`` skips it.
+  A job whose combination still fails to compose fails alone, in the launcher.
+
+``LocalLauncher`` runs the jobs on ``n_jobs`` worker processes of this machine, like
+``hydra-joblib-launcher``, but its workers are forked from the launching process on Linux, so
+they start with Python, NumPy and the app already imported, and keep their per-process caches
+from job to job. Elsewhere (or with ``start_method: spawn``) they are spawned. Each worker
+composes its own jobs' configs. ``n_jobs: 1`` runs the jobs in the launching process.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import multiprocessing
+import sys
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+from typing import Any
+
+from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.singleton import Singleton
+from hydra.core.utils import (
+    JobReturn,
+    JobStatus,
+    configure_log,
+    filter_overrides,
+    run_job,
+    setup_globals,
+)
+from hydra.plugins.launcher import Launcher
+from hydra.types import HydraContext, TaskFunction
+from omegaconf import DictConfig, open_dict
+
+log = logging.getLogger(__name__)
+
+VALIDATE = ("cover", "all", "none")
+
+
+class GridsSweeper(BasicSweeper):
+    """Hydra's basic sweeper over ``params`` and any extra ``grids``; validation by cover.
+
+    Args:
+        max_batch_size: jobs per launcher call (None: all at once).
+        params: the first grid, ``{key: "v1,v2"}`` as in Hydra's basic sweeper.
+        grids: more grids of the same form, run after ``params``' jobs.
+        validate: ``cover`` | ``all`` | ``none`` (see the module docstring).
+    """
+
+    def __init__(self, max_batch_size: int | None = None, params: Mapping[str, str] | None = None,
+                 grids: Sequence[Mapping[str, str]] | None = None, validate: str = "cover") -> None:
+        # BasicSweeper's own __init__ is not called: it names its class through a module global
+        # that Hydra's plugin rescans rebind (``super(BasicSweeper, self)`` then fails)
+        self.overrides = None
+        self.batch_index = 0
+        self.max_batch_size = max_batch_size
+        self.params = dict(params or {})
+        self.hydra_context = None
+        self.config = None
+        self.launcher = None
+        if validate not in VALIDATE:
+            raise ValueError(f"hydra.sweeper.validate must be one of {list(VALIDATE)}, got {validate!r}")
+        self.grids = [dict(g or {}) for g in (grids or [])]
+        self.validate = validate
+
+    def sweep(self, arguments: list[str]) -> Any:
+        if not self.grids:
+            return super().sweep(arguments)
+        # the parent builds ``self.overrides`` from params + arguments; give it the union instead
+        assert self.hydra_context is not None
+        parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
+        jobs: list[list[str]] = []
+        seen: set[tuple[str, ...]] = set()
+        for grid in [self.params, *self.grids]:
+            conf = [f"{k}={v}" for k, v in grid.items()] + list(arguments)
+            for job in self.split_arguments(parser.parse_overrides(conf), None)[0]:
+                key = tuple(sorted(job))
+                if key not in seen:
+                    seen.add(key)
+                    jobs.append(job)
+        batches = [jobs] if self.max_batch_size in (None, -1) else list(
+            self.split_overrides_to_chunks(jobs, self.max_batch_size))
+        self.split_arguments = lambda overrides, max_batch_size: batches  # type: ignore[method-assign]
+        self.params = {}
+        return super().sweep([])
+
+    def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
+        if self.validate == "none":
+            return
+        if self.validate == "all":
+            return super().validate_batch_is_legal(batch)
+        return super().validate_batch_is_legal(cover(batch))
+
+
+def cover(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
+    """The jobs of ``batch``, in order, that each bring a ``key=value`` not seen before: every
+    override of the batch appears in at least one of them."""
+    seen: set[str] = set()
+    out = []
+    for job in batch:
+        if not set(job) <= seen:
+            out.append(job)
+            seen.update(job)
+    return out
+
+
+# ---- the launcher
+#: (hydra_context, config, task_function, singleton_state) of the sweep, in every worker.
+_SWEEP: tuple[HydraContext, DictConfig, TaskFunction, dict[Any, Any]] | None = None
+
+
+def _init_worker(sweep: tuple | bytes) -> None:
+    global _SWEEP
+    if isinstance(sweep, bytes):  # spawned: the state comes cloudpickled (the task function is
+        import cloudpickle  # the app's undecorated main, which pickle cannot name; as in joblib)
+
+        sweep = cloudpickle.loads(sweep)
+        Singleton.set_state(sweep[3])  # restores Hydra's singletons; rescans the plugins (which
+    setup_globals()                    # runs this module again), so the state is set after it
+    _SWEEP = sweep  # forked: the parent's objects as they are
+
+
+def _run(idx: int, overrides: Sequence[str]) -> JobReturn:
+    """Compose and run one job in this worker (a config that does not compose fails alone)."""
+    assert _SWEEP is not None
+    hydra_context, config, task_function, _ = _SWEEP
+    try:
+        cfg = hydra_context.config_loader.load_sweep_config(config, list(overrides))
+    except Exception as e:  # noqa: BLE001 - reported as this job's failure
+        ret = JobReturn(overrides=list(overrides), status=JobStatus.FAILED)
+        ret.return_value = _picklable(e)
+        return ret
+    with open_dict(cfg):
+        cfg.hydra.job.id = f"{cfg.hydra.job.name}_{idx}"
+        cfg.hydra.job.num = idx
+    HydraConfig.instance().set_config(cfg)
+    ret = run_job(hydra_context=hydra_context, task_function=task_function, config=cfg,
+                  job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
+    if ret.status == JobStatus.FAILED:
+        ret.return_value = _picklable(ret._return_value)
+    return ret
+
+
+def _picklable(e: Any) -> Any:
+    import pickle
+
+    try:
+        pickle.dumps(e)
+        return e
+    except Exception:  # noqa: BLE001
+        return RuntimeError(f"{type(e).__name__}: {e}")
+
+
+class LocalLauncher(Launcher):
+    """Runs a sweep's jobs on ``n_jobs`` local worker processes (forked on Linux).
+
+    Args:
+        n_jobs: worker processes (1: run the jobs in the launching process).
+        start_method: ``fork`` | ``spawn`` | ``forkserver``; None: ``fork`` on Linux, else ``spawn``.
+    """
+
+    def __init__(self, n_jobs: int = 2, start_method: str | None = None) -> None:
+        self.n_jobs = int(n_jobs)
+        if self.n_jobs < 1:
+            raise ValueError(f"hydra.launcher.n_jobs must be >= 1, got {n_jobs}")
+        methods = multiprocessing.get_all_start_methods()
+        if start_method is not None and start_method not in methods:
+            raise ValueError(f"hydra.launcher.start_method must be one of {methods}, got {start_method!r}")
+        self.start_method = start_method or ("fork" if sys.platform == "linux" and "fork" in methods else "spawn")
+        self.config: DictConfig | None = None
+        self.task_function: TaskFunction | None = None
+        self.hydra_context: HydraContext | None = None
+
+    def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
+        self.config, self.hydra_context, self.task_function = config, hydra_context, task_function
+
+    def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
+        global _SWEEP
+        setup_globals()
+        assert self.config is not None and self.hydra_context is not None and self.task_function is not None
+        configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
+        sweep_dir = Path(str(self.config.hydra.sweep.dir))
+        sweep_dir.mkdir(parents=True, exist_ok=True)
+        n = min(self.n_jobs, len(job_overrides))
+        log.info(f"Launching {len(job_overrides)} jobs on {n} {self.start_method} worker(s), "
+                 f"sweep output dir: {sweep_dir}")
+        for i, overrides in enumerate(job_overrides):
+            log.info(f"\t#{initial_job_idx + i} : {' '.join(filter_overrides(overrides))}")
+        _SWEEP = (self.hydra_context, self.config, self.task_function, Singleton.get_state())
+        jobs = [(initial_job_idx + i, list(o)) for i, o in enumerate(job_overrides)]
+        if n <= 1:
+            try:
+                return [_run(i, o) for i, o in jobs]
+            finally:
+                configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
+        ctx = multiprocessing.get_context(self.start_method)
+        # Hydra's plugin scan may load this file under a module object other than the one
+        # in sys.modules, which is where a worker finds the functions it is sent: use that one
+        mod = importlib.import_module(__name__)
+        state: tuple | bytes = _SWEEP
+        if self.start_method != "fork":
+            import cloudpickle
+
+            state = cloudpickle.dumps(_SWEEP)
+        try:
+            with ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state,)) as pool:
+                futures = [pool.submit(mod._run, i, o) for i, o in jobs]
+                return [f.result() for f in futures]
+        except BrokenProcessPool as e:
+            raise RuntimeError(f"a worker process of the sweep in {sweep_dir} died (killed, or out of "
+                               f"memory?): {e}; finished jobs are kept, rerun to complete the rest") from None

@@ -1,0 +1,132 @@
+"""The Hydra sweeper and launcher of ``hydra_plugins/roomseg_sweep``: extra grids, validation
+by cover, forked (and spawned) workers that give the same jobs as the launching process, and
+a job whose config does not compose failing alone. A tiny Hydra app written by each test
+records what every job saw."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from hydra_plugins.roomseg_sweep.roomseg_sweep import GridsSweeper, cover
+
+ROOT = Path(__file__).resolve().parents[1]
+
+APP = '''
+import json, os, sys
+from pathlib import Path
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import OmegaConf
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="config")
+def app(cfg):
+    hc = HydraConfig.get()
+    out = {"a": OmegaConf.to_container(cfg.a), "b": cfg.get("b"), "n": cfg.n, "pid": os.getpid(), "num": hc.job.num,
+           "overrides": sorted(hc.overrides.task)}
+    (Path(hc.runtime.output_dir) / "job.json").write_text(json.dumps(out))
+    return cfg.n
+
+if __name__ == "__main__":
+    app()
+'''
+
+
+def _app(tmp_path: Path, sweeper: str) -> Path:
+    conf = tmp_path / "conf"
+    (conf / "a").mkdir(parents=True)
+    (conf / "a" / "x.yaml").write_text("v: 1\n")
+    (conf / "a" / "y.yaml").write_text("v: 2\n")
+    (conf / "a" / "broken.yaml").write_text("v: ${nope_unknown_resolver:1}\nw: [unclosed\n")
+    head = textwrap.dedent(f"""\
+        defaults:
+          - a: x
+          - _self_
+          - override hydra/launcher: local
+          - override hydra/sweeper: grids
+        n: 0
+        b: null
+        hydra:
+          searchpath: [file://{ROOT / 'conf'}]
+          sweep:
+            dir: {tmp_path / 'out'}
+            subdir: ${{hydra.job.override_dirname}}
+          sweeper:
+        """)
+    (conf / "config.yaml").write_text(head + textwrap.indent(sweeper, "    ") + "\n")
+    (tmp_path / "app.py").write_text(APP)
+    return tmp_path / "app.py"
+
+
+def _run(app: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(app), "-m", *args], capture_output=True, text=True,
+                          cwd=app.parent, timeout=300)
+
+
+def _jobs(tmp_path: Path) -> dict[str, dict]:
+    return {p.parent.name: json.loads(p.read_text()) for p in (tmp_path / "out").glob("*/job.json")}
+
+
+def test_cover_composes_every_value_once():
+    batch = [["a=x", "n=1"], ["a=x", "n=2"], ["a=y", "n=1"], ["a=y", "n=2"], ["a=x", "n=3"]]
+    assert cover(batch) == [["a=x", "n=1"], ["a=x", "n=2"], ["a=y", "n=1"], ["a=x", "n=3"]]
+    assert {o for job in cover(batch) for o in job} == {o for job in batch for o in job}
+    assert cover([]) == []
+
+
+def test_bad_validate_mode_is_refused():
+    with pytest.raises(ValueError, match="hydra.sweeper.validate must be one of"):
+        GridsSweeper(validate="some")
+
+
+@pytest.mark.parametrize("launcher", ["hydra.launcher.n_jobs=2", "hydra.launcher.n_jobs=1",
+                                      "hydra.launcher.start_method=spawn"])
+def test_grids_union_and_workers(tmp_path, launcher):
+    """params' grid then the extra grid, command-line sweeps applied to both, no job twice;
+    every launcher mode runs the same jobs with the same configs."""
+    app = _app(tmp_path, """\
+params:
+  a: x,y
+  n: 1,2
+grids:
+  - b: u,v
+    n: 1
+  - a: x
+    n: 1""")
+    r = _run(app, "n=1,3", launcher)
+    assert r.returncode == 0, r.stderr[-2000:]
+    jobs = _jobs(tmp_path)
+    # params x command line: a in {x,y}, n in {1,3}; grid 2: b in {u,v}, n in {1,3};
+    # grid 3 (a=x, n in {1,3}) repeats two jobs of the first grid and adds none
+    assert sorted(jobs) == sorted(["a=x,n=1", "a=x,n=3", "a=y,n=1", "a=y,n=3",
+                                   "b=u,n=1", "b=u,n=3", "b=v,n=1", "b=v,n=3"])
+    assert jobs["a=y,n=3"]["a"] == {"v": 2} and jobs["a=y,n=3"]["n"] == 3
+    assert jobs["b=v,n=1"]["b"] == "v" and jobs["b=v,n=1"]["a"] == {"v": 1}
+    assert sorted(j["num"] for j in jobs.values()) == list(range(8))
+    pids = {j["pid"] for j in jobs.values()}
+    if launcher.endswith("n_jobs=1"):
+        assert len(pids) == 1
+    else:
+        assert 1 <= len(pids) <= 2 and "on 2" in r.stderr + r.stdout
+
+
+def test_a_job_that_does_not_compose_fails_alone(tmp_path):
+    """validate=none lets a broken option reach the workers: its job fails, the others run,
+    and the sweep exits non-zero naming it."""
+    app = _app(tmp_path, "validate: none")
+    r = _run(app, "a=x,broken,y")
+    assert r.returncode != 0
+    assert "broken" in r.stderr
+    assert sorted(_jobs(tmp_path)) == ["a=x", "a=y"]
+
+
+def test_cover_validation_stops_a_bad_value_before_any_job(tmp_path):
+    app = _app(tmp_path, "validate: cover")
+    r = _run(app, "a=x,y,nope", "n=1,2")
+    assert r.returncode != 0 and "nope" in r.stderr
+    assert _jobs(tmp_path) == {}
