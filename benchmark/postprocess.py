@@ -33,6 +33,7 @@ from collections.abc import Sequence
 
 import cv2
 import numpy as np
+from numba import njit
 
 from benchmark.interfaces import PostProcessor
 from benchmark.metrics import resample_nearest
@@ -141,22 +142,72 @@ def remove_small_components(labels: np.ndarray, min_area_px: float, connectivity
 def fill_unlabelled(labels: np.ndarray, walkable: np.ndarray, n_classes: int) -> np.ndarray:
     """Step 5: unlabelled walkable pixels take the majority of their labelled 3 x 3 neighbours
     (ties: lower class index), all at once per pass, repeated until nothing changes. Pixels
-    not 8-connected through walkable pixels to any labelled one stay -1."""
+    not 8-connected through walkable pixels to any labelled one stay -1.
+
+    Each pass visits only its front (the unlabelled walkable pixels next to a labelled one),
+    in a numba loop: time O(H x W) over all passes.
+
+    Returns:
+        (H, W) int32 labels, -1 on background and on unreachable walkable pixels.
+    """
     lab = apply_background(labels, walkable)
-    walkable = np.asarray(walkable, dtype=bool)
-    while True:
-        todo = walkable & (lab < 0)
-        if not todo.any():
-            return lab
-        rr, cc = np.nonzero(todo)
-        r0, r1 = max(rr.min() - 1, 0), rr.max() + 2
-        c0, c1 = max(cc.min() - 1, 0), cc.max() + 2
-        sub = lab[r0:r1, c0:c1]  # a view: writes go to lab
-        counts = class_counts(sub, n_classes, 3)
-        upd = todo[r0:r1, c0:c1] & (counts.max(axis=0) > 0)
-        if not upd.any():
-            return lab
-        sub[upd] = np.argmax(counts, axis=0).astype(np.int32)[upd]
+    walkable = np.ascontiguousarray(walkable, dtype=bool)
+    if (lab >= n_classes).any():
+        raise ValueError(f"labels must be < n_classes = {n_classes}, got {int(lab.max())}")
+    _fill_fronts(lab, walkable, int(n_classes))
+    return lab
+
+
+@njit(cache=True)
+def _fill_fronts(lab, walkable, n_classes):
+    """In place: the passes of :func:`fill_unlabelled`, each over its front only."""
+    h, w = lab.shape
+    stamp = np.zeros((h, w), np.int64)  # pass number in which a pixel was put on the front
+    fr = np.empty(h * w, np.int64)
+    fc = np.empty(h * w, np.int64)
+    n = 0
+    for i in range(h):
+        for j in range(w):
+            if walkable[i, j] and lab[i, j] < 0:
+                for a in range(max(i - 1, 0), min(i + 2, h)):
+                    for b in range(max(j - 1, 0), min(j + 2, w)):
+                        if lab[a, b] >= 0 and stamp[i, j] == 0:
+                            stamp[i, j] = 1
+                            fr[n] = i
+                            fc[n] = j
+                            n += 1
+    counts = np.zeros(n_classes, np.int64)
+    new = np.empty(h * w, np.int32)
+    p = 1
+    while n > 0:
+        for t in range(n):  # every front pixel votes on the labels at the start of the pass
+            i, j = fr[t], fc[t]
+            counts[:] = 0
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    if lab[a, b] >= 0:
+                        counts[lab[a, b]] += 1
+            best = 0
+            for k in range(1, n_classes):
+                if counts[k] > counts[best]:
+                    best = k
+            new[t] = best
+        for t in range(n):
+            lab[fr[t], fc[t]] = new[t]
+        p += 1
+        m = 0  # the next front: unlabelled walkable neighbours of this pass's pixels
+        for t in range(n):
+            i, j = fr[t], fc[t]
+            for a in range(max(i - 1, 0), min(i + 2, h)):
+                for b in range(max(j - 1, 0), min(j + 2, w)):
+                    if walkable[a, b] and lab[a, b] < 0 and stamp[a, b] == 0:
+                        stamp[a, b] = p
+                        fr[n + m] = a
+                        fc[n + m] = b
+                        m += 1
+        fr[:m] = fr[n:n + m]
+        fc[:m] = fc[n:n + m]
+        n = m
 
 
 def _label_polygon(mask: np.ndarray, tolerance_px: float) -> np.ndarray:

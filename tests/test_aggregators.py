@@ -123,3 +123,22 @@ def test_bad_inputs(agg):
     if not isinstance(agg, VisionCone):
         with pytest.raises(ValueError, match="larger than"):
             type(agg)(k=5)(grid, good, np.eye(3)[:2])
+
+
+@pytest.mark.parametrize("weighting", ["majority", "probability"])
+@pytest.mark.parametrize("seed", range(4))
+def test_numba_vote_equals_numpy_reference(weighting, seed):
+    """The aggregators' numba vote against the references' NumPy vote, with many ties (few
+    classes, probabilities on a coarse grid) and cells with fewer than K or no neighbours."""
+    from benchmark.aggregators.common import vote_neighbours
+    from benchmark.aggregators.reference import vote_reference
+
+    rng = np.random.default_rng(seed)
+    n_views, m, k, c = 40, 3000, 7, 4
+    proba = rng.integers(0, 4, size=(n_views, c)).astype(float) / 4
+    nbr = rng.integers(0, n_views, size=(m, k))
+    short = rng.integers(0, k + 1, size=m)  # neighbours kept per cell (0: none); the rest -1
+    nbr[np.arange(k)[None, :] >= short[:, None]] = -1
+    got, want = vote_neighbours(nbr, proba, weighting), vote_reference(nbr, proba, weighting)
+    assert got.dtype == np.int32 and (got[short == 0] == -1).all()
+    np.testing.assert_array_equal(got, want)

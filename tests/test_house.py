@@ -136,3 +136,31 @@ def test_room_type_checked_against_mapping_and_classes():
         validate_house(h, "h", room_types={"Kitchen": "kitchen"})
     scene = rasterise_house(House("h", h), resolution=0.1, classes=["corridor", "kitchen"])
     assert scene.instance_classes.tolist() == [0]
+
+
+def _check_rooms_layer(houses):
+    for house in houses:
+        full = rasterise_house(house, resolution=0.1)
+        rooms = rasterise_house(house, resolution=0.1, layers="rooms")
+        assert rooms.grid.shape == full.grid.shape and rooms.grid.origin == full.grid.origin
+        np.testing.assert_array_equal(rooms.rooms, full.rooms)
+        np.testing.assert_array_equal(rooms.instance_classes, full.instance_classes)
+        assert rooms.objects == full.objects and rooms.room_ids == full.room_ids
+        assert rooms.walls is None and rooms.object_map is None
+        np.testing.assert_array_equal(rooms.grid.walkable, full.rooms >= 0)
+
+
+def test_rooms_layer_is_the_full_rasterisation_cut_down():
+    """``layers="rooms"`` (the objects classifier's training) gives the same room raster,
+    room classes and objects as the full rasterisation, on the same grid."""
+    from envs.datasets.synthetic import generate_house
+
+    houses = [generate_house(s) for s in range(100000, 100012)]
+    _check_rooms_layer(houses)
+    with pytest.raises(ValueError, match="layers must be 'all' or 'rooms'"):
+        rasterise_house(houses[0], layers="walls")
+
+
+@pytest.mark.shared_data
+def test_rooms_layer_on_the_shared_houses(shared_houses):
+    _check_rooms_layer(shared_houses[:40])

@@ -105,6 +105,11 @@ def test_steps_match_slow_references(seed):
     assert np.array_equal(fill_unlabelled(lab, walk, 4), fill_ref(lab, walk, 4))
     sparse, _ = random_map(seed, p_unlab=0.7, p_wall=0.3)
     assert np.array_equal(fill_unlabelled(sparse, walk, 4), fill_ref(sparse, walk, 4))
+    # a few seeds in a large map: many passes, fronts meeting, pockets left unreachable
+    few, big_walk = random_map(seed, shape=(41, 57), p_unlab=0.985, p_wall=0.25)
+    got = fill_unlabelled(few, big_walk, 4)
+    assert np.array_equal(got, fill_ref(few, big_walk, 4))
+    assert (got[big_walk] >= 0).any() and (got[~big_walk] == -1).all()
     for min_px in (2, 4):
         assert np.array_equal(remove_small_components(lab, min_px), remove_small_ref(lab, min_px, None))
         assert np.array_equal(remove_small_components(lab, min_px, connectivity=8),

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from hydra_plugins.roomseg_sweep.roomseg_sweep import GridsSweeper, cover
+from hydra_plugins.roomseg_sweep.roomseg_sweep import GridsSweeper, one_per_grid
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -72,11 +72,10 @@ def _jobs(tmp_path: Path) -> dict[str, dict]:
     return {p.parent.name: json.loads(p.read_text()) for p in (tmp_path / "out").glob("*/job.json")}
 
 
-def test_cover_composes_every_value_once():
-    batch = [["a=x", "n=1"], ["a=x", "n=2"], ["a=y", "n=1"], ["a=y", "n=2"], ["a=x", "n=3"]]
-    assert cover(batch) == [["a=x", "n=1"], ["a=x", "n=2"], ["a=y", "n=1"], ["a=x", "n=3"]]
-    assert {o for job in cover(batch) for o in job} == {o for job in batch for o in job}
-    assert cover([]) == []
+def test_one_job_per_grid():
+    batch = [["a=x", "n=1"], ["a=x", "n=2"], ["a=y", "n=1"], ["b=u", "n=1"], ["b=v", "n=2"], ["n=3", "a=y"]]
+    assert one_per_grid(batch) == [["a=x", "n=1"], ["b=u", "n=1"]]
+    assert one_per_grid([]) == []
 
 
 def test_bad_validate_mode_is_refused():
@@ -125,8 +124,20 @@ def test_a_job_that_does_not_compose_fails_alone(tmp_path):
     assert sorted(_jobs(tmp_path)) == ["a=x", "a=y"]
 
 
-def test_cover_validation_stops_a_bad_value_before_any_job(tmp_path):
-    app = _app(tmp_path, "validate: cover")
+@pytest.mark.parametrize("mode", ["quick", "all"])
+def test_validation_stops_a_bad_option_before_any_job(tmp_path, mode):
+    app = _app(tmp_path, f"validate: {mode}")
     r = _run(app, "a=x,y,nope", "n=1,2")
     assert r.returncode != 0 and "nope" in r.stderr
+    if mode == "quick":  # one line naming the override and the options
+        assert "'a=nope': 'nope' is not an option of config group 'a' (options: broken, x, y)" in r.stderr
+    assert _jobs(tmp_path) == {}
+
+
+def test_quick_validation_composes_the_first_job_of_each_grid(tmp_path):
+    """An override that breaks composition (a key the config lacks, not a group option) is
+    caught when it is in a grid's first job."""
+    app = _app(tmp_path, "validate: quick")
+    r = _run(app, "n=1,2", "no_such_key=3")
+    assert r.returncode != 0 and "no_such_key" in r.stderr
     assert _jobs(tmp_path) == {}

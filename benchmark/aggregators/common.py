@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from numba import njit
 
 from envs.maps.gridmap import GridMap
 from envs.render.observation import poses_array
@@ -42,32 +43,59 @@ def vote_neighbours(nbr: np.ndarray, proba: np.ndarray, weighting: str) -> np.nd
     """Labels from each cell's neighbour views, ordered nearest first ((M, K) view ids, -1 = none).
 
     ``majority``: the most common top class; ties go to the tied class whose view is nearest.
-    ``probability``: the largest summed probability; ties go to the lower class index.
-    Cells with no neighbour get -1.
+    ``probability``: the largest summed probability (summed nearest first); ties go to the
+    lower class index. Cells with no neighbour get -1. A numba loop over cells; the
+    references vote with NumPy (:func:`benchmark.aggregators.reference.vote_reference`).
+
+    Returns:
+        (M,) int32 class indices, -1 where a cell has no neighbour.
     """
+    if weighting not in ("majority", "probability"):
+        raise ValueError(f"weighting must be 'majority' or 'probability', got {weighting!r}")
+    nbr = np.ascontiguousarray(nbr, np.int64)
+    proba = np.ascontiguousarray(proba, np.float64)
+    if weighting == "probability":
+        return _vote_probability(nbr, proba)
+    return _vote_majority(nbr, np.argmax(proba, axis=1).astype(np.int64), proba.shape[1])
+
+
+@njit(cache=True, nogil=True)
+def _vote_majority(nbr, top, n_classes):
+    m, k = nbr.shape
+    out = np.full(m, -1, np.int32)
+    counts = np.zeros(n_classes, np.int64)
+    for i in range(m):
+        if nbr[i, 0] < 0:
+            continue
+        counts[:] = 0
+        for j in range(k):
+            if nbr[i, j] >= 0:
+                counts[top[nbr[i, j]]] += 1
+        best = counts.max()
+        for j in range(k):  # the nearest view whose class reaches the best count
+            if nbr[i, j] >= 0 and counts[top[nbr[i, j]]] == best:
+                out[i] = top[nbr[i, j]]
+                break
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _vote_probability(nbr, proba):
     m, k = nbr.shape
     c = proba.shape[1]
-    out = np.full(m, -1, dtype=np.int32)
-    has = nbr[:, 0] >= 0
-    if weighting == "probability":
-        acc = np.zeros((m, c))
+    out = np.full(m, -1, np.int32)
+    acc = np.zeros(c)
+    for i in range(m):
+        if nbr[i, 0] < 0:
+            continue
+        acc[:] = 0.0
         for j in range(k):
-            ok = nbr[:, j] >= 0
-            acc[ok] += proba[nbr[ok, j]]
-        out[has] = np.argmax(acc[has], axis=1)
-        return out
-    if weighting != "majority":
-        raise ValueError(f"weighting must be 'majority' or 'probability', got {weighting!r}")
-    top = np.argmax(proba, axis=1)
-    lab = np.where(nbr >= 0, top[np.maximum(nbr, 0)], -1)
-    counts = np.zeros((m, c), dtype=np.int32)
-    for j in range(k):
-        ok = lab[:, j] >= 0
-        counts[ok, lab[ok, j]] += 1
-    best = counts.max(axis=1)
-    # the nearest neighbour whose class reaches the best count decides
-    for j in range(k - 1, -1, -1):
-        ok = (lab[:, j] >= 0) & (counts[np.arange(m), np.maximum(lab[:, j], 0)] == best)
-        out[ok] = lab[ok, j]
-    out[~has] = -1
+            if nbr[i, j] >= 0:
+                for q in range(c):
+                    acc[q] += proba[nbr[i, j], q]
+        best = 0
+        for q in range(1, c):  # the first maximum: ties go to the lower class
+            if acc[q] > acc[best]:
+                best = q
+        out[i] = best
     return out

@@ -15,11 +15,46 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from benchmark.aggregators.common import view_cells, vote_neighbours
+from benchmark.aggregators.common import view_cells
 from benchmark.aggregators.graph_knn import neighbour_offsets
 from benchmark.aggregators.vision_cone import window_mode
 from envs.maps.gridmap import GridMap
 from envs.render.raycast import cone_thetas
+
+
+def vote_reference(nbr: np.ndarray, proba: np.ndarray, weighting: str) -> np.ndarray:
+    """The neighbours' vote in NumPy, one column of neighbours at a time (the aggregators
+    vote with :func:`benchmark.aggregators.common.vote_neighbours`, a numba loop).
+
+    ``majority``: the most common top class; ties go to the tied class whose view is nearest.
+    ``probability``: the largest summed probability; ties go to the lower class index.
+
+    Returns:
+        (M,) int32 labels, -1 for a cell whose first neighbour is -1.
+    """
+    m, k = nbr.shape
+    c = proba.shape[1]
+    out = np.full(m, -1, dtype=np.int32)
+    has = nbr[:, 0] >= 0
+    if weighting == "probability":
+        acc = np.zeros((m, c))
+        for j in range(k):
+            ok = nbr[:, j] >= 0
+            acc[ok] += proba[nbr[ok, j]]
+        out[has] = np.argmax(acc[has], axis=1)
+        return out
+    top = np.argmax(proba, axis=1)
+    lab = np.where(nbr >= 0, top[np.maximum(nbr, 0)], -1)
+    counts = np.zeros((m, c), dtype=np.int32)
+    for j in range(k):
+        ok = lab[:, j] >= 0
+        counts[ok, lab[ok, j]] += 1
+    best = counts.max(axis=1)
+    for j in range(k - 1, -1, -1):  # the nearest neighbour whose class reaches the best count decides
+        ok = (lab[:, j] >= 0) & (counts[np.arange(m), np.maximum(lab[:, j], 0)] == best)
+        out[ok] = lab[ok, j]
+    out[~has] = -1
+    return out
 
 
 def grid_graph(walkable: np.ndarray, connectivity: int) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -63,7 +98,7 @@ def graph_knn_reference(grid: GridMap, poses, proba, k: int, connectivity: int =
     nbr = np.full((grid.shape[0] * w, k), -1, np.int64)
     cells = np.flatnonzero(grid.walkable.ravel())
     nbr[cells] = np.where(np.isinf(best_d), -1, best_s)
-    lab = vote_neighbours(nbr, p, weighting).reshape(grid.shape)
+    lab = vote_reference(nbr, p, weighting).reshape(grid.shape)
     lab[~grid.walkable] = -1
     return lab
 
@@ -76,7 +111,7 @@ def euclidean_knn_reference(grid: GridMap, poses, proba, k: int, weighting: str 
     ids = np.broadcast_to(np.arange(len(r)), d2.shape)
     nbr = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
     lab = np.full(grid.shape, -1, np.int32)
-    lab[cells[:, 0], cells[:, 1]] = vote_neighbours(nbr, p, weighting)
+    lab[cells[:, 0], cells[:, 1]] = vote_reference(nbr, p, weighting)
     return lab
 
 

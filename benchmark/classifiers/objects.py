@@ -33,7 +33,7 @@ def room_object_counts(houses: Sequence[House], classes: Sequence[str], resoluti
     room_counts = np.zeros(len(classes))
     type_counts: dict[str, np.ndarray] = {}
     for h in houses:
-        scene = rasterise_house(h, resolution=resolution, classes=classes)
+        scene = rasterise_house(h, resolution=resolution, classes=classes, layers="rooms")
         for k in scene.instance_classes:
             room_counts[k] += 1
         grid = scene.grid

@@ -189,12 +189,23 @@ def _json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+#: zlib level of the cache's ``.npz`` entries: 1 compresses `make bench`'s 921 entries 2.5x
+#: faster than the level 6 of ``np.savez_compressed`` (0.65 s instead of 1.62 s) into 9.3 MiB
+#: instead of 5.3 MiB; ``np.load`` reads either.
+NPZ_COMPRESS_LEVEL = 1
+
+
 def atomic_save_npz(path: Path, **arrays: np.ndarray) -> None:
-    """Save arrays as a compressed ``.npz`` atomically."""
+    """Save arrays as a compressed ``.npz`` (zlib level :data:`NPZ_COMPRESS_LEVEL`; each
+    member's CRC is checked when read) atomically."""
     import io
+    import zipfile
 
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=NPZ_COMPRESS_LEVEL) as zf:
+        for name, arr in arrays.items():
+            with zf.open(name + ".npy", "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(arr), allow_pickle=False)
     atomic_write_bytes(path, buf.getvalue())
 
 

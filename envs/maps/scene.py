@@ -183,6 +183,7 @@ def rasterise_house(
     classes: Sequence[str] = PAPER_CLASSES,
     room_types: dict[str, str] | None = None,
     max_map_pixels: int | None = MAX_MAP_PIXELS,
+    layers: str = "all",
 ) -> Scene:
     """Rasterise a ProcTHOR-schema house into a :class:`Scene`.
 
@@ -201,10 +202,16 @@ def rasterise_house(
         max_map_pixels: the largest map (H x W pixels) to rasterise, ``None`` for no limit;
             a larger house raises :class:`HouseError` before any array is allocated
             (default :data:`MAX_MAP_PIXELS`, about 2 GB at :data:`RASTER_BYTES_PER_PIXEL`).
+        layers: ``all``; or ``rooms``: only the room raster, the room classes and the object
+            list, each as ``all`` computes them (walls, the object map and ``clearance`` are
+            skipped: the grid's walkable cells are the floor, ``walls`` and ``object_map``
+            are None). What a classifier's training needs to place objects in rooms.
 
     Returns:
         :class:`Scene` on a grid of ``resolution`` metres per pixel.
     """
+    if layers not in ("all", "rooms"):
+        raise ValueError(f"layers must be 'all' or 'rooms', got {layers!r}")
     room_types = dict(room_types or ROOM_TYPE_TO_CLASS)
     hid = house.id
     data = house.data
@@ -240,6 +247,13 @@ def rasterise_house(
         sub = rooms[sl]
         sub[inside & (sub < 0)] = i
     floor = rooms >= 0
+    objects = _object_footprints(data)
+    instance_classes = np.array(
+        [room_type_to_class_index(r["roomType"], classes, room_types) for r in data["rooms"]], dtype=np.int64)
+    if layers == "rooms":
+        return Scene(house_id=hid, grid=GridMap(floor, resolution, grid0.origin), rooms=rooms,
+                     instances=rooms.copy(), instance_classes=instance_classes,
+                     room_ids=[str(r["id"]) for r in data["rooms"]], classes=tuple(classes), objects=objects)
 
     # walls, minus door openings
     walls = np.zeros((h, w), dtype=bool)
@@ -263,18 +277,6 @@ def rasterise_house(
                     walls[sl] &= ~band
 
     # objects
-    objects: list[ObjectFootprint] = []
-    for obj in data.get("objects", []) or []:
-        info = asset_info(obj["assetId"])
-        pos = obj["position"]
-        yaw = float((obj.get("rotation") or {}).get("y", 0.0))
-        y = float(pos.get("y", info.size[1] / 2))
-        children = tuple(asset_info(c["assetId"]).object_type for c in obj.get("children", []) or [] if "assetId" in c)
-        objects.append(ObjectFootprint(
-            id=str(obj.get("id", len(objects))), asset_id=obj["assetId"], object_type=info.object_type,
-            center=(float(pos["x"]), float(pos["z"])), yaw=yaw, size=info.size,
-            base=y - info.size[1] / 2, top=y + info.size[1] / 2, children=children, known_asset=info.known,
-        ))
     object_map = np.full((h, w), -1, dtype=np.int32)
     order = sorted(range(len(objects)), key=lambda k: objects[k].base < max_object_base)
     for k in order:
@@ -293,14 +295,29 @@ def rasterise_house(
         dist = ndimage.distance_transform_edt(walkable) * resolution
         walkable &= dist > clearance
     instances = np.where(walkable, rooms, -1).astype(np.int32)
-    instance_classes = np.array(
-        [room_type_to_class_index(r["roomType"], classes, room_types) for r in data["rooms"]], dtype=np.int64)
     grid = GridMap(walkable, resolution, grid0.origin)
     return Scene(
         house_id=hid, grid=grid, rooms=rooms, instances=instances, instance_classes=instance_classes,
         room_ids=[str(r["id"]) for r in data["rooms"]], classes=tuple(classes), walls=walls,
         objects=objects, object_map=object_map,
     )
+
+
+def _object_footprints(data: dict) -> list[ObjectFootprint]:
+    """The house's top-level objects, in the house's order."""
+    objects: list[ObjectFootprint] = []
+    for obj in data.get("objects", []) or []:
+        info = asset_info(obj["assetId"])
+        pos = obj["position"]
+        yaw = float((obj.get("rotation") or {}).get("y", 0.0))
+        y = float(pos.get("y", info.size[1] / 2))
+        children = tuple(asset_info(c["assetId"]).object_type for c in obj.get("children", []) or [] if "assetId" in c)
+        objects.append(ObjectFootprint(
+            id=str(obj.get("id", len(objects))), asset_id=obj["assetId"], object_type=info.object_type,
+            center=(float(pos["x"]), float(pos["z"])), yaw=yaw, size=info.size,
+            base=y - info.size[1] / 2, top=y + info.size[1] / 2, children=children, known_asset=info.known,
+        ))
+    return objects
 
 
 def scene_on_grid(scene: Scene, grid: GridMap) -> Scene:

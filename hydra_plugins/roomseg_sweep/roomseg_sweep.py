@@ -9,10 +9,11 @@ here; the module imports Hydra and the standard library only (Hydra imports it a
   product of ``params``, then the product of each extra grid, in that order (a job already
   listed is not repeated). Command-line sweep arguments apply to every grid. ``make bench``
   uses this to run the method grid and the Table IV sanity segmenters in one multirun.
-- ``validate: cover`` (the default): before launching, it composes enough jobs that every
-  ``key=value`` of the batch is composed at least once (about one job per value, instead of
-  every job twice). ``validate: all`` is Hydra's own check (every job); ``none`` skips it.
-  A job whose combination still fails to compose fails alone, in the launcher.
+- ``validate: quick`` (the default): before launching, it checks that every swept
+  ``group=option`` names an option of its config group and composes the first job of each
+  grid, instead of composing every job twice. ``validate: all`` is Hydra's own check (every
+  job); ``none`` skips it. A job whose config still fails to compose fails alone, in the
+  launcher, and the sweep exits non-zero naming it.
 
 ``LocalLauncher`` runs the jobs on ``n_jobs`` worker processes of this machine, like
 ``hydra-joblib-launcher``, but its workers are forked from the launching process on Linux, so
@@ -51,21 +52,21 @@ from omegaconf import DictConfig, open_dict
 
 log = logging.getLogger(__name__)
 
-VALIDATE = ("cover", "all", "none")
+VALIDATE = ("quick", "all", "none")
 
 
 class GridsSweeper(BasicSweeper):
-    """Hydra's basic sweeper over ``params`` and any extra ``grids``; validation by cover.
+    """Hydra's basic sweeper over ``params`` and any extra ``grids``; quick validation.
 
     Args:
         max_batch_size: jobs per launcher call (None: all at once).
         params: the first grid, ``{key: "v1,v2"}`` as in Hydra's basic sweeper.
         grids: more grids of the same form, run after ``params``' jobs.
-        validate: ``cover`` | ``all`` | ``none`` (see the module docstring).
+        validate: ``quick`` | ``all`` | ``none`` (see the module docstring).
     """
 
     def __init__(self, max_batch_size: int | None = None, params: Mapping[str, str] | None = None,
-                 grids: Sequence[Mapping[str, str]] | None = None, validate: str = "cover") -> None:
+                 grids: Sequence[Mapping[str, str]] | None = None, validate: str = "quick") -> None:
         # BasicSweeper's own __init__ is not called: it names its class through a module global
         # that Hydra's plugin rescans rebind (``super(BasicSweeper, self)`` then fails)
         self.overrides = None
@@ -106,19 +107,45 @@ class GridsSweeper(BasicSweeper):
             return
         if self.validate == "all":
             return super().validate_batch_is_legal(batch)
-        return super().validate_batch_is_legal(cover(batch))
+        assert self.hydra_context is not None
+        loader = self.hydra_context.config_loader
+        check_options(batch, loader)
+        return super().validate_batch_is_legal(one_per_grid(batch))
 
 
-def cover(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
-    """The jobs of ``batch``, in order, that each bring a ``key=value`` not seen before: every
-    override of the batch appears in at least one of them."""
-    seen: set[str] = set()
+def one_per_grid(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
+    """The first job of each set of override keys in ``batch`` (one job per grid), in order."""
+    seen: set[tuple[str, ...]] = set()
     out = []
     for job in batch:
-        if not set(job) <= seen:
+        keys = tuple(sorted(o.split("=", 1)[0] for o in job))
+        if keys not in seen:
+            seen.add(keys)
             out.append(job)
-            seen.update(job)
     return out
+
+
+def check_options(batch: Sequence[Sequence[str]], loader: Any) -> None:
+    """Every ``group=option`` of ``batch`` names an option of that config group.
+
+    Raises:
+        ConfigCompositionException: one line naming the override and the group's options."""
+    from hydra.errors import ConfigCompositionException
+
+    parser = OverridesParser.create(config_loader=loader)
+    options: dict[str, list[str]] = {}
+    for text in dict.fromkeys(o for job in batch for o in job):
+        ov = parser.parse_overrides([text])[0]
+        value = ov.value()
+        if ov.is_delete() or not isinstance(value, str):
+            continue
+        group = ov.key_or_group
+        if group not in options:
+            options[group] = loader.get_group_options(group)
+        if options[group] and value not in options[group]:
+            raise ConfigCompositionException(
+                f"sweep override {text!r}: {value!r} is not an option of config group '{group}' "
+                f"(options: {', '.join(options[group])})")
 
 
 # ---- the launcher
