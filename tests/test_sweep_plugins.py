@@ -6,6 +6,7 @@ records what every job saw."""
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -18,7 +19,7 @@ from hydra_plugins.roomseg_sweep.roomseg_sweep import GridsSweeper, one_per_grid
 ROOT = Path(__file__).resolve().parents[1]
 
 APP = '''
-import json, os, sys
+import json, os, sys, time
 from pathlib import Path
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -27,6 +28,7 @@ from omegaconf import OmegaConf
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
 def app(cfg):
     hc = HydraConfig.get()
+    time.sleep(float(os.environ.get("JOB_SLEEP", "0")))
     out = {"a": OmegaConf.to_container(cfg.a), "b": cfg.get("b"), "n": cfg.n, "pid": os.getpid(), "num": hc.job.num,
            "overrides": sorted(hc.overrides.task)}
     (Path(hc.runtime.output_dir) / "job.json").write_text(json.dumps(out))
@@ -141,3 +143,50 @@ def test_quick_validation_composes_the_first_job_of_each_grid(tmp_path):
     r = _run(app, "n=1,2", "no_such_key=3")
     assert r.returncode != 0 and "no_such_key" in r.stderr
     assert _jobs(tmp_path) == {}
+
+
+NEEDS_PGREP = pytest.mark.skipif(shutil.which("pgrep") is None, reason="pgrep (procps) is not installed")
+
+
+@NEEDS_PGREP
+def test_ctrl_c_stops_the_workers_at_once(tmp_path):
+    """Ctrl-C (SIGINT to the process group) ends the sweep within a second or two: running
+    jobs are stopped, waiting ones never start, no worker is left behind."""
+    import os
+    import signal
+    import time
+
+    app = _app(tmp_path, "validate: quick")
+    env = dict(os.environ, JOB_SLEEP="20")
+    p = subprocess.Popen([sys.executable, str(app), "-m", "n=1,2,3,4,5,6"], cwd=app.parent, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    time.sleep(3)  # the workers are in their first jobs
+    workers = subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert len(workers) == 3, workers  # the launching process and its two workers
+    os.killpg(p.pid, signal.SIGINT)
+    t = time.monotonic()
+    _, err = p.communicate(timeout=15)
+    assert time.monotonic() - t < 5 and p.returncode != 0, err[-1500:]
+    assert _jobs(tmp_path) == {}
+    assert subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True).returncode == 1  # none left
+
+
+@NEEDS_PGREP
+def test_a_killed_worker_ends_the_sweep_naming_it(tmp_path):
+    """kill -9 of a worker: the sweep stops with a line naming the sweep folder (not a hang),
+    and the other worker is stopped too."""
+    import os
+    import signal
+    import time
+
+    app = _app(tmp_path, "validate: quick")
+    env = dict(os.environ, JOB_SLEEP="20")
+    p = subprocess.Popen([sys.executable, str(app), "-m", "n=1,2,3,4"], cwd=app.parent, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    time.sleep(3)
+    workers = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert len(workers) == 2, workers
+    os.kill(int(workers[0]), signal.SIGKILL)
+    _, err = p.communicate(timeout=15)
+    assert p.returncode != 0 and f"a worker process of the sweep in {tmp_path / 'out'} died" in err
+    assert subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True).returncode == 1

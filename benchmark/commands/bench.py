@@ -6,9 +6,10 @@
     roomseg-bench experiment=table4                 # a paper table's sweep
 
 Exit status: 0 when every house of every job succeeded; 1 when any house failed (after
-every row is written; ``run.allow_failures=true`` exits 0); 2 when nothing ran: a bad
-setting, a config that does not compose, an unwritable folder, no house selected, or a
-stage that cannot be built. Errors are one line on stderr.
+every row is written; ``run.allow_failures=true`` exits 0) or a sweep worker was killed;
+2 when nothing ran: a bad setting, a config that does not compose, an unwritable folder, no
+house selected, or a stage that cannot be built; 130 when interrupted (Ctrl-C stops every
+worker at once). Errors are one line on stderr.
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ def _one_line(e: BaseException) -> str:
 
 def main() -> int:
     """Run the app; turn known errors into one line and the outcome into the exit status."""
+    from concurrent.futures.process import BrokenProcessPool
+
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
@@ -61,6 +64,13 @@ def main() -> int:
     except (HydraException, OmegaConfBaseException) as e:
         print(f"{PROG}: config error: {_one_line(e).split(' full_key:')[0]}", file=sys.stderr)
         return 2
+    except BrokenProcessPool as e:  # a sweep worker was killed (the local launcher says which sweep)
+        print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted; the houses already scored are cached, so the same command "
+              f"goes on from there", file=sys.stderr)
+        return 130
     except OSError as e:
         where = e.filename or ""
         print(f"{PROG}: error: cannot write {where} ({e.strerror or e})", file=sys.stderr)

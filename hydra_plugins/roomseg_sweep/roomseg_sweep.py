@@ -27,6 +27,7 @@ from __future__ import annotations
 import importlib
 import logging
 import multiprocessing
+import signal
 import sys
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -155,6 +156,7 @@ _SWEEP: tuple[HydraContext, DictConfig, TaskFunction, dict[Any, Any]] | None = N
 
 def _init_worker(sweep: tuple | bytes) -> None:
     global _SWEEP
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the launching process's: it stops us
     if isinstance(sweep, bytes):  # spawned: the state comes cloudpickled (the task function is
         import cloudpickle  # the app's undecorated main, which pickle cannot name; as in joblib)
 
@@ -246,10 +248,28 @@ class LocalLauncher(Launcher):
             import cloudpickle
 
             state = cloudpickle.dumps(_SWEEP)
+        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state,))
         try:
-            with ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state,)) as pool:
-                futures = [pool.submit(mod._run, i, o) for i, o in jobs]
-                return [f.result() for f in futures]
-        except BrokenProcessPool as e:
-            raise RuntimeError(f"a worker process of the sweep in {sweep_dir} died (killed, or out of "
-                               f"memory?): {e}; finished jobs are kept, rerun to complete the rest") from None
+            futures = [pool.submit(mod._run, i, o) for i, o in jobs]
+            return [f.result() for f in futures]
+        except BrokenProcessPool:
+            _stop(pool)
+            raise BrokenProcessPool(f"a worker process of the sweep in {sweep_dir} died (killed, or out "
+                                    f"of memory?); finished jobs are kept, rerun to complete the rest") from None
+        except BaseException:  # Ctrl-C (or any error here): no job starts, running ones stop now
+            _stop(pool)
+            raise
+        finally:
+            pool.shutdown(wait=True)
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel the jobs not started and terminate the workers (their files are written
+    atomically and their locks die with them, so an interrupted job leaves nothing half-done)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())  # (shutdown forgets them)
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=10)
