@@ -564,8 +564,12 @@ def _draw(tasks: list[Callable[[], list[Path]]], workers: int | None) -> list[li
     if n == 1 or sys.platform != "linux":
         return [t() for t in tasks]
     _TASKS = tasks
+    pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"))
     try:
-        with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
-            return list(pool.map(_draw_one, range(len(tasks))))
+        return list(pool.map(_draw_one, range(len(tasks))))
+    except BaseException:  # Ctrl-C or a failed figure: the figures not started are not drawn
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
     finally:
+        pool.shutdown(wait=True)
         _TASKS = []
