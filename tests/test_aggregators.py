@@ -142,3 +142,19 @@ def test_numba_vote_equals_numpy_reference(weighting, seed):
     got, want = vote_neighbours(nbr, proba, weighting), vote_reference(nbr, proba, weighting)
     assert got.dtype == np.int32 and (got[short == 0] == -1).all()
     np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("k", [1, 4, 5, 8])
+def test_euclidean_neighbours_with_lattice_ties(k):
+    """Views on a lattice (and two on one cell): most cells have several views at the same
+    distance; the row-pruned kernel keeps the (distance, index) order of a full sort."""
+    from benchmark.aggregators.euclidean_knn import euclidean_neighbours
+
+    rr, cc = np.mgrid[2:40:4, 3:50:4]
+    rows, cols = rr.ravel()[::-1].copy(), cc.ravel()[::-1].copy()  # index order unlike row order
+    rows[5], cols[5] = rows[9], cols[9]
+    cells = np.argwhere(np.ones((42, 53), bool))
+    d2 = (cells[:, None, 0] - rows[None]) ** 2 + (cells[:, None, 1] - cols[None]) ** 2
+    ids = np.broadcast_to(np.arange(len(rows)), d2.shape)
+    want = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
+    np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
