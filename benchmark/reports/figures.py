@@ -34,6 +34,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from benchmark.reports.formatting import finite_float
 from benchmark.reports.plotting import (
     PNG_DPI,
     add_legend,
@@ -95,18 +96,10 @@ def view_accuracy(row: Mapping) -> float | None:
     """The share of a house's views whose class is right: against the room each view sees
     (``view_accuracy_seen``) where the row has it, else against the room it stands in."""
     for k in ("view_accuracy_seen", "view_accuracy"):
-        v = _float(row.get(k))
+        v = finite_float(row.get(k))
         if v is not None:
             return v
     return None
-
-
-def _float(v) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return None if math.isnan(f) else f
 
 
 def figure_size(map_shape: tuple[int, int], n_panels: int = 3) -> tuple[float, float]:
@@ -385,7 +378,7 @@ def fig3(house_index: int, out: str | Path, overrides: Sequence[str] = (),
                          "(postprocess=default), not postprocess=none")
     scene, maps, names, row = house_maps(ov, house_index)
     title = (f"{house_title(names, scene.house_id)}: "
-             f"{describe(names, _float(cfg.classifier.get('accuracy')), view_accuracy(row), post=False)}"
+             f"{describe(names, finite_float(cfg.classifier.get('accuracy')), view_accuracy(row), post=False)}"
              f"; post-processing '{names['postprocess']}'")
     return figure_postprocess(scene, maps["raw"], maps["post"], out, title, formats)
 
@@ -405,7 +398,7 @@ def fig4(house_index: int, out: str | Path, overrides: Sequence[str] = (), max_p
     _, cone, _, _ = house_maps([*ov, "aggregator=vision_cone"], house_index)
     which = "post" if names["postprocess"] != "none" else "raw"
     title = (f"{house_title(names, scene.house_id)}: "
-             f"{describe(names, _float(cfg.classifier.get('accuracy')), view_accuracy(row), aggregator=False)}"
+             f"{describe(names, finite_float(cfg.classifier.get('accuracy')), view_accuracy(row), aggregator=False)}"
              f"; viewpoints coloured by predicted class")
     return figure_aggregators(scene, knn["poses"], knn[which], cone[which], out, knn["proba"], max_poses, title,
                               formats)
@@ -439,7 +432,7 @@ def house_figures(house_index: int, out: Path, overrides: Sequence[str] = (),
         proba = clf.predict_proba(obs)
         names = {"env": choices.get("env", ""), "classifier": choices.get("classifier", "")}
         title = (f"{house_title(names, hid)}: autotrace path and every third of its {len(poses)} viewpoints, "
-                 f"coloured by the {describe(names, _float(cfg.classifier.get('accuracy')), aggregator=False, post=False)}")
+                 f"coloured by the {describe(names, finite_float(cfg.classifier.get('accuracy')), aggregator=False, post=False)}")
         paths[:0] = figure_autotrace(scene, at.path(scene.grid), poses[::3], out / "fig2_autotrace.png",
                                      np.argmax(proba, axis=1), title, formats)
         n_seen = [len(o.objects) for o in obs]
@@ -517,7 +510,7 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
                 continue
             m = load_npz(p)
             row = row.iloc[0].to_dict()
-            acc = _float(row.get("oracle_accuracy"))
+            acc = finite_float(row.get("oracle_accuracy"))
             slug = "_".join(names[k] for k in ("env", "classifier", "aggregator", "postprocess"))
             if acc is not None:
                 slug = slug.replace(f"_{names['classifier']}_", f"_{names['classifier']}{acc:g}_", 1)

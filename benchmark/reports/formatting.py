@@ -64,6 +64,16 @@ POOLED = frozenset({"table3"})
 DASH = "–"
 
 
+def finite_float(v) -> float | None:
+    """``v`` as a float, or None when it is missing, not a number, or NaN (a CSV cell, a
+    config value)."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(f) else f
+
+
 def metric_words(metric: str) -> str:
     """Words for a metric (``accuracy`` -> ``pixel accuracy``, ``view_accuracy_seen`` ->
     ``view accuracy seen``)."""

@@ -15,7 +15,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -148,14 +147,6 @@ def job_label(names: dict, oracle_accuracy: float | None) -> str:
     return f"{clf} + {formatting.value_label('aggregator', names.get('aggregator', ''))}"
 
 
-def _num(v) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return None if math.isnan(f) else f
-
-
 def _config_rows(jobs) -> tuple[list[str], list[dict]]:
     """Per job: names, counts and mean metrics over its successful houses."""
     present = set()
@@ -163,11 +154,11 @@ def _config_rows(jobs) -> tuple[list[str], list[dict]]:
     for job, summary, df in jobs:
         ok = df[df["status"] == "ok"]
         names = summary.get("names", {})
-        acc = _num(df["oracle_accuracy"].dropna().iloc[0]) if "oracle_accuracy" in df and df[
+        acc = formatting.finite_float(df["oracle_accuracy"].dropna().iloc[0]) if "oracle_accuracy" in df and df[
             "oracle_accuracy"].notna().any() else None
         rec = {"job": job, "names": names, "dataset": str(df["dataset"].iloc[0]) if "dataset" in df and len(df) else "",
                "oracle_accuracy": acc, "n": len(df), "n_ok": len(ok), "n_failed": len(df) - len(ok),
-               "wall": _num(summary.get("wall_time_s"))}
+               "wall": formatting.finite_float(summary.get("wall_time_s"))}
         for m in (*METRICS, *COUNTS):
             if m in ok and len(ok):
                 v = pd.to_numeric(ok[m], errors="coerce")
@@ -289,7 +280,7 @@ def _house_section(hid: str, jobs) -> str:
         if shape != scene.grid.shape:  # another grid (e.g. env.resolution changed): not beside this one
             skipped.append(job.dir.name)
             continue
-        acc = _num(rows["oracle_accuracy"].iloc[0]) if "oracle_accuracy" in rows else None
+        acc = formatting.finite_float(rows["oracle_accuracy"].iloc[0]) if "oracle_accuracy" in rows else None
         key = (names.get("env"), names.get("segmenter") or "", names.get("classifier"), acc, names.get("aggregator"))
         g = groups.setdefault(key, {"label": job_label(names, acc), "cells": {}})
         if names.get("segmenter"):
