@@ -99,21 +99,6 @@ def build_classifier(model: str, overrides: Sequence[str] = ()):
     return instantiate(cfg.classifier), cfg
 
 
-def one_line(e: BaseException) -> str:
-    """The innermost cause of an error (Hydra wraps constructor errors) as one line."""
-    while e.__cause__ is not None:
-        e = e.__cause__
-    text = str(e).strip().splitlines()
-    return f"{type(e).__name__}: {text[0] if text else ''}"
-
-
-def cli_errors():
-    """The errors a command reports as one line instead of a traceback."""
-    from hydra.errors import HydraException  # noqa: PLC0415
-
-    return (ImportError, RuntimeError, OSError, ValueError, KeyError, HydraException)
-
-
 def parse_split_sizes(text: str) -> tuple[int, int, int]:
     """``"4000,500,500"`` -> per-class train, val, test sizes."""
     try:

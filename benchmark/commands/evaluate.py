@@ -13,15 +13,14 @@ from benchmark.classifiers.evaluate import (
     MODELS,
     build_classifier,
     classifier_config,
-    cli_errors,
     confusion_figure,
-    one_line,
     parse_split_sizes,
     predict_items,
     table1_metrics,
     throughput,
     write_table,
 )
+from benchmark.commands.errors import cli_errors, one_line
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -33,6 +33,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from benchmark.commands.errors import one_line
+
 PASS, FAIL, SKIP = "pass", "FAIL", "skipped"
 CLASSIFIERS = ("cnn", "dinov2", "vlm")
 AGGREGATORS = ("graph_knn", "vision_cone")
@@ -74,12 +76,9 @@ class Context:
     passed_classifiers: list[str] = field(default_factory=list)
 
 
-def one_line(e: BaseException) -> str:
-    """An error as one line: the innermost cause's first line (Hydra wraps constructor errors)."""
-    while e.__cause__ is not None:
-        e = e.__cause__
-    text = (str(e).strip().splitlines() or [""])[0].strip()
-    return (f"{type(e).__name__}: {text}" if text else type(e).__name__)[:240]
+def _short(e: BaseException) -> str:
+    """An error as one line (:func:`benchmark.commands.errors.one_line`) cut to fit the table."""
+    return one_line(e)[:240]
 
 
 def first_line(e: BaseException) -> str:
@@ -147,7 +146,7 @@ def _house_source(ctx: Context):
         ds = prior.load_dataset("procthor-10k")
         data = ds["train"][0]
     except Exception as e:  # noqa: BLE001  network, git-lfs
-        raise Skip(f"no ProcTHOR house: prior.load_dataset('procthor-10k') failed ({one_line(e)})") from None
+        raise Skip(f"no ProcTHOR house: prior.load_dataset('procthor-10k') failed ({_short(e)})") from None
     return House("procthor-10k-train-0", data), "prior procthor-10k train[0]"
 
 
@@ -248,7 +247,7 @@ def classifier_check(name: str) -> Callable[[Context], str]:
 
             clf, _ = build_classifier(name, [f"device={ctx.device}", *ctx.classifier_overrides.get(name, [])])
         except Exception as e:  # noqa: BLE001  Hydra wraps the constructor's error
-            msg = one_line(e)
+            msg = _short(e)
             if any(k in msg for k in ("FileNotFoundError", "ImportError", "ModuleNotFoundError", "could not load",
                                       "not found")):
                 raise Skip(msg) from None
@@ -318,7 +317,7 @@ def run_checks(ctx: Context, items=None) -> list[Row]:
         except Skip as e:
             row.status, row.detail = SKIP, (str(e).strip().splitlines() or [""])[0]
         except Exception as e:  # noqa: BLE001  every failure is one line in the table
-            row.status, row.detail = FAIL, one_line(e)
+            row.status, row.detail = FAIL, _short(e)
         row.seconds = time.perf_counter() - t
         rows.append(row)
     return rows

@@ -467,7 +467,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
 def _errors() -> tuple[type[BaseException], ...]:
     from omegaconf.errors import OmegaConfBaseException  # noqa: PLC0415
 
-    from benchmark.classifiers.evaluate import cli_errors  # noqa: PLC0415
+    from benchmark.commands.errors import cli_errors  # noqa: PLC0415
 
     return (*cli_errors(), OmegaConfBaseException)
 
@@ -478,7 +478,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(__doc__)
         return 0 if argv else 2
-    from benchmark.classifiers.evaluate import one_line  # noqa: PLC0415
+    from benchmark.commands.errors import one_line  # noqa: PLC0415
 
     try:
         cfg = compose_config(argv)

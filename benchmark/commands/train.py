@@ -12,7 +12,7 @@ from benchmark.classifiers.train import history_path, train_cnn, train_mlp
 
 
 def main(argv: list[str] | None = None) -> int:
-    from benchmark.classifiers.evaluate import cli_errors, one_line  # noqa: PLC0415
+    from benchmark.commands.errors import cli_errors, one_line  # noqa: PLC0415
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  epilog="extra key=value arguments override conf/classifier/<model>.yaml")

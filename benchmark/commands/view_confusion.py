@@ -27,12 +27,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="JSON file to write (a PNG goes beside it)")
     ap.add_argument("overrides", nargs="*", help="Hydra overrides of the root config, key=value")
     a = ap.parse_args(argv)
-    from benchmark.classifiers.evaluate import (  # noqa: PLC0415
-        cli_errors,
-        confusion_figure,
-        one_line,
-        table1_metrics,
-    )
+    from benchmark.classifiers.evaluate import confusion_figure, table1_metrics  # noqa: PLC0415
+    from benchmark.commands.errors import cli_errors, one_line  # noqa: PLC0415
 
     try:
         from hydra import compose, initialize_config_dir  # noqa: PLC0415
