@@ -38,6 +38,7 @@ from typing import Any
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import Override
 from hydra.core.singleton import Singleton
 from hydra.core.utils import (
     JobReturn,
@@ -81,27 +82,27 @@ class GridsSweeper(BasicSweeper):
             raise ValueError(f"hydra.sweeper.validate must be one of {list(VALIDATE)}, got {validate!r}")
         self.grids = [dict(g or {}) for g in (grids or [])]
         self.validate = validate
+        self.arguments: list[str] = []
 
     def sweep(self, arguments: list[str]) -> Any:
+        self.arguments = list(arguments)  # the command line's sweeps, applied to every grid
+        return super().sweep(arguments)
+
+    def split_arguments(self, overrides: list[Override], max_batch_size: int | None) -> list[list[list[str]]]:
+        """The jobs, in batches: Hydra's basic sweeper calls this on ``params`` + the command
+        line (``overrides``); each extra grid + the command line follows, a job already listed
+        is not repeated."""
         if not self.grids:
-            return super().sweep(arguments)
-        # the parent builds ``self.overrides`` from params + arguments; give it the union instead
+            return BasicSweeper.split_arguments(overrides, max_batch_size)
         assert self.hydra_context is not None
         parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
-        jobs: list[list[str]] = []
-        seen: set[tuple[str, ...]] = set()
-        for grid in [self.params, *self.grids]:
-            conf = [f"{k}={v}" for k, v in grid.items()] + list(arguments)
-            for job in self.split_arguments(parser.parse_overrides(conf), None)[0]:
-                key = tuple(sorted(job))
-                if key not in seen:
-                    seen.add(key)
-                    jobs.append(job)
-        batches = [jobs] if self.max_batch_size in (None, -1) else list(
-            self.split_overrides_to_chunks(jobs, self.max_batch_size))
-        self.split_arguments = lambda overrides, max_batch_size: batches  # type: ignore[method-assign]
-        self.params = {}
-        return super().sweep([])
+        grids = [overrides] + [parser.parse_overrides([f"{k}={v}" for k, v in g.items()] + self.arguments)
+                               for g in self.grids]
+        jobs: dict[tuple[str, ...], list[str]] = {}
+        for grid in grids:
+            for job in BasicSweeper.split_arguments(grid, None)[0]:
+                jobs.setdefault(tuple(sorted(job)), job)
+        return list(BasicSweeper.split_overrides_to_chunks(list(jobs.values()), max_batch_size))
 
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
         if self.validate == "none":
