@@ -389,7 +389,8 @@ def test_missing_gpu_and_missing_downloads_are_one_line(tmp_path, monkeypatch):
 
 
 def test_table1_metrics_by_hand(tmp_path):
-    from benchmark.classifiers.evaluate import confusion_figure, table1_metrics
+    from benchmark.classifiers.evaluate import table1_metrics
+    from benchmark.reports.confusion import confusion_figure
 
     m = table1_metrics([0, 0, 1, 1, 2, 2], [0, 1, 1, 1, 2, 0], 3)
     # precision: c0 1/2, c1 2/3, c2 1/1; recall: c0 1/2, c1 1, c2 1/2

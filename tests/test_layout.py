@@ -2,6 +2,9 @@
 
 * ``envs`` never imports ``benchmark``;
 * nothing outside ``benchmark/commands`` imports ``benchmark.commands`` (commands sit on top);
+* the algorithms (every ``benchmark`` module outside ``harness``, ``reports`` and ``commands``:
+  method, classifiers, aggregators, segmenters, metrics, ...) import neither the harness nor
+  the reports, which sit on top of them;
 * no import cycle between the modules of the project.
 """
 
@@ -59,6 +62,38 @@ def test_only_commands_import_commands(graph):
     bad = sorted((m, i) for m, imps in graph.items() if not m.startswith("benchmark.commands")
                  for i in imps if i == "benchmark.commands" or i.startswith("benchmark.commands."))
     assert not bad, f"modules importing a command module: {bad}"
+
+
+#: the packages that sit on top of the algorithms.
+UPPER = ("benchmark.harness", "benchmark.reports", "benchmark.commands")
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """(algorithm module, harness/reports module it imports) pairs."""
+    def upper(name: str) -> bool:
+        return any(name == u or name.startswith(u + ".") for u in UPPER)
+
+    return sorted((m, i) for m, imps in graph.items() if m.startswith("benchmark.") and not upper(m)
+                  for i in imps if upper(i) and not i.startswith("benchmark.commands"))
+
+
+def test_algorithms_import_neither_harness_nor_reports(graph):
+    bad = upward_imports(graph)
+    assert not bad, f"algorithm modules importing the harness or the reports: {bad}"
+
+
+def test_the_upward_rule_catches_an_upward_import():
+    """A made-up classifier module importing the run store, and a lazy import of a report, are seen."""
+    fake = ROOT / "benchmark" / "classifiers" / "_layout_probe_tmp.py"
+    try:
+        fake.write_text("from benchmark.harness.store import Job\n\ndef f():\n"
+                        "    from benchmark.reports.plotting import save\n    return save\n")
+        graph = {module_name(fake): project_imports(fake)}
+        assert [i for _, i in upward_imports(graph)] == ["benchmark.harness.store", "benchmark.harness.store.Job",
+                                                          "benchmark.reports.plotting",
+                                                          "benchmark.reports.plotting.save"]
+    finally:
+        fake.unlink(missing_ok=True)
 
 
 def test_no_import_cycles(graph):

@@ -17,12 +17,12 @@ from benchmark.classifiers.noise import (
     PerHouse,
     PerRoom,
     load_confusion,
-    view_accuracy_seen,
     view_confusion,
     view_rooms,
 )
 from benchmark.classifiers.oracle import OracleClassifier
 from benchmark.paths import CONF_DIR
+from benchmark.view_accuracy import view_accuracy_seen
 from envs.maps.gridmap import GridMap
 from envs.maps.scene import Scene
 from envs.render import cache as render_cache

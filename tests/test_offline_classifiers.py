@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from benchmark.classifiers.objects import ObjectsClassifier
-from benchmark.classifiers.oracle import OracleClassifier, true_labels
+from benchmark.classifiers.oracle import OracleClassifier
+from benchmark.view_accuracy import true_labels
 from envs.render.observation import Observation
 
 

@@ -43,31 +43,6 @@ def table1_metrics(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int)
             "accuracy": float(tp.sum() / cm.sum()), "f1": float(f1[present].mean()), "confusion": cm}
 
 
-def confusion_figure(cm: np.ndarray, classes: Sequence[str], path: Path, title: str = "") -> None:
-    """Row-normalised confusion matrix (true class rows) as a PNG."""
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
-    from benchmark.reports.plotting import save  # noqa: PLC0415
-
-    norm = cm / np.maximum(cm.sum(1, keepdims=True), 1)
-    fig, ax = plt.subplots(figsize=(6, 5))
-    ax.imshow(norm, cmap="Blues", vmin=0, vmax=1)
-    names = [c.replace("_", " ") for c in classes]
-    ax.set_xticks(range(len(names)), names, rotation=45, ha="right")
-    ax.set_yticks(range(len(names)), names)
-    for i in range(len(names)):
-        for j in range(len(names)):
-            ax.text(j, i, f"{norm[i, j]:.2f}", ha="center", va="center", fontsize=7,
-                    color="white" if norm[i, j] > 0.5 else "black")
-    ax.set_xlabel("predicted")
-    ax.set_ylabel("true")
-    ax.set_title(title, fontsize=10)
-    save(fig, path)
-
-
 def _scoped(override: str) -> str:
     """``key=value`` -> ``classifier.key=value`` (also ``+key``/``~key``); ``classes=...``
     and ``classifier.*`` pass unchanged."""
@@ -83,12 +58,9 @@ def classifier_config(model: str, overrides: Sequence[str] = ()):
     classifier config, e.g. ``device=cpu``); ``cfg.classifier`` is what the runner builds."""
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
-    from hydra import compose, initialize_config_dir  # noqa: PLC0415
+    from benchmark.config import compose  # noqa: PLC0415
 
-    from benchmark.harness.runner import CONF_DIR  # noqa: PLC0415
-
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        return compose("config", overrides=[f"classifier={model}", *(_scoped(o) for o in overrides)])
+    return compose("config", [f"classifier={model}", *(_scoped(o) for o in overrides)])
 
 
 def build_classifier(model: str, overrides: Sequence[str] = ()):

@@ -40,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from benchmark.view_accuracy import true_labels
+
 #: salts that keep the random streams of the different draws apart.
 _FOLLOW, _ROOM, _HOUSE, _BIAS = 1, 2, 3, 4
 
@@ -371,68 +373,6 @@ class PerHouse(NoiseModel):
         return out
 
 
-def true_labels(observations: Sequence) -> np.ndarray:
-    """The majority visible class of each observation.
-
-    Returns:
-        (N,) int64 class index, -1 where nothing was seen.
-
-    Raises:
-        ValueError: an observation has no ``visible_classes`` (not the floorplan renderer).
-    """
-    out = np.full(len(observations), -1, dtype=np.int64)
-    for i, o in enumerate(observations):
-        v = o.visible_classes
-        if v is None:
-            raise ValueError(f"observation {i} has no visible_classes: the oracle needs the floorplan renderer")
-        v = np.asarray(v)
-        if v.sum() > 0:
-            out[i] = int(np.argmax(v))
-    return out
-
-
-def seen_accuracy(truth: np.ndarray, proba: np.ndarray) -> float:
-    """Share of views whose top class is their true (majority visible) class.
-
-    Args:
-        truth: (N,) true class per view, -1 for a view that saw no floor (left out).
-        proba: (N, C) class probabilities.
-
-    Returns:
-        The share in [0, 1]; NaN when no view saw floor.
-    """
-    truth = np.asarray(truth)
-    m = truth >= 0
-    if not m.any():
-        return float("nan")
-    return float(np.mean(np.asarray(proba)[m].argmax(axis=1) == truth[m]))
-
-
-def view_accuracy_seen(render_folder: str | Path, poses: np.ndarray, proba: np.ndarray) -> float:
-    """Per-view accuracy against what each view sees (the oracle's truth: the class that
-    covers most of the visible floor), from a house's render cache.
-
-    Args:
-        render_folder: the house's render cache folder (:mod:`envs.render.cache`).
-        poses: (N, 3) poses of the classified (not refused) views.
-        proba: (N, C) their class probabilities.
-
-    Returns:
-        The share in [0, 1]; NaN when the render is not cached, its views carry no visible
-        classes (simulator renderers) or do not match ``poses``, or no view saw floor.
-    """
-    from envs.render import cache as render_cache  # noqa: PLC0415
-
-    if not render_cache.is_complete(render_folder):
-        return float("nan")
-    obs = [o for o in render_cache.read_observations(render_folder, images=False) if not o.meta.get("refused", False)]
-    if len(obs) != len(proba) or any(o.visible_classes is None for o in obs):
-        return float("nan")
-    if not np.allclose(np.asarray([o.pose for o in obs], dtype=float), np.asarray(poses, dtype=float), atol=1e-6):
-        return float("nan")
-    return seen_accuracy(true_labels(obs), proba)
-
-
 def view_confusion(truth: np.ndarray, pred: np.ndarray, n_classes: int) -> np.ndarray:
     """(C, C) counts of (true, predicted) classes over views with a true class.
 
@@ -488,5 +428,5 @@ def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Seque
     return counts, blind
 
 
-__all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows", "true_labels",
-           "view_rooms", "seen_accuracy", "view_accuracy_seen", "view_confusion", "classifier_confusion", "pose_key", "text_key", "view_rng", "uniform_confusion"]
+__all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows",
+           "view_rooms", "view_confusion", "classifier_confusion", "pose_key", "text_key", "view_rng", "uniform_confusion"]

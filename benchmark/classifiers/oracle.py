@@ -26,13 +26,12 @@ from benchmark.classifiers.noise import (
     Independent,
     NoiseModel,
     load_confusion,
-    seen_accuracy,
-    true_labels,
     uniform_confusion,
     view_rng,
     wrong_class_rows,
 )
 from benchmark.interfaces import Classifier
+from benchmark.view_accuracy import seen_accuracy, true_labels
 from envs.world.classes import PAPER_CLASSES
 
 

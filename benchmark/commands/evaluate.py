@@ -13,7 +13,6 @@ from benchmark.classifiers.evaluate import (
     MODELS,
     build_classifier,
     classifier_config,
-    confusion_figure,
     parse_split_sizes,
     predict_items,
     table1_metrics,
@@ -21,6 +20,7 @@ from benchmark.classifiers.evaluate import (
     write_table,
 )
 from benchmark.commands.errors import cli_errors, one_line
+from benchmark.reports.confusion import confusion_figure
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -271,9 +271,8 @@ def check_end_to_end(ctx: Context) -> str:
         raise Skip("needs the ai2thor check to pass")
     if not ctx.passed_classifiers:
         raise Skip("needs an image classifier check to pass")
-    from hydra import compose, initialize_config_dir  # noqa: PLC0415
-
-    from benchmark.harness.runner import CONF_DIR, run  # noqa: PLC0415
+    from benchmark.config import compose_job  # noqa: PLC0415
+    from benchmark.harness.runner import run  # noqa: PLC0415
 
     name = ctx.passed_classifiers[0]
     out = Path(ctx.out or tempfile.mkdtemp(prefix="roomseg-gpu-check-"))
@@ -287,9 +286,7 @@ def check_end_to_end(ctx: Context) -> str:
                      f"aggregator={agg}", f"run.results_dir={out / 'results'}", "run.progress=false"]
         if ctx.commit_id:
             overrides.append(f"renderer.commit_id={ctx.commit_id}")
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            cfg = compose("config", overrides=overrides, return_hydra_config=True)
-        choices = {k: str(v) for k, v in cfg.hydra.runtime.choices.items() if not k.startswith("hydra")}
+        cfg, choices = compose_job(overrides)
         df = run(cfg, out / agg, choices)
         row = df.iloc[0]
         if row["status"] != "ok":

@@ -12,7 +12,7 @@ from envs.maps.scene import rasterise_house
 def main(argv: list[str] | None = None) -> int:
     from pathlib import Path
 
-    from benchmark.classifiers.oracle import true_labels
+    from benchmark.view_accuracy import true_labels
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses
     from envs.render.floorplan import FloorplanRenderer

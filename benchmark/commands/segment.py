@@ -63,12 +63,9 @@ GEOJSON_FRAME = "map: x right, y up, metres (ROS map frame; project world x, z)"
 
 def compose_config(overrides: Sequence[str]):
     """``conf/segment.yaml`` composed with ``key=value`` overrides (Hydra's compose API)."""
-    from hydra import compose, initialize_config_dir  # noqa: PLC0415
+    from benchmark.config import compose  # noqa: PLC0415
 
-    from benchmark.paths import CONF_DIR  # noqa: PLC0415
-
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        return compose("segment", overrides=list(overrides))
+    return compose("segment", overrides)
 
 
 # --------------------------------------------------------------------------- inputs
@@ -151,6 +148,7 @@ def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.nd
     from hydra.utils import instantiate  # noqa: PLC0415
     from omegaconf import OmegaConf  # noqa: PLC0415
 
+    from benchmark import method  # noqa: PLC0415
     from envs.maps.pose_files import read_poses  # noqa: PLC0415
     from envs.render.observation import Observation  # noqa: PLC0415
 
@@ -185,12 +183,9 @@ def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.nd
     timings["t_read_views"] = time.perf_counter() - t
     t = time.perf_counter()
     clf = instantiate(cfg.classifier)
-    proba = np.asarray(clf.predict_proba(obs), dtype=np.float64)
+    proba = method.classify(clf, obs, str(cfg.classifier._target_))
     timings["t_classify"] = time.perf_counter() - t
     classes = tuple(clf.classes)
-    if proba.shape != (len(obs), len(classes)):
-        raise ValueError(f"classifier {cfg.classifier._target_} returned shape {proba.shape}, expected "
-                         f"({len(obs)}, {len(classes)})")
     OmegaConf.update(cfg, "classes", list(classes), force_add=True)
     ok = on_map(grid, poses)
     if not ok.any():
@@ -371,6 +366,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     from hydra.utils import instantiate  # noqa: PLC0415
     from omegaconf import OmegaConf  # noqa: PLC0415
 
+    from benchmark import method  # noqa: PLC0415
     from benchmark.metrics import segments  # noqa: PLC0415
 
     t_all = time.perf_counter()
@@ -413,13 +409,12 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
         summary["postprocess"] = str(cfg.postprocess._target_) if cfg.get("postprocess") else None
         t = time.perf_counter()
         agg = instantiate(cfg.aggregator)
-        raw = np.asarray(agg(grid, poses, proba))
+        raw = method.aggregate(agg, grid, poses, proba, str(cfg.aggregator._target_))
         timings["t_aggregate"] = time.perf_counter() - t
         if hasattr(agg, "last_used"):
             summary["n_views_used"] = int(agg.last_used)
         t = time.perf_counter()
-        labels = instantiate(cfg.postprocess)(raw, grid) if cfg.get("postprocess") else raw
-        labels = np.where(grid.walkable, labels, -1).astype(np.int32)
+        labels = method.postprocess(instantiate(cfg.postprocess) if cfg.get("postprocess") else None, raw, grid)
         timings["t_postprocess"] = time.perf_counter() - t
         segs = segments(labels, metric_params.connectivity)
         n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0

@@ -23,12 +23,9 @@ import pandas as pd
 
 def compose_score(overrides: list[str]):
     """conf/score.yaml composed with Hydra ``overrides`` (no app run)."""
-    from hydra import compose, initialize_config_dir
+    from benchmark.config import compose
 
-    from benchmark.paths import CONF_DIR
-
-    with initialize_config_dir(config_dir=CONF_DIR, version_base=None):
-        return compose("score", overrides=overrides)
+    return compose("score", overrides)
 
 
 def _quote(v) -> str:

@@ -27,20 +27,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="JSON file to write (a PNG goes beside it)")
     ap.add_argument("overrides", nargs="*", help="Hydra overrides of the root config, key=value")
     a = ap.parse_args(argv)
-    from benchmark.classifiers.evaluate import confusion_figure, table1_metrics  # noqa: PLC0415
+    from benchmark.classifiers.evaluate import table1_metrics  # noqa: PLC0415
     from benchmark.commands.errors import cli_errors, one_line  # noqa: PLC0415
+    from benchmark.reports.confusion import confusion_figure  # noqa: PLC0415
 
     try:
-        from hydra import compose, initialize_config_dir  # noqa: PLC0415
         from hydra.utils import instantiate  # noqa: PLC0415
 
         from benchmark.classifiers.noise import classifier_confusion  # noqa: PLC0415
+        from benchmark.config import compose  # noqa: PLC0415
         from benchmark.harness.runner import select_houses  # noqa: PLC0415
-        from benchmark.paths import CONF_DIR  # noqa: PLC0415
         from envs.atomic import atomic_write_text  # noqa: PLC0415
 
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            cfg = compose("config", overrides=list(a.overrides))
+        cfg = compose("config", a.overrides)
         env = instantiate(cfg.env)
         ids = select_houses(env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
         clf = instantiate(cfg.classifier)

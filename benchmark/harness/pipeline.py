@@ -32,6 +32,7 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
+from benchmark import method
 from benchmark.harness.cache import (
     atomic_save_npz,
     atomic_write_json,
@@ -44,6 +45,7 @@ from benchmark.harness.cache import (
 )
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
+from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy, view_accuracy_seen
 from envs.datasets.base import Environment
 from envs.render.base import Renderer
 from envs.render.observation import poses_array
@@ -413,7 +415,7 @@ class MethodPipeline(Pipeline):
 
         def compute() -> np.ndarray:
             t = time.perf_counter()
-            raw = np.asarray(self.aggregator(scene.grid, poses, proba))
+            raw = method.aggregate(self.aggregator, scene.grid, poses, proba, self.names.get("aggregator"))
             timings["t_aggregate"] = time.perf_counter() - t
             return raw
 
@@ -450,7 +452,6 @@ class MethodPipeline(Pipeline):
         """(poses (N, 3), proba (N, C), refused views, seen (N,) or None): ``seen`` is each
         view's majority visible class (-1: no floor seen) where the renderer reports visible
         classes, kept with the classification so later jobs need not re-read the render."""
-        from benchmark.classifiers.noise import true_labels
         from envs.render import cache as render_cache
 
         def load(path: Path) -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
@@ -472,12 +473,8 @@ class MethodPipeline(Pipeline):
             if hasattr(self.classifier, "set_scene"):  # the house, for classifiers that need it (oracle noise)
                 self.classifier.set_scene(scene)
             t = time.perf_counter()
-            proba = np.asarray(self.classifier.predict_proba(kept), dtype=np.float64)
+            proba = method.classify(self.classifier, kept, repr(self.names.get("classifier")))
             timings["t_classify"] = time.perf_counter() - t
-            n_cls = len(getattr(self.classifier, "classes", proba.shape[1:] or [0]))
-            if proba.shape != (len(kept), n_cls):
-                raise ValueError(f"classifier {self.names.get('classifier')!r} returned shape {proba.shape}, "
-                                 f"expected ({len(kept)}, {n_cls})")
             seen = true_labels(kept) if all(o.visible_classes is not None for o in kept) else None
             return poses_array([o.pose for o in kept]), proba, n_refused, seen
 
@@ -488,7 +485,6 @@ class MethodPipeline(Pipeline):
         return self._cached("classify", self.classify_path(hid), load, compute, save)
 
     def _compute(self, hid: str, timings: dict[str, float]) -> dict[str, Any]:
-        from benchmark.classifiers.noise import seen_accuracy, view_accuracy_seen
         from benchmark.metrics import score_semantic
 
         t = time.perf_counter()
@@ -502,7 +498,7 @@ class MethodPipeline(Pipeline):
         poses, proba, n_refused, seen = self._classified(hid, scene, timings)
         raw = self._aggregated(hid, scene, poses, proba, timings)
         t = time.perf_counter()
-        post = self.postprocess(raw, scene.grid) if self.postprocess is not None else raw
+        post = method.postprocess(self.postprocess, raw, scene.grid)
         timings["t_postprocess"] = time.perf_counter() - t
         t = time.perf_counter()
         out: dict[str, Any] = score_semantic(post, scene.instances, scene.instance_classes, self.metric_params,
@@ -510,7 +506,7 @@ class MethodPipeline(Pipeline):
         timings["t_score"] = time.perf_counter() - t
         out["n_views"] = int(len(poses))
         out["n_refused"] = int(n_refused)
-        out["view_accuracy"] = _view_accuracy(scene, poses, proba)
+        out["view_accuracy"] = view_accuracy(scene.grid, scene.semantic, poses, proba)
         out["view_accuracy_seen"] = (seen_accuracy(seen, proba) if seen is not None  # vs what views see
                                      else view_accuracy_seen(self.render_dir(hid), poses, proba))
         if self.save_maps:
@@ -650,20 +646,6 @@ def check_classified(z: Mapping[str, np.ndarray], n_classes: int | None,
 
 def _one_line(e: BaseException) -> str:
     return " ".join(f"{type(e).__name__}: {e}".split())
-
-
-def _view_accuracy(scene, poses: np.ndarray, proba: np.ndarray) -> float:
-    """Share of views whose top class equals the ground-truth class of the cell they stand on
-    (views on unlabelled cells are left out); NaN when no view stands on a room."""
-    r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
-    ok = scene.grid.in_bounds(r, c)
-    sem = scene.semantic
-    truth = np.full(len(poses), -1)
-    truth[ok] = sem[r[ok], c[ok]]
-    m = truth >= 0
-    if not m.any():
-        return float("nan")
-    return float(np.mean(proba[m].argmax(axis=1) == truth[m]))
 
 
 __all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "BadEntry", "STAGES", "expand_force",

@@ -319,17 +319,9 @@ def merge_overrides(defaults: dict[str, str], overrides: Sequence[str]) -> list[
 
 def compose_config(overrides: Sequence[str]):
     """The root config of ``conf/`` with Hydra ``overrides`` -> (config, group choices)."""
-    from hydra import compose, initialize_config_dir
-    from omegaconf import OmegaConf
+    from benchmark.config import compose_job
 
-    from benchmark.harness.runner import CONF_DIR
-
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        full = compose(config_name="config", overrides=list(overrides), return_hydra_config=True)
-    choices = {k: (str(v) if v is not None else "") for k, v in full.hydra.runtime.choices.items()
-               if not k.startswith("hydra")}
-    cfg = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
-    return cfg, choices
+    return compose_job(overrides)
 
 
 def house_maps(overrides: Sequence[str], house_index: int

@@ -1,0 +1,101 @@
+"""Per-view accuracy of a classification, beside the segmentation metrics (:mod:`benchmark.metrics`).
+
+Two truths for a view: the class of the room it stands in (:func:`view_accuracy`), and the
+class it sees most of (:func:`true_labels`: the majority class of its visible floor, the
+oracle classifier's truth, known where the renderer reports visible classes). Every metrics row
+of the method carries both (``view_accuracy``, ``view_accuracy_seen``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+
+def true_labels(observations: Sequence) -> np.ndarray:
+    """The majority visible class of each observation.
+
+    Returns:
+        (N,) int64 class index, -1 where nothing was seen.
+
+    Raises:
+        ValueError: an observation has no ``visible_classes`` (not the floorplan renderer).
+    """
+    out = np.full(len(observations), -1, dtype=np.int64)
+    for i, o in enumerate(observations):
+        v = o.visible_classes
+        if v is None:
+            raise ValueError(f"observation {i} has no visible_classes: the oracle needs the floorplan renderer")
+        v = np.asarray(v)
+        if v.sum() > 0:
+            out[i] = int(np.argmax(v))
+    return out
+
+
+def seen_accuracy(truth: np.ndarray, proba: np.ndarray) -> float:
+    """Share of views whose top class is their true (majority visible) class.
+
+    Args:
+        truth: (N,) true class per view, -1 for a view that saw no floor (left out).
+        proba: (N, C) class probabilities.
+
+    Returns:
+        The share in [0, 1]; NaN when no view saw floor.
+    """
+    truth = np.asarray(truth)
+    m = truth >= 0
+    if not m.any():
+        return float("nan")
+    return float(np.mean(np.asarray(proba)[m].argmax(axis=1) == truth[m]))
+
+
+def view_accuracy_seen(render_folder: str | Path, poses: np.ndarray, proba: np.ndarray) -> float:
+    """Per-view accuracy against what each view sees (the oracle's truth: the class that
+    covers most of the visible floor), from a house's render cache.
+
+    Args:
+        render_folder: the house's render cache folder (:mod:`envs.render.cache`).
+        poses: (N, 3) poses of the classified (not refused) views.
+        proba: (N, C) their class probabilities.
+
+    Returns:
+        The share in [0, 1]; NaN when the render is not cached, its views carry no visible
+        classes (simulator renderers) or do not match ``poses``, or no view saw floor.
+    """
+    from envs.render import cache as render_cache  # noqa: PLC0415
+
+    if not render_cache.is_complete(render_folder):
+        return float("nan")
+    obs = [o for o in render_cache.read_observations(render_folder, images=False) if not o.meta.get("refused", False)]
+    if len(obs) != len(proba) or any(o.visible_classes is None for o in obs):
+        return float("nan")
+    if not np.allclose(np.asarray([o.pose for o in obs], dtype=float), np.asarray(poses, dtype=float), atol=1e-6):
+        return float("nan")
+    return seen_accuracy(true_labels(obs), proba)
+
+
+def view_accuracy(grid, semantic: np.ndarray, poses: np.ndarray, proba: np.ndarray) -> float:
+    """Share of views whose top class equals the ground-truth class of the cell they stand on.
+
+    Args:
+        grid: the :class:`envs.maps.gridmap.GridMap` the poses are on.
+        semantic: (H, W) ground-truth class per cell, -1 outside every room.
+        poses: (N, 3) world x, z (metres), yaw (degrees).
+        proba: (N, C) class probabilities.
+
+    Returns:
+        The share in [0, 1] over views standing on a room; NaN when none does.
+    """
+    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
+    ok = grid.in_bounds(r, c)
+    truth = np.full(len(poses), -1)
+    truth[ok] = semantic[r[ok], c[ok]]
+    m = truth >= 0
+    if not m.any():
+        return float("nan")
+    return float(np.mean(np.asarray(proba)[m].argmax(axis=1) == truth[m]))
+
+
+__all__ = ["true_labels", "seen_accuracy", "view_accuracy_seen", "view_accuracy"]
