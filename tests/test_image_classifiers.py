@@ -163,7 +163,7 @@ def test_dinov2_features_cache_batching_and_head(tmp_path, monkeypatch):
     imgs = _images(5, size=40)
     f = clf.features(imgs + imgs[:1])  # a repeated image is computed once
     assert f.shape == (6, 32) and np.array_equal(f[0], f[5])
-    files = list((tmp_path / "f").rglob("*.npy"))
+    files = list((tmp_path / "f").rglob("*.npz"))
     assert len(files) == 5 and files[0].parent.name == "28px" and files[0].parent.parent.name.startswith("config-")
     p = clf.predict_images(imgs)
     assert p.shape == (5, 3) and np.allclose(p.sum(1), 1)

@@ -113,7 +113,8 @@ def test_bad_cache_entries_are_recomputed_with_a_warning_naming_the_file(tmp_pat
     pipe = build_pipeline(cfg, ch)
     ids = list(good["house_id"])
     # house 0: truncated score JSON; house 1: "{}" score JSON and a classify npz with pickled
-    # objects; house 2: off-map poses in the render and a classify npz that is not a zip
+    # objects; house 2: off-map poses in the render (its checksum catches the edit) and a
+    # classify npz that is not a zip
     s0, s1 = pipe.score_path(ids[0]), pipe.score_path(ids[1])
     s0.write_text(s0.read_text()[:40])
     s1.write_text("{}")
@@ -134,7 +135,7 @@ def test_bad_cache_entries_are_recomputed_with_a_warning_naming_the_file(tmp_pat
     warned = "\n".join(r.getMessage() for r in caplog.records if r.levelno == logging.WARNING)
     for f in (s0, s1, c1, c2, pipe.render_dir(ids[2])):
         assert str(f) in warned, f
-    assert "off the walkable map" in warned and "not a readable .npz" in warned
+    assert "does not match the render's checksum" in warned and "not a readable .npz" in warned
     # every warning is one line
     assert all("\n" not in r.getMessage() for r in caplog.records)
 
@@ -151,7 +152,7 @@ def test_failed_house_is_retried_after_the_fix_unless_failures_are_cached(tmp_pa
     cache = tmp_path / "results" / "cache"
     assert len(list((cache / "failures").rglob("*.json"))) == 1  # the failure is logged ...
     assert len(list((cache / "scores").rglob("*.json"))) == 1  # ... and not cached as a result
-    logged = json.loads(next((cache / "failures").rglob("*.json")).read_text())
+    logged = json.loads(next((cache / "failures").rglob("*.json")).read_text())["entry"]
     assert "Garage" in logged["error"] and logged["failed_at"]
     # the old behaviour on request: the logged failure is served
     cfg, ch = _compose(tmp_path, path, "run.cache_failures=true")
@@ -290,7 +291,7 @@ def test_objects_classifier_fit_save_load_and_training_key(tmp_path):
     with pytest.raises(ValueError, match="m.npz: fitted for other classes or another training set"):
         ObjectsClassifier(train_synthetic=[100000, 100005]).load(saved)
     (tmp_path / "bad.npz").write_bytes(b"xx")
-    with pytest.raises(ValueError, match="bad.npz: not a saved objects classifier"):
+    with pytest.raises(ValueError, match="bad.npz: not a readable .npz"):
         other.load(tmp_path / "bad.npz")
 
 

@@ -1,13 +1,14 @@
 """DINOv2 + MLP: frozen DINOv2 features (ViT-L/14, the 1024-d normalised CLS token of a
 224 x 224 image in the paper) and a 3-layer MLP head trained on them (``train --model
 dinov2``). Features are cached by image content, in memory and, with ``feature_cache``, on
-disk in a folder per backbone and input size (so another backbone never reads them)."""
+disk in a folder per backbone and input size (so another backbone never reads them), each an
+``.npz`` with a checksum of its content: a damaged file is recomputed with a warning."""
 
 from __future__ import annotations
 
 import hashlib
-import io
 import json
+import logging
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,6 +26,8 @@ from benchmark.classifiers.torch_common import (
 )
 from benchmark.interfaces import Classifier
 from envs.world.classes import PAPER_CLASSES
+
+log = logging.getLogger(__name__)
 
 
 def build_backbone(backbone: str, backbone_config: dict | None = None):
@@ -136,10 +139,16 @@ class DinoV2Classifier(Classifier):
     def _from_disk(self, key: str) -> bool:
         if self.cache_dir is None:
             return False
-        p = self.cache_dir / f"{key}.npy"
+        from envs.npz import load_npz  # noqa: PLC0415
+
+        p = self.cache_dir / f"{key}.npz"
         if not p.exists():
             return False
-        v = np.load(p)
+        try:
+            v = load_npz(p)["features"]  # checked against the checksum written with it
+        except (ValueError, KeyError) as e:
+            log.warning("%s: bad feature cache entry, recomputing it (%s)", p, " ".join(str(e).split()))
+            return False
         if v.shape != (self.dim,):
             return False  # a stale or foreign file: recompute and overwrite
         self._mem[key] = v
@@ -148,11 +157,9 @@ class DinoV2Classifier(Classifier):
     def _store(self, key: str, v: np.ndarray) -> None:
         self._mem[key] = v
         if self.cache_dir is not None:
-            from envs.atomic import atomic_write_bytes  # noqa: PLC0415
+            from envs.npz import save_npz  # noqa: PLC0415
 
-            buf = io.BytesIO()
-            np.save(buf, v)
-            atomic_write_bytes(self.cache_dir / f"{key}.npy", buf.getvalue())
+            save_npz(self.cache_dir / f"{key}.npz", features=v)
 
     def predict_features(self, feats: np.ndarray) -> np.ndarray:
         """(N, C) softmax probabilities of the head on (N, D) features."""

@@ -156,31 +156,25 @@ class ObjectsClassifier(Classifier):
         self._index = {t: i for i, t in enumerate(self.types)}
 
     def save(self, path: str | Path) -> Path:
-        """Write the fitted counts to ``path`` (``.npz``, atomically). Returns the path."""
-        import io
-
-        from envs.atomic import atomic_write_bytes
+        """Write the fitted counts to ``path`` (``.npz`` with a checksum, atomically). Returns the path."""
+        from envs.npz import save_npz
 
         if self._types is None:
             raise ValueError("objects classifier: save() before fit()")
-        buf = io.BytesIO()
-        np.savez_compressed(buf, types=np.array(self.types, dtype=str), rooms=self._rooms, counts=self._counts,
-                            classes=np.array(self.classes, dtype=str), key=np.array(self.training_key()),
-                            train_ids=np.array(self.train_ids, dtype=str))
-        atomic_write_bytes(path, buf.getvalue())
+        save_npz(path, types=np.array(self.types, dtype=str), rooms=self._rooms, counts=self._counts,
+                 classes=np.array(self.classes, dtype=str), key=np.array(self.training_key()),
+                 train_ids=np.array(self.train_ids, dtype=str))
         return Path(path)
 
     def load(self, path: str | Path) -> ObjectsClassifier:
         """Read counts written by :meth:`save`, checked against this classifier. Returns self.
 
         Raises:
-            ValueError: unreadable file, other classes or training set, or bad shapes (the
-                message names the file)."""
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                d = {k: z[k] for k in z.files}
-        except Exception as e:  # noqa: BLE001 - any unreadable file is one error naming it
-            raise ValueError(f"{path}: not a saved objects classifier ({type(e).__name__}: {e})") from None
+            ValueError: unreadable or damaged file (its checksum), other classes or training
+                set, or bad shapes (the message names the file)."""
+        from envs.npz import load_npz
+
+        d = load_npz(path)  # checked against the checksum written with it (one line naming the file)
         try:
             types, rooms, counts = [str(t) for t in d["types"]], d["rooms"], d["counts"]
             classes, key = tuple(str(c) for c in d["classes"]), str(d["key"])

@@ -19,14 +19,15 @@ import contextlib
 import hashlib
 import json
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from filelock import FileLock
 
-from envs.atomic import atomic_write_bytes, atomic_write_text
+from envs.atomic import atomic_write_text
+from envs.npz import ChecksumError, load_npz, save_npz  # noqa: F401 - the cache's readers and writers of .npz entries
 
 
 def config_key(*parts: Any) -> str:
@@ -189,38 +190,77 @@ def _json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-#: zlib level of the cache's ``.npz`` entries: 1 compresses `make bench`'s 921 entries 2.5x
-#: faster than the level 6 of ``np.savez_compressed`` (0.65 s instead of 1.62 s) into 9.3 MiB
-#: instead of 5.3 MiB; ``np.load`` reads either.
-NPZ_COMPRESS_LEVEL = 1
+#: cache ``.npz`` entries: written with a checksum of their content and checked when read
+#: (:mod:`envs.npz`; a bad entry raises :class:`envs.npz.ChecksumError`, a ``ValueError``).
+atomic_save_npz = save_npz
 
 
-def atomic_save_npz(path: Path, **arrays: np.ndarray) -> None:
-    """Save arrays as a compressed ``.npz`` (zlib level :data:`NPZ_COMPRESS_LEVEL`; each
-    member's CRC is checked when read) atomically."""
-    import io
-    import zipfile
-
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=NPZ_COMPRESS_LEVEL) as zf:
-        for name, arr in arrays.items():
-            with zf.open(name + ".npy", "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.asanyarray(arr), allow_pickle=False)
-    atomic_write_bytes(path, buf.getvalue())
+def file_digest(path: str | Path) -> str:
+    """SHA-256 (hex) of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
 
 
-def load_npz(path: Path) -> dict[str, np.ndarray]:
-    """Every array of an ``.npz`` (no pickles).
+def _canonical(obj: Any) -> bytes:
+    return json.dumps(obj, sort_keys=True, default=_json_default, separators=(",", ":"), allow_nan=True).encode("utf-8")
+
+
+def write_entry(path: Path, obj: Any, files: Mapping[str, str | Path] | None = None) -> None:
+    """Write a JSON cache entry with the SHA-256 of its content, atomically.
+
+    Args:
+        path: the entry file.
+        obj: the entry (JSON-serialisable; NumPy scalars and arrays become numbers and lists).
+        files: other files this entry vouches for ({role: path}, e.g. the saved label maps of
+            a score row): their SHA-256 is recorded, and :func:`read_entry` checks them.
+
+    The file is ``{"sha256": ..., "entry": obj, "files": {role: {"path": ..., "sha256": ...}}}``
+    with file paths relative to ``path``'s folder (a cache moved as a whole stays valid)."""
+    obj = json.loads(_canonical(obj))  # what a reader will see (NumPy types made plain)
+    recorded = {}
+    for role, f in (files or {}).items():
+        recorded[role] = {"path": os.path.relpath(f, path.parent), "sha256": file_digest(f)}
+    body = {"entry": obj, "files": recorded}
+    atomic_write_text(path, json.dumps({"sha256": hashlib.sha256(_canonical(body)).hexdigest(), **body}, indent=1,
+                                       sort_keys=True, allow_nan=True))
+
+
+def read_entry(path: Path, check_files: bool = True, require: Sequence[str] = ()) -> Any:
+    """A JSON cache entry written by :func:`write_entry`, after checking its checksum and (with
+    ``check_files``) those of the files it vouches for; ``require`` names roles the entry must
+    vouch for (e.g. ``maps`` when the run keeps label maps).
 
     Raises:
-        ValueError: the file is not a readable ``.npz`` (the message names the file)."""
+        FileNotFoundError: no entry.
+        ChecksumError: malformed JSON, no checksum, content that does not match it, or a vouched
+            file that is missing or changed (one line naming the file)."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise
-    except Exception as e:  # zipfile.BadZipFile, pickled data, truncated members, ...
-        raise ValueError(f"{path}: not a readable .npz ({type(e).__name__}: {e})") from None
+        raw = read_json(path)
+    except ValueError as e:
+        raise ChecksumError(str(e)) from None
+    if not isinstance(raw, dict) or "sha256" not in raw or "entry" not in raw:
+        raise ChecksumError(f"{path}: no checksum (written by an older version, or not by this project)")
+    body = {"entry": raw["entry"], "files": raw.get("files", {})}
+    got = hashlib.sha256(_canonical(body)).hexdigest()
+    if got != raw["sha256"]:
+        raise ChecksumError(f"{path}: content does not match its checksum (sha256 {got[:12]}..., recorded "
+                            f"{str(raw['sha256'])[:12]}...): the entry is damaged")
+    missing = [r for r in require if r not in body["files"]]
+    if missing:
+        raise ChecksumError(f"{path}: the entry has no {' or '.join(missing)} file (written by a run that did not keep it)")
+    if check_files:
+        for role, rec in body["files"].items():
+            f = Path(os.path.normpath(path.parent / rec["path"]))
+            try:
+                ok = file_digest(f) == rec["sha256"]
+            except FileNotFoundError:
+                raise ChecksumError(f"{path}: its {role} file {f} is missing") from None
+            if not ok:
+                raise ChecksumError(f"{path}: its {role} file {f} changed since the entry was written")
+    return raw["entry"]
 
 
 def read_json(path: Path) -> Mapping[str, Any]:

@@ -35,13 +35,13 @@ import numpy as np
 from benchmark import method
 from benchmark.harness.cache import (
     atomic_save_npz,
-    atomic_write_json,
     config_inputs,
     content_hash,
     file_fingerprint,
     load_npz,
     locked,
-    read_json,
+    read_entry,
+    write_entry,
 )
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
@@ -278,7 +278,8 @@ class Pipeline:
                 try:
                     return load(path)
                 except Exception as e:  # noqa: BLE001 - an unreadable entry never aborts a job
-                    log.warning("%s: bad cache entry, recomputing it (%s)", path, _one_line(e))
+                    why = _one_line(e).replace(f"{path}/", "").replace(f"{path}: ", "")
+                    log.warning("%s: bad cache entry, recomputing it (%s)", path, why)
             value = compute()
             save(path, value)
             return value
@@ -299,7 +300,7 @@ class Pipeline:
                 return self._load_row(path, hid)
             if self.cache_failures and self.failure_path(hid).exists():
                 with contextlib.suppress(Exception):
-                    failed = dict(read_json(self.failure_path(hid)))
+                    failed = dict(read_entry(self.failure_path(hid)))
                     if failed.get("house_id") == hid and failed.get("status") == "failed":
                         failed.pop("failed_at", None)
                         return failed
@@ -318,13 +319,19 @@ class Pipeline:
 
         def save(p: Path, r: dict[str, Any]) -> None:
             if r["status"] == "ok":
-                atomic_write_json(p, r)
+                maps = self.maps_path(hid)
+                write_entry(p, r, {"maps": maps} if self.save_maps and maps.exists() else None)
                 with contextlib.suppress(FileNotFoundError):
                     self.failure_path(hid).unlink()
             else:
-                atomic_write_json(self.failure_path(hid), {**r, "failed_at": time.strftime("%Y-%m-%dT%H:%M:%S")})
+                write_entry(self.failure_path(hid), {**r, "failed_at": time.strftime("%Y-%m-%dT%H:%M:%S")})
 
-        return self._cached("score", path, lambda p: self._load_row(p, hid), compute, save)
+        try:
+            return self._cached("score", path, lambda p: self._load_row(p, hid), compute, save)
+        except OSError as e:  # a cache entry of this house cannot be written (name, disk): it fails alone
+            where = f" {e.filename}" if e.filename else ""
+            err = OSError(e.errno, f"cannot write{where} ({e.strerror or e})")
+            return self._failed(self._row_base(hid), err, timings)
 
     def _failed(self, row: dict[str, Any], e: BaseException, timings: dict[str, float]) -> dict[str, Any]:
         row["status"] = "failed"
@@ -334,9 +341,10 @@ class Pipeline:
         return row
 
     def _load_row(self, path: Path, hid: str) -> dict[str, Any]:
-        """A cached row, checked: a JSON object of this house and score key, status ok, the
-        stage names of this configuration, and metrics that are numbers in [0, 1]."""
-        row = read_json(path)
+        """A cached row, checked: its checksum, and that of the saved label maps it vouches for
+        (required when the run keeps maps), a JSON object of this house and score key, status
+        ok, the stage names of this configuration, and metrics that are numbers in [0, 1]."""
+        row = read_entry(path, require=("maps",) if self.save_maps else ())
         if not isinstance(row, dict):
             raise BadEntry(f"expected a JSON object, got {type(row).__name__}")
         want = {"house_id": hid, "status": "ok", "score_key": self.keys["score"], **self.names}

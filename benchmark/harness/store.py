@@ -44,9 +44,27 @@ IDENTITY = "job.json"
 SWEEP_SUMMARY = "sweep_summary"
 
 
+#: the longest file name part made from an id (file systems allow 255 bytes per name; an
+#: entry adds ``@<content>`` and a suffix, a temporary file a prefix and a suffix).
+MAX_NAME = 64
+
+
 def safe_name(house_id: str) -> str:
-    """A house id made safe as a file name (letters, digits, ``-_.``; anything else -> ``_``)."""
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(house_id))
+    """An id (house, run, ...) made safe and bounded as a file name.
+
+    An id of at most :data:`MAX_NAME` ASCII letters, digits and ``-_.`` (not starting with a
+    dot) is used as it is. Any other id keeps a readable part (its first 40 characters, others
+    replaced by ``_``) followed by ``~`` and 12 hex digits of its SHA-1, so that two ids never
+    share a name (``a b`` and ``a_b``) and no name is longer than :data:`MAX_NAME`.
+    """
+    text = str(house_id)
+    plain = "".join(ch if (ch.isascii() and ch.isalnum()) or ch in "-_." else "_" for ch in text)
+    if plain == text and 0 < len(text) <= MAX_NAME and not text.startswith("."):
+        return text
+    import hashlib
+
+    digest = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:12]
+    return f"{plain.lstrip('.')[:40]}~{digest}"
 
 
 def entry_name(house_id: str, content: str) -> str:

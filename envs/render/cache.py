@@ -6,7 +6,10 @@ One folder per house (so a cache rendered on a GPU box can be copied to a laptop
     <folder>/observations.jsonl  one JSON object per view: objects [[type, amount], ...],
                                  visible_classes [...] or null, meta {...}
     <folder>/images/000123.png   RGB frames (simulators only)
-    <folder>/COMPLETE            written last; a folder without it is ignored
+    <folder>/COMPLETE            written last; a folder without it is ignored. Its first line
+                                 is the number of views, then one ``<sha256> <file>`` line per
+                                 file above: every read checks the files it reads against
+                                 them, so a damaged render is refused, never used
 
 Floats are written with ``repr`` precision, so a round trip gives equal observations.
 Paths inside are relative, so a folder can be copied anywhere (a cache rendered on a GPU
@@ -20,6 +23,8 @@ written at all, so it is never marked complete and the next run renders it again
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import os
 import shutil
@@ -72,7 +77,8 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
                 f.write(json.dumps({"objects": [[str(t), float(a)] for t, a in o.objects], "visible_classes": vis,
                                     "meta": o.meta}, default=_plain) + "\n")
         (tmp / "poses.csv").write_text("\n".join(lines) + "\n")
-        (tmp / MARKER).write_text(f"{len(observations)}\n")
+        files = sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_file())
+        (tmp / MARKER).write_text(f"{len(observations)}\n" + "".join(f"{_digest(tmp / f)} {f}\n" for f in files))
         old = None
         if folder.exists():
             old = Path(tempfile.mkdtemp(prefix="." + folder.name + ".old.", dir=folder.parent))
@@ -93,22 +99,52 @@ def _plain(o):
     raise TypeError(f"observation meta value of type {type(o).__name__} is not JSON serialisable")
 
 
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _manifest(folder: Path) -> tuple[int, dict[str, str]]:
+    """(number of views, {file: sha256}) from the folder's ``COMPLETE`` marker.
+
+    Raises:
+        ValueError: a marker without checksums (an older render) or a malformed one."""
+    lines = (folder / MARKER).read_text().splitlines()
+    sums = dict(reversed(ln.split(" ", 1)) for ln in lines[1:] if ln.strip())
+    if not lines or not lines[0].strip().isdigit() or not sums:
+        raise ValueError(f"{folder}: the render has no checksums ({MARKER} written by an older version): "
+                         f"it is rendered again")
+    return int(lines[0]), sums
+
+
+def _read_checked(folder: Path, name: str, sums: dict[str, str]) -> bytes:
+    """The bytes of ``folder/name`` after checking them against the render's checksum."""
+    data = (folder / name).read_bytes()
+    if name not in sums or hashlib.sha256(data).hexdigest() != sums[name]:
+        raise ValueError(f"{folder / name}: content does not match the render's checksum: the render is damaged")
+    return data
+
+
 def read_observations(folder: str | Path, images: bool = True) -> list[Observation]:
-    """Observations written by :func:`write_observations` (``images=False`` skips frames)."""
+    """Observations written by :func:`write_observations` (``images=False`` skips frames),
+    every file read checked against the render's checksums.
+
+    Raises:
+        FileNotFoundError: no complete render.
+        ValueError: a damaged render (one line naming the file)."""
     folder = Path(folder)
     if not is_complete(folder):
         raise FileNotFoundError(f"no complete render in {folder}")
-    rows = (folder / "poses.csv").read_text().splitlines()[1:]
-    with open(folder / "observations.jsonl", encoding="utf-8") as f:
-        recs = [json.loads(line) for line in f]
-    n = (folder / MARKER).read_text().strip()
-    if len(rows) != len(recs) or (n.isdigit() and int(n) != len(rows)):
+    n, sums = _manifest(folder)
+    rows = _read_checked(folder, "poses.csv", sums).decode("utf-8").splitlines()[1:]
+    recs = [json.loads(line) for line in _read_checked(folder, "observations.jsonl", sums).decode("utf-8").splitlines()]
+    if len(rows) != len(recs) or n != len(rows):
         raise ValueError(f"{folder}: poses.csv has {len(rows)} views, observations.jsonl {len(recs)}, "
                          f"{MARKER} says {n}: the render is damaged, delete the folder to render it again")
     out = []
     for row, rec in zip(rows, recs):
         _, x, z, yaw, _, image = row.split(",", 5)
-        img = np.array(Image.open(folder / image).convert("RGB")) if (image and images) else None
+        img = (np.array(Image.open(io.BytesIO(_read_checked(folder, image, sums))).convert("RGB"))
+               if (image and images) else None)
         vis = rec.get("visible_classes")
         out.append(Observation(pose=(float(x), float(z), float(yaw)), image=img,
                                objects=[(str(t), float(a)) for t, a in rec.get("objects", [])],
@@ -118,10 +154,15 @@ def read_observations(folder: str | Path, images: bool = True) -> list[Observati
 
 
 def read_poses(folder: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """The poses table of a render: poses (N, 3) [x, z, yaw_deg] and refused (N,) bool."""
+    """The poses table of a render: poses (N, 3) [x, z, yaw_deg] and refused (N,) bool.
+
+    Raises:
+        FileNotFoundError: no complete render.
+        ValueError: a damaged render."""
     folder = Path(folder)
     if not is_complete(folder):
         raise FileNotFoundError(f"no complete render in {folder}")
-    rows = [r.split(",", 5) for r in (folder / "poses.csv").read_text().splitlines()[1:]]
+    _, sums = _manifest(folder)
+    rows = [r.split(",", 5) for r in _read_checked(folder, "poses.csv", sums).decode("utf-8").splitlines()[1:]]
     poses = np.array([[float(r[1]), float(r[2]), float(r[3])] for r in rows], dtype=float).reshape(-1, 3)
     return poses, np.array([r[4] == "1" for r in rows], dtype=bool)
