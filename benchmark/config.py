@@ -49,4 +49,54 @@ def compose_job(overrides: Sequence[str] = (), config_name: str = "config"):
     return OmegaConf.masked_copy(full, [k for k in full if k != "hydra"]), choices
 
 
-__all__ = ["compose", "compose_job", "CONF_DIR"]
+
+
+def valid_keys_hint(error: BaseException, overrides: Sequence[str], config_name: str = "config") -> str:
+    """A hint for an override Hydra refused: the valid keys of the node a misspelt key sits in
+    (``aggregator.kk=3`` -> the aggregator's keys), or the options of a group that has no such
+    option (``segmenter=distanc`` -> the segmenters). "" when the error is of another kind.
+
+    Args:
+        error: what composing raised.
+        overrides: the overrides given (those naming other things are kept to compose the rest).
+        config_name: the primary config.
+    """
+    import re  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    chain, e = [], error
+    while e is not None and len(chain) < 5:
+        chain.append(str(e))
+        e = e.__cause__ or e.__context__
+    text = "\n".join(chain)
+    group = re.search(r"Could not find '([\w/]+)/([^']+)'", text)
+    if group:
+        folder = Path(CONF_DIR) / group.group(1)
+        options = sorted(p.stem for p in folder.glob("*.yaml")) if folder.is_dir() else []
+        return f"; {group.group(1)} options: {', '.join(options)}" if options else ""
+    full = re.search(r"Could not override '([^']+)'", text)
+    key = re.search(r"Key '([^']+)' is not in struct", text)
+    if not (full or key):
+        return ""
+    dotted = full.group(1) if full else key.group(1)
+    bad = dotted.split(".")[-1]
+    parent = ".".join(dotted.split(".")[:-1])  # the node where the valid keys live
+    rest = [o for o in overrides if "=" in o and o.split("=", 1)[0].lstrip("+~").split(".")[-1] != bad
+            and not o.split("=", 1)[1].startswith("???")]
+    try:
+        cfg = compose(config_name, [o for o in rest if not o.startswith(("+", "~"))])
+    except Exception:  # noqa: BLE001 - the hint is a courtesy: other overrides may be bad too
+        try:
+            cfg = compose(config_name)
+        except Exception:  # noqa: BLE001
+            return ""
+    from omegaconf import DictConfig, OmegaConf  # noqa: PLC0415
+
+    node = OmegaConf.select(cfg, parent) if parent else cfg
+    if not isinstance(node, DictConfig):
+        return ""
+    keys = [k for k in node.keys() if k not in ("hydra", "_target_")]
+    return f"; valid keys{' of ' + parent if parent else ''}: {', '.join(map(str, keys))}"
+
+
+__all__ = ["compose", "compose_job", "valid_keys_hint", "CONF_DIR"]

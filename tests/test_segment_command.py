@@ -381,3 +381,56 @@ def test_labels_matched_by_pose_give_the_same_map_as_by_id(example, tmp_path, ca
                          f"labels={tmp_path / 'labels.csv'}", "figure=false", f"out={tmp_path / 'o'}"], capsys)
     assert code == 0, err
     assert (read_index_png(tmp_path / "o" / "labels.png") == read_index_png(out / "labels.png")).all()
+
+
+# ------------------------------------------------------------------ issue 24 / 29 / 30 small things
+def test_unknown_keys_list_the_valid_ones(tmp_path, capsys):
+    ex = write_example(tmp_path / "in", open_plan=False)
+    code, _, err = _run([f"mapp={ex.map_yaml}", f"out={tmp_path / 'o'}"], capsys)
+    assert code == 2 and "valid keys:" in err and " map, " in err and "poses" in err and len(err.splitlines()) == 1
+    code, _, err = _run([f"map={ex.map_yaml}", "aggregator.kk=3", f"out={tmp_path / 'o'}"], capsys)
+    assert code == 2 and "valid keys of aggregator: fov, max_range_m" in err
+    code, _, err = _run([f"map={ex.map_yaml}", "segmenter=distanc", f"out={tmp_path / 'o'}"], capsys)
+    assert code == 2 and "segmenter options: distance, " in err
+    code, _, err = _run([f"map={ex.map_yaml}", "+foo=3", "segmenter=distance", f"out={tmp_path / 'o'}"], capsys)
+    assert code == 2 and "unknown key(s) ['foo']" in err and not (tmp_path / "o").exists()
+
+
+def test_the_summary_line_says_which_pose_frame_it_assumed(example, tmp_path, capsys):
+    ex, _, _ = example
+    code, out, _ = _run([f"map={ex.map_yaml}", f"poses={ex.poses}", f"labels={ex.labels}", f"out={tmp_path / 'o'}",
+                         "figure=false"], capsys)
+    assert code == 0 and "poses read as frame=ros (x, y metres, theta radians CCW from +x)" in out
+
+
+def test_a_label_ground_truth_index_png_uses_the_given_classes(example, tmp_path, capsys):
+    """Issue 30 item 4: ``gt_format=label`` with a class-index PNG (no sidecar) and
+    ``classes=[...]`` stopped with "needs the class list"."""
+    ex, _, _ = example
+    gt = tmp_path / "gt_index.png"
+    semantic, gt_classes = read_label_png(ex.gt)
+    write_index_png(gt, semantic)
+    classes = "[" + ",".join(gt_classes) + "]"
+    code, _, err = _run([f"map={ex.map_yaml}", "segmenter=distance", f"gt={gt}", "gt_format=label",
+                         f"classes={classes}", f"out={tmp_path / 'o'}", "figure=false"], capsys)
+    assert code == 0, err
+    scores = json.loads((tmp_path / "o" / "scores.json").read_text())
+    assert scores["n_gt_segments"] == 6 and scores["iou"] > 0.9
+
+
+def test_leftovers_of_a_killed_run_are_cleaned_by_the_next(example, tmp_path, capsys):
+    """Issue 24 item 9: a killed ``roomseg-segment`` left ``.out.tmp-*`` folders behind."""
+    ex, _, _ = example
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    import os
+
+    left = [tmp_path / f".o.tmp-{dead}-abc", tmp_path / f".o.old-{dead}-def"]
+    alive = tmp_path / f".o.tmp-{os.getppid()}-ghi"  # a writer still running (this test's parent)
+    for d in (*left, alive):
+        d.mkdir()
+        (d / "labels.png").write_bytes(b"half")
+    code, _, err = _run([f"map={ex.map_yaml}", "segmenter=distance", f"out={tmp_path / 'o'}", "figure=false"], capsys)
+    assert code == 0, err
+    assert not any(d.exists() for d in left) and alive.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, "o"])

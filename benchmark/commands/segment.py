@@ -57,6 +57,11 @@ import numpy as np
 LABEL_FILES = ("labels.png", "segments.png", "labels_color.png", "labels_color_legend.png", "labels_color.json",
                "rooms.geojson", "summary.json", "config.yaml")
 SEGMENT_FILES = ("segments.png", "segments_color.png", "rooms.geojson", "summary.json", "config.yaml")
+#: How each ``frame=`` reads a pose file (said in the summary line: the bench app's
+#: ``viewpoints=file`` assumes ``sim``, this command ``ros``).
+POSE_FRAMES = {"ros": "frame=ros (x, y metres, theta radians CCW from +x)",
+               "sim": "frame=sim (x, z metres, yaw degrees clockwise from +z)",
+               "pixel": "frame=pixel (row, col, yaw degrees)"}
 #: The frame GeoJSON coordinates are in.
 GEOJSON_FRAME = "map: x right, y up, metres (ROS map frame; project world x, z)"
 
@@ -199,7 +204,7 @@ def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.nd
                              f"(world); pass off_map=drop to leave them out")
         if cfg.off_map != "drop":
             raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
-    counts = {"n_views": int(len(poses)), "n_off_map": int((~ok).sum())}
+    counts = {"n_views": int(len(poses)), "n_off_map": int((~ok).sum()), "pose_frame": POSE_FRAMES[str(cfg.frame)]}
     return poses[ok], proba[ok], classes, counts
 
 
@@ -312,6 +317,10 @@ def _scores(cfg, grid, labels: np.ndarray | None, segs: np.ndarray, classes: Seq
     from envs.maps.ground_truth import read_ground_truth  # noqa: PLC0415
 
     opts = dict(cfg.gt_options or {})
+    if cfg.gt_format == "label" and not Path(str(cfg.gt)).expanduser().with_suffix(".json").exists():
+        # a class-index PNG (no sidecar naming its classes): its values index the class list
+        given = classes if classes is not None else cfg.get("classes")
+        opts["classes"] = list(given) if given is not None else None
     gt = read_ground_truth(str(cfg.gt), cfg.gt_format, grid, **opts)
     out: dict[str, Any] = {"gt": str(cfg.gt), "gt_format": cfg.gt_format, "gt_read": describe_gt(gt),
                            "metric_params": describe(metric_params, grid.resolution)}
@@ -349,12 +358,14 @@ def _readable(folder: Path) -> None:
 def _publish(tmp: Path, out: Path) -> None:
     """Move the finished ``tmp`` folder to ``out`` (replacing an old ``out`` only after
     the new set is complete)."""
+    from benchmark.harness.cache import leftover_prefix  # noqa: PLC0415
+
     old = None
     if out.exists():
         if not any(out.iterdir()):
             out.rmdir()
         else:
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+            old = Path(tempfile.mkdtemp(prefix=leftover_prefix(out, "old"), dir=out.parent))
             os.replace(out, old / out.name)
     os.replace(tmp, out)
     if old is not None:
@@ -367,6 +378,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     from omegaconf import OmegaConf  # noqa: PLC0415
 
     from benchmark import method  # noqa: PLC0415
+    from benchmark.harness.cache import clean_leftovers, leftover_prefix  # noqa: PLC0415
     from benchmark.metrics import segments  # noqa: PLC0415
 
     t_all = time.perf_counter()
@@ -433,7 +445,8 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     summary["rooms"] = [{"segment": k, "class": seg_classes[k] if seg_classes else None,
                          "area_m2": round(float(areas[k]), 4)} for k in range(n_seg)]
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    clean_leftovers(out)  # of an earlier run that was killed
+    tmp = Path(tempfile.mkdtemp(prefix=leftover_prefix(out, "tmp"), dir=out.parent))
     try:
         t = time.perf_counter()
         summary.update(write_outputs(tmp, cfg, grid, ros_origin, labels, segs, seg_classes, classes, poses, title))
@@ -459,6 +472,22 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     return summary
 
 
+def _refuse_added_keys(cfg, argv: Sequence[str]) -> None:
+    """``+key=value`` at the top level adds a key the command never reads (a typo Hydra lets
+    through): refused, with the valid keys.
+
+    Raises:
+        ValueError: one line naming the key and listing the valid ones."""
+    from benchmark.paths import CONF_DIR  # noqa: PLC0415
+
+    known = compose_config([])
+    names = set(known.keys()) | {p.name for p in Path(CONF_DIR).iterdir() if p.is_dir()}  # + groups chosen later
+    added = [k for k in cfg.keys() if k not in names]
+    if added:
+        keys = ", ".join(str(k) for k in known.keys() if k != "hydra")
+        raise ValueError(f"unknown key(s) {added} (from {[a for a in argv if a.startswith('+')]}); valid keys: {keys}")
+
+
 def _errors() -> tuple[type[BaseException], ...]:
     from omegaconf.errors import OmegaConfBaseException  # noqa: PLC0415
 
@@ -477,13 +506,20 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         cfg = compose_config(argv)
+        _refuse_added_keys(cfg, argv)
+    except _errors() as e:
+        from benchmark.config import valid_keys_hint  # noqa: PLC0415
+
+        print(f"error: {one_line(e)}{valid_keys_hint(e, argv, 'segment')}", file=sys.stderr)
+        return 2
+    try:
         s = segment(cfg, argv)
     except _errors() as e:
         print(f"error: {one_line(e)}", file=sys.stderr)
         return 2
     line = f"{s['mode']}: {s['n_segments']} segments on {s['map_shape'][1]} x {s['map_shape'][0]} px"
     if "n_views" in s:
-        line += f" from {s['n_views']} views ({s['n_off_map']} off the map)"
+        line += f" from {s['n_views']} views ({s['n_off_map']} off the map; poses read as {s['pose_frame']})"
     if "scores" in s:
         line += ", " + ", ".join(f"{k} {100 * v:.1f}" for k, v in s["scores"].items() if v is not None)
     print(f"{line}; {s['timings_s']['t_total']:.2f} s; wrote {s['out']}")
