@@ -212,3 +212,13 @@ def test_a_long_house_id_no_longer_aborts_the_run(tmp_path, procthor_file):
     assert r.returncode == 0, r.stderr
     df = pd.read_csv(tmp_path / "R" / "runs" / "default" / "metrics.csv")
     assert df["house_id"].tolist()[1] == "h" * 240 and (df["status"] == "ok").all()
+
+
+def test_a_row_served_from_the_cache_carries_this_runs_label(tmp_path):
+    """``run.label`` is free text, not part of any cache key: a row served from the cache must
+    carry the label of the run that serves it, not of the run that computed it."""
+    cfg, ch = _cfg(tmp_path, "run.label=first")
+    assert set(run(cfg, tmp_path / "a", ch)["label"]) == {"first"}
+    cfg, ch = _cfg(tmp_path, "run.label=second")
+    again = run(cfg, tmp_path / "b", ch)
+    assert set(again["label"]) == {"second"} and again.attrs["n_failed"] == 0

@@ -357,7 +357,8 @@ class Pipeline:
                 continue
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
                 raise BadEntry(f"{m} is {v!r}, expected a number in [0, 1]")
-        return dict(row)
+        # descriptive columns of this run (run.label, ...) are not in the cache key: this run's
+        return {**row, **self.extra}
 
     def _row_base(self, hid: str) -> dict[str, Any]:
         row: dict[str, Any] = {"house_id": hid, "dataset": getattr(self.env, "name", "env")}
