@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check clean
+.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -85,6 +85,10 @@ sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 
 
 tables: setup  ## paper tables from every run under results/runs -> results/tables
 	$(PY) -m benchmark.commands.tables results/runs --out results/tables
+
+docs: setup-test  ## the docs site: generated reference pages (commands, config) + MkDocs build, strict -> site/
+	$(PY) -m benchmark.commands.docs reference
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 clean:  ## remove caches (keeps .venv and results/)
 	rm -rf .pytest_cache .ruff_cache .hypothesis build *.egg-info
