@@ -28,7 +28,13 @@ from typing import Any
 
 import numpy as np
 
-from benchmark.classifiers.noise import Independent, NoiseModel, load_confusion, uniform_confusion, wrong_class_rows
+from benchmark.classifiers.noise import (
+    Independent,
+    NoiseModel,
+    load_confusion,
+    uniform_confusion,
+    wrong_class_rows,
+)
 
 
 class LabelNoise:

@@ -8,7 +8,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmark.reports.robustness import RobustnessError, cell_means, rank_notes, summary_table, to_latex, to_markdown
+from benchmark.reports.robustness import (
+    RobustnessError,
+    cell_means,
+    rank_notes,
+    summary_table,
+    to_latex,
+    to_markdown,
+)
 
 # per method: clean, scan severities 1..5, pose severities 1..5 (IoU as fractions)
 VALUES = {
