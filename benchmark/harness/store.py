@@ -21,6 +21,8 @@ the cache may live anywhere)::
     <cache_dir>/failures/<score key>/<entry>.json   the house's last failure (a log, not a result)
     <cache_dir>/maps/<score key>/<entry>.npz        raw / post-processed label maps, poses
                                                     (segmenters: instances)
+    <cache_dir>/robot_maps/<map key>/<entry>.npz    the map the robot built (mapping=scan): free cells
+    <cache_dir>/coverage/<render key>/<entry>.json  the share of the house the views saw
     <cache_dir>/models/<kind>/<key>.npz             fitted models (objects classifier)
 
 ``<entry>`` is ``<house id made safe>@<content>``: ``content`` is a hash of the house's JSON and
@@ -99,6 +101,14 @@ class CacheStore:
 
     def maps_path(self, key: str, house_id: str, *, content: str) -> Path:
         return self.root / "maps" / key / f"{entry_name(house_id, content)}.npz"
+
+    def robot_map_path(self, key: str, house_id: str, *, content: str) -> Path:
+        """The map the robot built of a house (``mapping=scan``...): its free cells."""
+        return self.root / "robot_maps" / key / f"{entry_name(house_id, content)}.npz"
+
+    def coverage_path(self, key: str, house_id: str, *, content: str) -> Path:
+        """How much of a house a render's views saw (keyed like the render)."""
+        return self.root / "coverage" / key / f"{entry_name(house_id, content)}.json"
 
     def model_path(self, kind: str, key: str, suffix: str = ".npz") -> Path:
         """A fitted model (e.g. the objects classifier) cached by the content of its training set."""
