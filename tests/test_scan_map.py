@@ -324,3 +324,21 @@ def test_scan_height_above_the_house_walls(shared_houses):
     assert "\n" not in str(e.value)
     with pytest.raises(ValueError, match="scan height"):
         scan_obstacles(scene, -0.1)
+
+
+def test_fast_equals_reference_random_maps_large_noise():
+    """Random clutter, ranges up to 1 m of noise (long readings walk far past the hit), limited
+    and unlimited range: the fast mapper equals the reference on every map."""
+    rng = np.random.default_rng(0)
+    for trial in range(20):
+        h, w = (int(v) for v in rng.integers(20, 60, 2))
+        obs = rng.random((h, w)) < rng.uniform(0.02, 0.2)
+        grid = GridMap(~obs, 0.05, (0.0, h * 0.05))
+        free = np.argwhere(~obs)
+        sel = free[rng.choice(len(free), 4)]
+        x, z = grid.pixel_to_world(sel[:, 0], sel[:, 1])
+        poses = np.column_stack([x, z, np.zeros(4)])
+        s = ScanSettings(range_noise=float(rng.choice([0.05, 0.2, 0.5, 1.0])), angular_step=3.0, dropout=0.1,
+                         max_range=float(rng.choice([0.5, 1.5, INF])), seed=trial)
+        np.testing.assert_array_equal(scan_map(obs, grid, poses, s).log_odds,
+                                      scan_map_reference(obs, grid, poses, s).log_odds)

@@ -38,7 +38,7 @@ poses; pose error is a separate option applied to the views), beam width and inc
 glass and mirrors, moving people, the scanner's own height above a sloped floor, table legs,
 and the time a scan takes (all beams of a scan share one pose).
 
-The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.render.raycast.trace_ray`,
+The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.render.raycast.walk_beam`,
 incremental: exploration adds scans as it drives); :func:`scan_map_reference` is a slow
 pure-Python version with its own line walk, used by the tests and ``make perf``.
 """
@@ -55,7 +55,7 @@ from numba import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map
 from envs.maps.scene import Scene
-from envs.render.raycast import ray_end, trace_ray
+from envs.render.raycast import ray_end, walk_beam
 
 #: Wall height of generated houses (metres); ProcTHOR's walls carry their own (2.51-5.38 m in
 #: the 150 shared houses): :func:`house_wall_height`.
@@ -274,14 +274,12 @@ def _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min,
 
 
 @njit(cache=True, nogil=True)
-def _scan_kernel(obstacles, empty, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
+def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
                  l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
-    buf_r = np.empty(cap, np.int32)
-    buf_c = np.empty(cap, np.int32)
-    ext_r = np.empty(cap, np.int32)
-    ext_c = np.empty(cap, np.int32)
+    lr = np.empty(cap, np.int32)
+    lc = np.empty(cap, np.int32)
     two_pi = 2.0 * np.pi
     done = 0
     for m in range(rows.shape[0]):
@@ -301,42 +299,41 @@ def _scan_kernel(obstacles, empty, rows, cols, n_beams, range_px, res, max_range
                 continue
             theta = two_pi * b / n_beams
             r1, c1 = ray_end(r0, c0, theta, range_px)
-            n, hr, hc = trace_ray(obstacles, r0, c0, r1, c1, buf_r, buf_c)
-            lr = buf_r
-            lc = buf_c
+            # cells past the hit a long reading may reach: the distance from the start grows by
+            # at least 1/sqrt(2) px per step of the line, less 1/8 px for its sideways wobble
+            extra = 0
+            if noise[m, b] > 0:
+                extra = int(1.4143 * (noise[m, b] / res + 0.125)) + 2
+            n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, extra, lr, lc)
             n_free = n
             end_r = -1
             end_c = -1
-            if hr >= 0:
-                d_true = np.hypot(hr - r0, hc - c0) * res
+            if k_hit >= 0:
+                n_free = k_hit
+                d_true = np.hypot(lr[k_hit] - r0, lc[k_hit] - c0) * res
                 d_m = max(d_true + noise[m, b], 0.0)
-                if d_m == d_true:
-                    end_r = hr
-                    end_c = hc
-                elif d_m < d_true:
+                k = k_hit
+                if d_m < d_true:
                     # a short reading: the end is the last line cell not farther than d_m
-                    k = n - 1
+                    k = k_hit - 1
                     while k > 0 and np.hypot(lr[k] - r0, lc[k] - c0) * res > d_m:
                         k -= 1
-                    n_free = k
-                    end_r = lr[k]
-                    end_c = lc[k]
-                else:
+                elif d_m > d_true:
                     # a long reading: the same line walked through the obstacle, unless its end
-                    # lies past max_range or off the map (then a max-range reading)
-                    n2, _, _ = trace_ray(empty, r0, c0, r1, c1, ext_r, ext_c)
-                    lr = ext_r
-                    lc = ext_c
-                    n_free = n2
+                    # lies past max_range or off the map (then a max-range reading: the whole line)
                     pr = r0 + 0.5 - np.cos(theta) * (d_m / res)
                     pc = c0 + 0.5 + np.sin(theta) * (d_m / res)
                     if d_m <= max_range_m and pr >= 0.0 and pr < h and pc >= 0.0 and pc < w:
-                        k = n2 - 1
+                        k = n - 1
                         while np.hypot(lr[k] - r0, lc[k] - c0) * res > d_m:
                             k -= 1
-                        n_free = k
-                        end_r = lr[k]
-                        end_c = lc[k]
+                    else:
+                        k = -1
+                        n_free, _ = walk_beam(obstacles, r0, c0, r1, c1, cap, lr, lc)
+                if k >= 0:
+                    n_free = k
+                    end_r = lr[k]
+                    end_c = lc[k]
             for j in range(n_free):  # state = 4 * scan + 1 (free) | 2 (hit), for this scan's cells
                 rr = lr[j]
                 cc = lc[j]
@@ -383,7 +380,6 @@ class ScanMapper:
             raise ValueError(f"obstacles shape {self.obstacles.shape} != grid shape {grid.shape}")
         self.grid = grid
         self.log_odds = np.zeros(grid.shape, np.float64)
-        self._empty = np.zeros(grid.shape, np.bool_)
         self._state = np.full(grid.shape, -1, np.int32)
         self._touched_r = np.empty(grid.shape[0] * grid.shape[1], np.int32)
         self._touched_c = np.empty(grid.shape[0] * grid.shape[1], np.int32)
@@ -406,7 +402,7 @@ class ScanMapper:
         r, c = self.grid.world_to_cell(poses[:, 0], poses[:, 1])
         res = self.grid.resolution
         exact = s.range_noise == 0 and s.dropout == 0
-        done = _scan_kernel(self.obstacles, self._empty, r.astype(np.int64), c.astype(np.int64), s.n_beams,
+        done = _scan_kernel(self.obstacles, r.astype(np.int64), c.astype(np.int64), s.n_beams,
                             _range_px(s, self.grid.shape, res), res, float(s.max_range), noise, drop, exact,
                             float(s.log_odds_hit), float(s.log_odds_miss), float(s.log_odds_min),
                             float(s.log_odds_max), self.log_odds, self._state, self._touched_r, self._touched_c,

@@ -54,6 +54,47 @@ def trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols):
 
 
 @njit(cache=True, nogil=True)
+def walk_beam(blocked, r0, c0, r1, c1, extra, out_rows, out_cols):
+    """A laser beam's walk: the same digital line as :func:`trace_ray`, through its first
+    blocked cell and ``extra`` cells beyond (where a long range reading may end).
+
+    Writes the line's cells in order to ``out_rows``/``out_cols`` (room for
+    ``max(|r1-r0|, |c1-c0|) + 1`` entries): every cell up to the first blocked one, that cell,
+    and at most ``extra`` further cells whatever they hold; it stops at the end cell or the
+    map edge. Returns ``(n_written, k_hit)``: ``k_hit`` is the index of the first blocked cell
+    (so ``trace_ray`` would visit ``k_hit`` cells and report ``out[k_hit]``), -1 if none.
+    Callable from other numba kernels.
+    """
+    h, w = blocked.shape
+    dr = abs(r1 - r0)
+    dc = abs(c1 - c0)
+    sr = 1 if r1 > r0 else -1
+    sc = 1 if c1 > c0 else -1
+    err = dc - dr
+    r = r0
+    c = c0
+    n = 0
+    k_hit = -1
+    while True:
+        if r < 0 or r >= h or c < 0 or c >= w:
+            return n, k_hit
+        if k_hit < 0 and blocked[r, c]:
+            k_hit = n
+        out_rows[n] = r
+        out_cols[n] = c
+        n += 1
+        if (k_hit >= 0 and n - 1 - k_hit >= extra) or (r == r1 and c == c1):
+            return n, k_hit
+        e2 = 2 * err
+        if e2 > -dr:
+            err -= dr
+            c += sc
+        if e2 < dc:
+            err += dc
+            r += sr
+
+
+@njit(cache=True, nogil=True)
 def ray_end(r0, c0, theta, max_range):
     """Integer end cell of a ray of ``max_range`` pixels from cell (r0, c0) along ``theta``."""
     r1 = int(np.floor(r0 + 0.5 - np.cos(theta) * max_range))
