@@ -342,3 +342,25 @@ def test_fast_equals_reference_random_maps_large_noise():
                          max_range=float(rng.choice([0.5, 1.5, INF])), seed=trial)
         np.testing.assert_array_equal(scan_map(obs, grid, poses, s).log_odds,
                                       scan_map_reference(obs, grid, poses, s).log_odds)
+
+
+def test_walk_beam_is_trace_ray_then_the_same_line_beyond():
+    from envs.render.raycast import trace_ray, walk_beam
+
+    rng = np.random.default_rng(1)
+    blocked = rng.random((40, 50)) < 0.08
+    empty = np.zeros_like(blocked)
+    buf = [np.empty(80, np.int32) for _ in range(6)]
+    for _ in range(300):
+        r0, c0 = int(rng.integers(0, 40)), int(rng.integers(0, 50))
+        r1, c1 = int(rng.integers(-10, 50)), int(rng.integers(-10, 60))
+        extra = int(rng.integers(0, 6))
+        n, k_hit = walk_beam(blocked, r0, c0, r1, c1, extra, buf[0], buf[1])
+        nv, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf[2], buf[3])
+        nl, _, _ = trace_ray(empty, r0, c0, r1, c1, buf[4], buf[5])
+        np.testing.assert_array_equal(buf[0][:n], buf[4][:n])  # the same digital line
+        if hr < 0:
+            assert k_hit == -1 and n == nv == nl
+        else:
+            assert k_hit == nv and (buf[0][k_hit], buf[1][k_hit]) == (hr, hc)
+            assert n == min(k_hit + 1 + extra, nl)
