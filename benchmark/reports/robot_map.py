@@ -14,7 +14,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Patch
 
-from benchmark.reports.plotting import BORDER_COLOR, add_scale_bar, colorize, draw_poses, save, segment_borders
+from benchmark.reports.plotting import (
+    BORDER_COLOR,
+    add_scale_bar,
+    colorize,
+    draw_poses,
+    save,
+    segment_borders,
+)
 from envs.maps.scan import FREE, OCCUPIED, UNKNOWN, ScanMap
 from envs.maps.scene import Scene
 

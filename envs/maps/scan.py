@@ -257,6 +257,20 @@ def _draw_streams(seed: int):
     return np.random.default_rng([int(seed), 1]), np.random.default_rng([int(seed), 2])
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _mark(state, touched_r, touched_c, nt, r, c, s, flag):
+    """Flag cell (r, c) for scan ``s`` (``state = 4 * s + flags``; flag 1 free, 2 hit); a cell
+    met for the first time in this scan joins the touched list. Returns the list's length."""
+    v = state[r, c]
+    if v >> 2 != s:
+        state[r, c] = (s << 2) | flag
+        touched_r[nt] = r
+        touched_c[nt] = c
+        return nt + 1
+    state[r, c] = v | flag
+    return nt
+
+
 @njit(cache=True, nogil=True)
 def _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min, l_max):
     """Add one scan's evidence (the flags in ``state`` of its ``nt`` touched cells), clamped."""
@@ -334,26 +348,10 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
                     n_free = k
                     end_r = lr[k]
                     end_c = lc[k]
-            for j in range(n_free):  # state = 4 * scan + 1 (free) | 2 (hit), for this scan's cells
-                rr = lr[j]
-                cc = lc[j]
-                v = state[rr, cc]
-                if v >> 2 != s:
-                    state[rr, cc] = (s << 2) | 1
-                    touched_r[nt] = rr
-                    touched_c[nt] = cc
-                    nt += 1
-                elif not v & 1:
-                    state[rr, cc] = v | 1
+            for j in range(n_free):
+                nt = _mark(state, touched_r, touched_c, nt, lr[j], lc[j], s, 1)
             if end_r >= 0:
-                v = state[end_r, end_c]
-                if v >> 2 != s:
-                    state[end_r, end_c] = (s << 2) | 2
-                    touched_r[nt] = end_r
-                    touched_c[nt] = end_c
-                    nt += 1
-                else:
-                    state[end_r, end_c] = v | 2
+                nt = _mark(state, touched_r, touched_c, nt, end_r, end_c, s, 2)
         _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min, l_max)
         last[0] = r0
         last[1] = c0

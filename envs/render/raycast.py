@@ -15,6 +15,22 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def line_step(r, c, err, dr, dc, sr, sc):
+    """One step of the Bresenham walk from (r, c) with error term ``err`` on a line of extents
+    ``dr = |r1 - r0|``, ``dc = |c1 - c0|`` and directions ``sr``, ``sc``; returns the next
+    (r, c, err). After ``i`` row steps and ``j`` column steps from the start the error term is
+    ``dc - dr + i * dc - j * dr``."""
+    e2 = 2 * err
+    if e2 > -dr:
+        err -= dr
+        c += sc
+    if e2 < dc:
+        err += dc
+        r += sr
+    return r, c, err
+
+
 @njit(cache=True, nogil=True)
 def trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols):
     """Walk the Bresenham line from (r0, c0) to (r1, c1) over ``blocked`` (H, W bool).
@@ -44,13 +60,7 @@ def trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols):
         n += 1
         if r == r1 and c == c1:
             return n, -1, -1
-        e2 = 2 * err
-        if e2 > -dr:
-            err -= dr
-            c += sc
-        if e2 < dc:
-            err += dc
-            r += sr
+        r, c, err = line_step(r, c, err, dr, dc, sr, sc)
 
 
 @njit(cache=True, nogil=True)
@@ -65,33 +75,32 @@ def walk_beam(blocked, r0, c0, r1, c1, extra, out_rows, out_cols):
     (so ``trace_ray`` would visit ``k_hit`` cells and report ``out[k_hit]``), -1 if none.
     Callable from other numba kernels.
     """
+    n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols)
+    if hr < 0:
+        return n, -1
     h, w = blocked.shape
     dr = abs(r1 - r0)
     dc = abs(c1 - c0)
     sr = 1 if r1 > r0 else -1
     sc = 1 if c1 > c0 else -1
-    err = dc - dr
-    r = r0
-    c = c0
-    n = 0
-    k_hit = -1
-    while True:
+    # the same line continued from the hit: its error term there (see line_step)
+    err = dc - dr + abs(hr - r0) * dc - abs(hc - c0) * dr
+    r = hr
+    c = hc
+    k_hit = n
+    out_rows[n] = r
+    out_cols[n] = c
+    n += 1
+    for _ in range(extra):
+        if r == r1 and c == c1:
+            break
+        r, c, err = line_step(r, c, err, dr, dc, sr, sc)
         if r < 0 or r >= h or c < 0 or c >= w:
-            return n, k_hit
-        if k_hit < 0 and blocked[r, c]:
-            k_hit = n
+            break
         out_rows[n] = r
         out_cols[n] = c
         n += 1
-        if (k_hit >= 0 and n - 1 - k_hit >= extra) or (r == r1 and c == c1):
-            return n, k_hit
-        e2 = 2 * err
-        if e2 > -dr:
-            err -= dr
-            c += sc
-        if e2 < dc:
-            err += dc
-            r += sr
+    return n, k_hit
 
 
 @njit(cache=True, nogil=True)
