@@ -51,6 +51,10 @@ from envs.render.raycast import ray_end, trace_ray
 
 #: metres behind and ahead on the path that set the direction of motion of a view.
 MOTION_BASE = 0.25
+#: the Frontier argument behind each scanner setting (for its error messages).
+SCAN_ARGUMENTS = {"height": "viewpoints.scan_height", "max_range": "viewpoints.sensor_range",
+                  "angular_step": "viewpoints.angular_step", "range_noise": "viewpoints.range_noise",
+                  "dropout": "viewpoints.dropout", "spacing": "viewpoints.scan_spacing", "seed": "viewpoints.seed"}
 #: consecutive runs that cannot move before a random walk gives up.
 MAX_STUCK_RUNS = 1000
 
@@ -230,7 +234,7 @@ class Frontier:
             raise ValueError(f"viewpoints.min_frontier = {min_frontier!r}: expected metres >= 0")
         self.scan = ScanSettings(height=scan_height, max_range=sensor_range, angular_step=angular_step,
                                  range_noise=range_noise, dropout=dropout, spacing=scan_spacing,
-                                 seed=int(seed)).check()
+                                 seed=seed).check(SCAN_ARGUMENTS)
         self.budget, self.spacing, self.n_headings = float(budget), float(spacing), int(n_headings)
         self.heading_spread, self.min_frontier, self.seed = float(heading_spread), float(min_frontier), int(seed)
         self.last: Exploration | None = None

@@ -16,6 +16,7 @@ from envs.maps.scan import (
     ScanMapper,
     ScanSettings,
     house_wall_height,
+    robot_scan_map,
     scan_map,
     scan_map_reference,
     scan_obstacles,
@@ -53,10 +54,9 @@ def _acceptance(house: House) -> None:
     scene = rasterise_house(h, max_object_base=0.25)
     poses = Autotrace(offset=0.3, spacing=0.5).generate(scene)
     assert _every_room_visited(scene, poses)
-    traj = trajectory(scene.grid.walkable, scene.grid, poses, 0.25)
-    obstacles = scan_obstacles(scene, 0.25, house_wall_height(h))
-    settings = ScanSettings(height=0.25, max_range=INF, angular_step=0.5)
-    m = scan_map(obstacles, scene.grid, traj, settings)
+    settings = ScanSettings(height=0.25, max_range=INF, angular_step=0.5, spacing=0.25)
+    m, traj = robot_scan_map(scene, poses, settings, house_wall_height(h))
+    assert len(traj) > len(poses)
     walk = scene.grid.walkable
     # tolerance at wall edges: none needed (0 cells differ) on these houses
     assert np.array_equal(m.free, walk)

@@ -24,9 +24,8 @@ def draw(houses: Path, index: int, budget: float, out: Path) -> str:
     from benchmark.reports.robot_map import draw_robot_map
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses
-    from envs.maps.scan import ScanSettings, house_wall_height, scan_map, scan_obstacles
+    from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map
     from envs.maps.scene import rasterise_house
-    from envs.maps.trajectory import trajectory
     from envs.render.floorplan import occluders
 
     found = load_houses(houses, index, index + 1)
@@ -34,9 +33,7 @@ def draw(houses: Path, index: int, budget: float, out: Path) -> str:
         raise ValueError(f"--house {index}: {houses} has no house at that index")
     house = found[0]
     scene = rasterise_house(house, resolution=0.05)
-    settings = ScanSettings()
-    traj = trajectory(scene.grid.walkable, scene.grid, Autotrace().generate(scene), settings.spacing)
-    scan = scan_map(scan_obstacles(scene, settings.height, house_wall_height(house)), scene.grid, traj, settings)
+    scan, traj = robot_scan_map(scene, Autotrace().generate(scene), ScanSettings(), house_wall_height(house))
     frontier = Frontier(budget=budget)
     e = frontier.explore(scene)
     cov = view_coverage(scene, e.poses, 90.0, 6.0, occluders(scene, 1.2))

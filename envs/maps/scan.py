@@ -46,6 +46,7 @@ pure-Python version with its own line walk, used by the tests and ``make perf``.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -55,6 +56,7 @@ from numba import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map
 from envs.maps.scene import Scene
+from envs.maps.trajectory import trajectory
 from envs.render.raycast import ray_end, walk_beam
 
 #: Wall height of generated houses (metres); ProcTHOR's walls carry their own (2.51-5.38 m in
@@ -64,8 +66,9 @@ DEFAULT_WALL_HEIGHT = 2.6
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
 
-def _setting_error(key: str, value, expected: str) -> ValueError:
-    return ValueError(f"scan setting {key} = {value!r}: expected {expected}")
+def _setting_error(key: str, value, expected: str, names: Mapping[str, str] | None = None) -> ValueError:
+    name = (names or {}).get(key, f"scan setting {key}")
+    return ValueError(f"{name} = {value!r}: expected {expected}")
 
 
 def _finite_number(v) -> bool:
@@ -112,40 +115,48 @@ class ScanSettings:
     log_odds_max: float = 3.5
     seed: int = 0
 
-    def check(self) -> ScanSettings:
-        """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self."""
+    def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
+        """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
+
+        Args:
+            names: how the caller calls a field in its messages (e.g. ``{"max_range":
+                "viewpoints.sensor_range"}``); default ``scan setting <field>``.
+        """
+        def error(key: str, value, expected: str) -> ValueError:
+            return _setting_error(key, value, expected, names)
+
         h = self.height
         if not (_finite_number(h) and 0 < h < DEFAULT_WALL_HEIGHT):
-            raise _setting_error("height", h, f"metres, 0 < height < {DEFAULT_WALL_HEIGHT} (below the walls)")
+            raise error("height", h, f"metres, 0 < height < {DEFAULT_WALL_HEIGHT} (below the walls)")
         r = self.max_range
         if not (isinstance(r, int | float) and not isinstance(r, bool) and r > 0 and not math.isnan(r)):
-            raise _setting_error("max_range", r, "metres, > 0 (inf for unlimited)")
+            raise error("max_range", r, "metres, > 0 (inf for unlimited)")
         if not (_finite_number(self.angular_step) and 0 < self.angular_step <= 360):
-            raise _setting_error("angular_step", self.angular_step, "degrees, 0 < angular_step <= 360")
+            raise error("angular_step", self.angular_step, "degrees, 0 < angular_step <= 360")
         if not (_finite_number(self.range_noise) and self.range_noise >= 0):
-            raise _setting_error("range_noise", self.range_noise, "metres, a sigma >= 0")
+            raise error("range_noise", self.range_noise, "metres, a sigma >= 0")
         if not (_finite_number(self.dropout) and 0 <= self.dropout < 1):
-            raise _setting_error("dropout", self.dropout, "a share in [0, 1)")
+            raise error("dropout", self.dropout, "a share in [0, 1)")
         if not (_finite_number(self.spacing) and self.spacing > 0):
-            raise _setting_error("spacing", self.spacing, "metres, > 0")
+            raise error("spacing", self.spacing, "metres, > 0")
         if not (_finite_number(self.free_thresh) and 0 < self.free_thresh < 0.5):
-            raise _setting_error("free_thresh", self.free_thresh, "a probability, 0 < free_thresh < 0.5")
+            raise error("free_thresh", self.free_thresh, "a probability, 0 < free_thresh < 0.5")
         if not (_finite_number(self.occupied_thresh) and 0.5 < self.occupied_thresh < 1):
-            raise _setting_error("occupied_thresh", self.occupied_thresh,
-                                 "a probability, 0.5 < occupied_thresh < 1")
+            raise error("occupied_thresh", self.occupied_thresh,
+                        "a probability, 0.5 < occupied_thresh < 1")
         if not (_finite_number(self.log_odds_hit) and self.log_odds_hit > 0):
-            raise _setting_error("log_odds_hit", self.log_odds_hit, "> 0")
+            raise error("log_odds_hit", self.log_odds_hit, "> 0")
         if not (_finite_number(self.log_odds_miss) and self.log_odds_miss < 0):
-            raise _setting_error("log_odds_miss", self.log_odds_miss, "< 0")
+            raise error("log_odds_miss", self.log_odds_miss, "< 0")
         if not (_finite_number(self.log_odds_min) and self.log_odds_min < logit(self.free_thresh)):
-            raise _setting_error("log_odds_min", self.log_odds_min,
-                                 f"< logit(free_thresh) = {logit(self.free_thresh):.3f} (else no cell can be free)")
+            raise error("log_odds_min", self.log_odds_min,
+                        f"< logit(free_thresh) = {logit(self.free_thresh):.3f} (else no cell can be free)")
         if not (_finite_number(self.log_odds_max) and self.log_odds_max > logit(self.occupied_thresh)):
-            raise _setting_error("log_odds_max", self.log_odds_max,
-                                 f"> logit(occupied_thresh) = {logit(self.occupied_thresh):.3f} "
-                                 f"(else no cell can be occupied)")
+            raise error("log_odds_max", self.log_odds_max,
+                        f"> logit(occupied_thresh) = {logit(self.occupied_thresh):.3f} "
+                        f"(else no cell can be occupied)")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or self.seed < 0:
-            raise _setting_error("seed", self.seed, "an integer >= 0")
+            raise error("seed", self.seed, "an integer >= 0")
         return self
 
     @property
@@ -440,6 +451,27 @@ def scan_map(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray, setti
     return mapper.result()
 
 
+def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
+                   wall_height: float = DEFAULT_WALL_HEIGHT) -> tuple[ScanMap, np.ndarray]:
+    """The map a robot builds driving through its views: :func:`scan_obstacles` at the scan
+    height, the :func:`envs.maps.trajectory.trajectory` through ``poses`` on the walkable cells
+    every ``settings.spacing`` metres, and :func:`scan_map` along it.
+
+    Args:
+        scene: the house on its grid.
+        poses: (N, 3) views in capture order (x, z metres, yaw degrees).
+        settings: scanner and mapper settings.
+        wall_height: the house's lowest wall top, metres (:func:`house_wall_height`).
+
+    Returns:
+        (the scan map, the (M, 3) scan poses).
+    """
+    settings.check()
+    obstacles = scan_obstacles(scene, settings.height, wall_height)
+    scans = trajectory(scene.grid.walkable, scene.grid, poses, settings.spacing)
+    return scan_map(obstacles, scene.grid, scans, settings), scans
+
+
 # --------------------------------------------------------------------------- slow reference
 
 
@@ -594,6 +626,6 @@ def read_scan_occupancy(path_yaml: str | Path) -> np.ndarray:
     return read_ros_map(path_yaml).occupancy
 
 
-__all__ = ["ScanSettings", "ScanMap", "ScanMapper", "ReferenceScanMapper", "scan_obstacles", "scan_map",
+__all__ = ["ScanSettings", "ScanMap", "ScanMapper", "ReferenceScanMapper", "scan_obstacles", "scan_map", "robot_scan_map",
            "scan_map_reference", "write_scan_map", "read_scan_occupancy", "house_wall_height",
            "occupancy_from_log_odds", "logit", "DEFAULT_WALL_HEIGHT", "UNKNOWN", "FREE", "OCCUPIED"]
