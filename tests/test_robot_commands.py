@@ -24,7 +24,7 @@ def test_draw_robot_map_bad_house(procthor_file, tmp_path, capsys):
 def test_robot_coverage_generated_houses(capsys):
     assert robot_coverage.main(["--synthetic", "--n", "1", "--budgets", "5"]) == 0
     out = capsys.readouterr().out
-    for name in ("autotrace", "frontier 5 m", "random walk 5 m", "coverage_area", "walkable_free"):
+    for name in ("autotrace", "frontier 5 m", "random walk 5 m", "coverage_area", "walkable_free", "pose_error_mean_m"):
         assert name in out
 
 
