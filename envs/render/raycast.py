@@ -2,10 +2,11 @@
 
 Used by the floorplan renderer (what a camera sees), the vision-cone aggregator (which
 cells a view votes for), scan maps (:mod:`envs.maps.scan`: where laser beams end) and view
-coverage (:func:`mark_visible`: which cells some view's cone reaches). A ray starts at the camera's cell and walks the Bresenham line
-to the cell at ``max_range`` pixels along its heading; it stops *before* the first
-blocked cell (which it reports as its hit) or at the map edge. The camera's own cell is
-always visited. Headings are map angles in radians: ``theta`` with direction
+coverage (:func:`mark_visible`: which cells some view's cone reaches). A ray starts at the
+camera's cell and walks the Bresenham line (one step: :func:`line_step`) to the cell at
+``max_range`` pixels along its heading; it stops *before* the first blocked cell (which it
+reports as its hit) or at the map edge (:func:`walk_beam` also walks a few cells past the
+hit, for a laser's long readings). The camera's own cell is always visited. Headings are map angles in radians: ``theta`` with direction
 ``(d_row, d_col) = (-cos theta, sin theta)``, i.e. the simulator yaw converted to radians.
 """
 
