@@ -74,6 +74,11 @@ def optional(rule: Rule) -> Rule:
     return opt
 
 
+def range_m(v: Any) -> bool:
+    """A range in metres: > 0, infinity allowed (an unlimited sensor)."""
+    return isinstance(v, int | float) and not isinstance(v, bool) and v > 0 and not math.isnan(v)
+
+
 def range_pair(v: Any) -> bool:
     return isinstance(v, list | tuple) and len(v) == 2 and all(positive(x) for x in v) and v[0] <= v[1]
 
@@ -81,6 +86,7 @@ def range_pair(v: Any) -> bool:
 _WHAT: dict[Callable, str] = {
     positive: "a number > 0", non_negative: "a number >= 0", fraction: "a number in [0, 1]",
     pos_int: "an integer >= 1", nonneg_int: "an integer >= 0", odd_int: "an odd integer >= 1",
+    range_m: "metres > 0 (.inf: unlimited)",
     angle: "an angle in (0, 360] degrees", range_pair: "[low, high] with 0 < low <= high",
 }
 
@@ -113,11 +119,26 @@ RULES: dict[tuple[str, str], Rule] = {
     ("segmenter", "min_area"): non_negative, ("segmenter", "max_area"): positive, ("segmenter", "step"): positive,
     ("segmenter", "max_door"): positive, ("segmenter", "window"): positive,
     ("segmenter", "widening"): lambda v: _num(v) and v >= 1,
+    # robot conditions (conf/mapping, conf/pose_error, conf/label_noise, exploration viewpoints):
+    # checked before any work, so that a bad value caches nothing
+    ("mapping", "height"): lambda v: _num(v) and 0 < v < 2.6, ("mapping", "max_range"): range_m,
+    ("mapping", "angular_step"): angle, ("mapping", "range_noise"): non_negative,
+    ("mapping", "dropout"): lambda v: _num(v) and 0 <= v < 1, ("mapping", "spacing"): positive,
+    ("pose_error", "sigma_xy"): non_negative, ("pose_error", "sigma_yaw"): non_negative,
+    ("pose_error", "drift_xy"): non_negative, ("pose_error", "drift_yaw"): non_negative,
+    ("pose_error", "loop_closure"): optional(positive), ("label_noise", "share"): fraction,
+    ("viewpoints", "budget"): positive, ("viewpoints", "sensor_range"): range_m,
+    ("viewpoints", "scan_height"): lambda v: _num(v) and 0 < v < 2.6, ("viewpoints", "scan_spacing"): positive,
+    ("viewpoints", "range_noise"): non_negative, ("viewpoints", "dropout"): lambda v: _num(v) and 0 <= v < 1,
+    ("viewpoints", "min_run"): positive, ("viewpoints", "max_run"): positive,
     ("run", "limit"): optional(pos_int), ("run", "progress"): one_of(True, False),
     ("run", "save_maps"): one_of(True, False), ("run", "allow_failures"): one_of(True, False),
     ("run", "cache_failures"): one_of(True, False), ("run", "max_map_pixels"): optional(pos_int),
 }
 _WHAT_EXTRA = {("viewpoints", "heading_spread"): "a number in [0, 360] degrees",
+               ("mapping", "height"): "metres, 0 < height < 2.6 (below the walls)",
+               ("viewpoints", "scan_height"): "metres, 0 < height < 2.6 (below the walls)",
+               ("mapping", "dropout"): "a share in [0, 1)", ("viewpoints", "dropout"): "a share in [0, 1)",
                ("renderer", "fov"): "an angle in (0, 180) degrees",
                ("segmenter", "widening"): "a number >= 1"}
 
