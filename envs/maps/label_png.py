@@ -16,9 +16,8 @@
 
 from __future__ import annotations
 
+import io
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -26,7 +25,7 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-from envs.atomic import atomic_write_text
+from envs.atomic import atomic_write_bytes, atomic_write_text
 from envs.world.classes import BACKGROUND_COLOR, UNLABELLED_COLOR, class_colors
 
 #: Default minimum colour count (pixels) for a colour of an instance PNG to be a room.
@@ -34,15 +33,9 @@ DEFAULT_MIN_PIXELS = 500
 
 
 def _atomic_save(img: Image.Image, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + path.name, suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        img.save(tmp, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _sidecar(path: Path) -> Path:
