@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -215,16 +216,8 @@ NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir",
                 "run.allow_failures", "run.cache_failures", "run.name")
 
 
-def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
-    """A job's identity: a key over every setting that changes its rows (the resolved config
-    without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
-    house ids. Editing a house's content keeps the identity (the rerun updates the job).
-
-    Returns:
-        (key, settings): ``settings`` flat {dotted key: value} for "what differs" messages.
-    """
-    if plain is None:
-        plain = OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
+def flat_settings(plain: dict[str, Any]) -> dict[str, Any]:
+    """A plain (resolved) config as ``{dotted key: value}``; lists and scalars are values."""
     flat: dict[str, Any] = {}
 
     def walk(v: Any, key: str) -> None:
@@ -235,7 +228,20 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
             flat[key] = v
 
     walk(plain, "")
-    settings = {k: v for k, v in flat.items() if k not in NON_ROW_KEYS}
+    return flat
+
+
+def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
+    """A job's identity: a key over every setting that changes its rows (the resolved config
+    without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
+    house ids. Editing a house's content keeps the identity (the rerun updates the job).
+
+    Returns:
+        (key, settings): ``settings`` flat {dotted key: value} for "what differs" messages.
+    """
+    if plain is None:
+        plain = OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
+    settings = {k: v for k, v in flat_settings(plain).items() if k not in NON_ROW_KEYS}
     settings["houses"] = f"{len(ids)} houses: {ids[0]} .. {ids[-1]} ({config_key(ids)})"
     return config_key("job", settings, ids), settings
 
@@ -297,6 +303,8 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         "failed": [{"house_id": r["house_id"], "error": r.get("error", "")} for r in failed],
         "wall_time_s": round(time.perf_counter() - t0, 3), "keys": pipe.keys, "names": pipe.names,
         "job_key": key, "stages_built": pipe.built(), "contents": contents,
+        # newest job wins where two jobs hold the same configuration and house (reports/tables.py)
+        "finished_at": datetime.now(timezone.utc).isoformat(),
     }
     ok = df[df["status"] == "ok"] if "status" in df else df
     for m in ("iou", "precision", "recall", "accuracy"):
@@ -311,4 +319,5 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     return df
 
 
-__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "CONF_DIR", "ConfigError"]
+__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "flat_settings", "NON_ROW_KEYS",
+           "SELECTION_KEYS", "CONF_DIR", "ConfigError"]

@@ -183,6 +183,45 @@ class Job:
             return None
         return out if isinstance(out, dict) and "key" in out else None
 
+    def settings(self) -> dict[str, Any] | None:
+        """What this job's rows depend on, flat ``{dotted key: value}``: the ``settings`` of its
+        ``job.json`` (the runner's identity: the resolved config without the settings that change
+        no row, and a ``houses`` summary), else its resolved config flattened the same way (a job
+        of an older layout); None when it has neither."""
+        ident = self.identity()
+        if ident is not None and isinstance(ident.get("settings"), dict):
+            return dict(ident["settings"])
+        if not self.config_path.exists():
+            return None
+        from omegaconf import OmegaConf
+
+        from benchmark.harness.runner import NON_ROW_KEYS, flat_settings
+
+        try:
+            plain = OmegaConf.to_container(self.config(), resolve=True)
+        except Exception as e:  # noqa: BLE001 - any YAML or interpolation error is a malformed file
+            raise ValueError(f"{self.config_path}: unreadable config ({type(e).__name__}: {str(e).strip()[:120]})") from None
+        if not isinstance(plain, dict):
+            raise ValueError(f"{self.config_path}: expected a mapping, got {type(plain).__name__}")
+        return {k: v for k, v in flat_settings(plain).items() if k not in NON_ROW_KEYS}
+
+    def finished_at(self) -> float:
+        """When the job finished, POSIX seconds: ``finished_at`` of its ``summary.json`` (ISO
+        8601, written by the runner), else the modification time of its summary, else of its
+        ``metrics.csv``."""
+        from datetime import datetime
+
+        try:
+            stamp = self.summary().get("finished_at")
+            if isinstance(stamp, str):
+                return datetime.fromisoformat(stamp).timestamp()
+        except (OSError, ValueError, AttributeError):
+            pass
+        for p in (self.summary_path, self.metrics_path):
+            if p.exists():
+                return p.stat().st_mtime
+        raise FileNotFoundError(f"no {SUMMARY} or {METRICS} in {self.dir}")
+
     def run_name(self) -> str:
         """The run this job belongs to: its ``run.name`` (the folder's parent name for jobs
         without a resolved config, e.g. per-map tables of the baselines)."""
@@ -243,13 +282,68 @@ def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tu
                           f"choose another run.name ({json.dumps(describe)[:200]})")
 
 
+#: name prefixes of share columns beyond :data:`benchmark.metrics.METRIC_COLUMNS` (per-class
+#: IoUs ``iou_<class>``, ``view_accuracy_seen``, and families the metrics may grow).
+FRACTION_PREFIXES = ("iou_", "matched_", "room_", "ipa_", "pq_", "view_accuracy")
+#: share columns that are settings, not metrics (the oracle classifier's accuracy).
+FRACTION_SETTINGS = ("oracle_accuracy",)
+#: metrics an ``ok`` row always has (the paper's three, as the runner's cached-row check).
+REQUIRED_IN_OK_ROWS = ("iou", "precision", "recall")
+
+
+def fraction_columns(columns: Sequence[str]) -> list[str]:
+    """The columns of a metrics table that are shares in [0, 1]: every metric of
+    :data:`benchmark.metrics.METRIC_COLUMNS`, every column named with one of
+    :data:`FRACTION_PREFIXES`, and :data:`FRACTION_SETTINGS`; never a count (``count_error``,
+    ``n_*``)."""
+    from benchmark.metrics import METRIC_COLUMNS
+
+    out = []
+    for c in map(str, columns):
+        if c == "count_error" or c.startswith("n_"):
+            continue
+        if c in METRIC_COLUMNS or c in FRACTION_SETTINGS or c.startswith(FRACTION_PREFIXES):
+            out.append(c)
+    return out
+
+
+def _check_fractions(path: Path, df) -> None:
+    """Refuse a share outside [0, 1] or a cell that is not a number (one line: file, line,
+    house, column, value); missing values (NaN) pass, except :data:`REQUIRED_IN_OK_ROWS` in
+    a row whose status is ``ok``."""
+    import pandas as pd
+
+    ok = df["status"].astype(str).eq("ok") if "status" in df else pd.Series(False, index=df.index)
+    for c in fraction_columns(df.columns):
+        raw = df[c]
+        vals = pd.to_numeric(raw, errors="coerce")
+        text = raw.notna() & vals.isna()
+        outside = vals.notna() & ~vals.between(0.0, 1.0)
+        missing = ok & raw.isna() if c in REQUIRED_IN_OK_ROWS else pd.Series(False, index=df.index)
+        bad = (text | outside | missing).to_numpy()
+        if bad.any():
+            i = int(bad.nonzero()[0][0])
+            house = f" (house {df['house_id'].iloc[i]})" if "house_id" in df else ""
+            if missing.iloc[i]:
+                value = "missing in a row with status ok"
+            elif outside.iloc[i]:
+                value = f"{raw.iloc[i]} is outside [0, 1]"
+            else:
+                value = f"{raw.iloc[i]!s:.40} is not a number"
+            raise ValueError(f"{path}: line {i + 2}{house}, column {c!r}: {value}; expected a fraction in [0, 1]")
+
+
 def read_metrics(path: str | Path):
-    """A job's ``metrics.csv`` as a DataFrame, checked whole.
+    """A job's ``metrics.csv`` (or a per-map table of the baselines) as a DataFrame, checked whole.
 
     Checked: it parses and its last line ends with a newline (a truncated write does not);
-    for a runner job (``summary.json`` beside it) also: ``house_id`` and ``status`` columns,
-    every row with a house id and a status of ``ok`` or ``failed``, and as many rows as the
-    summary's ``n_houses``.
+    every share column (:func:`fraction_columns`: iou, precision, recall, matched_*, room_*,
+    pq, sq, rq, pq_semantic, ipa_*, accuracy, class_iou, iou_<class>, view_accuracy*, ...)
+    holds numbers in [0, 1] or nothing (NaN), and ``iou``/``precision``/``recall`` are
+    present in every ``ok`` row; for a runner job (``summary.json`` beside it) also:
+    ``house_id`` and ``status`` columns, every row with a house id and a status of ``ok`` or
+    ``failed``, and as many rows as the summary's ``n_houses``. Line numbers in messages
+    count the header as line 1.
 
     Raises:
         ValueError: one line naming the file and what is wrong.
@@ -273,6 +367,7 @@ def read_metrics(path: str | Path):
         df = pd.read_csv(io.BytesIO(raw), keep_default_na=True)
     except Exception as e:  # noqa: BLE001 - any parser error is a malformed file
         raise ValueError(f"{path}: malformed CSV ({type(e).__name__}: {str(e).strip()[:120]})") from None
+    _check_fractions(path, df)
     summary = path.parent / SUMMARY
     if not summary.exists():  # not a runner job (e.g. a per-map table of the baselines)
         return df
@@ -331,15 +426,21 @@ def find_jobs(paths: Sequence[str | Path], finished_only: bool = True) -> list[J
 
 
 def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
-    """The ``metrics.csv`` of every job under ``paths`` (a path may be a CSV file itself)."""
+    """The ``metrics.csv`` of every job under ``paths`` (a path may be a CSV file itself), each
+    file once."""
+    seen: set[Path] = set()
     for p in map(Path, paths):
         if p.is_file():
-            yield p
+            found = [p]
         elif p.is_dir():
-            yield from sorted(p.rglob(METRICS))
+            found = sorted(p.rglob(METRICS))
         else:
             raise FileNotFoundError(f"no run folder or metrics file at {p}")
+        for f in found:  # a file under two of the paths (a run and its parent) is read once
+            if f.resolve() not in seen:
+                seen.add(f.resolve())
+                yield f
 
 
-__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "iter_metric_files", "job_dir_for",
-           "read_metrics", "safe_name", "METRICS", "SUMMARY", "CONFIG", "IDENTITY", "SWEEP_SUMMARY"]
+__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "fraction_columns", "iter_metric_files",
+           "job_dir_for", "read_metrics", "safe_name", "METRICS", "SUMMARY", "CONFIG", "IDENTITY", "SWEEP_SUMMARY"]
