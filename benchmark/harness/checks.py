@@ -4,7 +4,10 @@
 OmegaConf node). A rule is (group, key) -> test; the group is the config node the key sits
 in (``env``, ``aggregator``, ``run``, ...), so ``aggregator.window`` (pixels, odd) and
 ``segmenter.window`` (metres) are checked differently. Keys a rule does not name pass
-unchecked (a user's own stage validates its own arguments when it is built).
+unchecked (a user's own stage validates its own arguments when it is built), except under
+``run``: a key there that the ``run:`` node of ``conf/config.yaml`` does not have (a typo,
+or one added with ``+run.<key>``, which Hydra lets through) is refused, listing the valid
+keys (:func:`check_run_keys`).
 """
 
 from __future__ import annotations
@@ -133,7 +136,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("viewpoints", "min_run"): positive, ("viewpoints", "max_run"): positive,
     ("run", "limit"): optional(pos_int), ("run", "progress"): one_of(True, False),
     ("run", "save_maps"): one_of(True, False), ("run", "allow_failures"): one_of(True, False),
-    ("run", "cache_failures"): one_of(True, False), ("run", "max_map_pixels"): optional(pos_int),
+    ("run", "cache_failures"): one_of(True, False),
 }
 _WHAT_EXTRA = {("viewpoints", "heading_spread"): "a number in [0, 360] degrees",
                ("mapping", "height"): "metres, 0 < height < 2.6 (below the walls)",
@@ -159,13 +162,66 @@ def _plain(cfg: Any) -> Mapping[str, Any]:
     return cfg
 
 
-def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:
-    """Check every setting a rule names, and ``run.force`` / ``run.houses``.
+def run_keys() -> tuple[str, ...]:
+    """The valid keys under ``run``: those of the ``run:`` node of ``conf/config.yaml``, in
+    its order, read from the file each time (a key added there is valid at once; the
+    composed default config has the same, checked in tests/test_config_keys.py)."""
+    from omegaconf import DictConfig, OmegaConf
+
+    from benchmark.paths import CONF_DIR
+
+    node = OmegaConf.load(Path(CONF_DIR) / "config.yaml").get("run")
+    if not isinstance(node, DictConfig):
+        raise ConfigError(f"{Path(CONF_DIR) / 'config.yaml'}: no run: node")
+    return tuple(str(k) for k in node.keys())
+
+
+def check_run_keys(keys: Any) -> None:
+    """Refuse keys under ``run`` that the default config does not have.
+
+    Args:
+        keys: the keys given under ``run`` (e.g. ``["limt"]`` for ``+run.limt=3``).
 
     Raises:
-        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <rule>``.
+        ConfigError: ``run.<key>: unknown key; valid keys under run: name, label, ...``.
+    """
+    valid = run_keys()
+    unknown = [str(k) for k in keys if str(k) not in valid]
+    if unknown:
+        names = ", ".join(f"run.{k}" for k in unknown)
+        raise ConfigError(f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
+                          f"under run: {', '.join(valid)}")
+
+
+def check_run_overrides(args: Any) -> None:
+    """:func:`check_run_keys` on the command line, before Hydra composes or creates anything:
+    the ``run.<key>`` of every ``[+|++|~]run.<key>=value`` override in ``args`` (other
+    arguments are left to Hydra).
+
+    Raises:
+        ConfigError: as :func:`check_run_keys`."""
+    keys = []
+    for a in map(str, args):
+        if a.startswith("-") or "=" not in a:
+            continue
+        key = a.split("=", 1)[0].lstrip("+~")
+        if key.startswith("run.") and len(key) > 4:
+            keys.append(key[4:].split(".", 1)[0])
+    if keys:
+        check_run_keys(keys)
+
+
+def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:
+    """Check the keys under ``run`` (:func:`check_run_keys`), every setting a rule names, and
+    ``run.force`` / ``run.houses``.
+
+    Raises:
+        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <rule>``, or
+            the unknown keys under ``run`` with the valid ones.
     """
     c = _plain(cfg)
+    if isinstance(c.get("run"), Mapping):
+        check_run_keys(c["run"].keys())
     for group, node in c.items():
         if not isinstance(node, Mapping):
             continue
@@ -207,4 +263,4 @@ def check_writable(path: str | Path, key: str) -> Path:
     return p
 
 
-__all__ = ["ConfigError", "RULES", "check_config", "check_writable"]
+__all__ = ["ConfigError", "RULES", "check_config", "check_run_keys", "check_run_overrides", "check_writable", "run_keys"]
