@@ -195,14 +195,14 @@ def check_run_keys(keys: Any) -> None:
 
 def check_run_overrides(args: Any) -> None:
     """:func:`check_run_keys` on the command line, before Hydra composes or creates anything:
-    the ``run.<key>`` of every ``[+|++|~]run.<key>=value`` override in ``args`` (other
+    the ``run.<key>`` of every ``[+|++|~]run.<key>[=value]`` override in ``args`` (other
     arguments are left to Hydra).
 
     Raises:
         ConfigError: as :func:`check_run_keys`."""
     keys = []
     for a in map(str, args):
-        if a.startswith("-") or "=" not in a:
+        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
             continue
         key = a.split("=", 1)[0].lstrip("+~")
         if key.startswith("run.") and len(key) > 4:
