@@ -38,7 +38,7 @@ from benchmark.harness.pipeline import (
     expand_force,
 )
 from benchmark.harness.progress import house_progress, job_label
-from benchmark.harness.store import Job, claim_job_dir
+from benchmark.harness.store import NON_ROW_KEYS, Job, claim_job_dir, flat_settings
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
 
@@ -211,26 +211,6 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     return MethodPipeline(**common, classes=_env_classes(env, cfg) or None)
 
 
-#: run settings that change nothing in the rows (left out of a job's identity).
-NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
-                "run.allow_failures", "run.cache_failures", "run.name")
-
-
-def flat_settings(plain: dict[str, Any]) -> dict[str, Any]:
-    """A plain (resolved) config as ``{dotted key: value}``; lists and scalars are values."""
-    flat: dict[str, Any] = {}
-
-    def walk(v: Any, key: str) -> None:
-        if isinstance(v, dict):
-            for k, x in v.items():
-                walk(x, f"{key}.{k}" if key else str(k))
-        else:
-            flat[key] = v
-
-    walk(plain, "")
-    return flat
-
-
 def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
     """A job's identity: a key over every setting that changes its rows (the resolved config
     without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
@@ -319,5 +299,4 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     return df
 
 
-__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "flat_settings", "NON_ROW_KEYS",
-           "SELECTION_KEYS", "CONF_DIR", "ConfigError"]
+__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "SELECTION_KEYS", "CONF_DIR", "ConfigError"]

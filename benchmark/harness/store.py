@@ -115,6 +115,27 @@ class CacheStore:
         return self.root / "models" / kind / f"{key}{suffix}"
 
 
+#: run settings that change nothing in the rows (left out of a job's identity, see
+#: :func:`benchmark.harness.runner.job_identity`, and of the configuration tables compare).
+NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
+                "run.allow_failures", "run.cache_failures", "run.name")
+
+
+def flat_settings(plain: dict[str, Any]) -> dict[str, Any]:
+    """A plain (resolved) config as ``{dotted key: value}``; lists and scalars are values."""
+    flat: dict[str, Any] = {}
+
+    def walk(v: Any, key: str) -> None:
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(x, f"{key}.{k}" if key else str(k))
+        else:
+            flat[key] = v
+
+    walk(plain, "")
+    return flat
+
+
 @dataclass(frozen=True)
 class Job:
     """A finished (or running) job folder and what it says about itself."""
@@ -194,8 +215,6 @@ class Job:
         if not self.config_path.exists():
             return None
         from omegaconf import OmegaConf
-
-        from benchmark.harness.runner import NON_ROW_KEYS, flat_settings
 
         try:
             plain = OmegaConf.to_container(self.config(), resolve=True)
@@ -442,5 +461,6 @@ def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
                 yield f
 
 
-__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "fraction_columns", "iter_metric_files",
-           "job_dir_for", "read_metrics", "safe_name", "METRICS", "SUMMARY", "CONFIG", "IDENTITY", "SWEEP_SUMMARY"]
+__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "flat_settings", "fraction_columns",
+           "iter_metric_files", "job_dir_for", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS", "SUMMARY", "CONFIG",
+           "IDENTITY", "SWEEP_SUMMARY"]
