@@ -38,15 +38,12 @@ from benchmark.harness.pipeline import (
     expand_force,
 )
 from benchmark.harness.progress import house_progress, job_label
-from benchmark.harness.store import NON_ROW_KEYS, Job, claim_job_dir, flat_settings
+from benchmark.harness.store import NON_ROW_KEYS, SELECTION_KEYS, Job, claim_job_dir, flat_settings
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
 
 log = logging.getLogger("roomseg-bench")
 
-
-#: env config keys that select houses rather than change them (left out of cache keys).
-SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
 
 #: first columns of metrics.csv, in this order; the rest follow alphabetically.
 LEADING_COLUMNS = ("house_id", "dataset", "env", "viewpoints", "renderer", "classifier", "oracle_accuracy",
@@ -299,4 +296,4 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     return df
 
 
-__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "SELECTION_KEYS", "CONF_DIR", "ConfigError"]
+__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "CONF_DIR", "ConfigError"]

@@ -115,6 +115,9 @@ class CacheStore:
         return self.root / "models" / kind / f"{key}{suffix}"
 
 
+#: env config keys that select houses rather than change them (left out of cache keys, and
+#: of the configuration tables compare).
+SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
 #: run settings that change nothing in the rows (left out of a job's identity, see
 #: :func:`benchmark.harness.runner.job_identity`, and of the configuration tables compare).
 NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
@@ -329,27 +332,36 @@ def fraction_columns(columns: Sequence[str]) -> list[str]:
 def _check_fractions(path: Path, df) -> None:
     """Refuse a share outside [0, 1] or a cell that is not a number (one line: file, line,
     house, column, value); missing values (NaN) pass, except :data:`REQUIRED_IN_OK_ROWS` in
-    a row whose status is ``ok``."""
+    a row whose status is ``ok``. The first bad cell in file order is named."""
+    import numpy as np
     import pandas as pd
 
-    ok = df["status"].astype(str).eq("ok") if "status" in df else pd.Series(False, index=df.index)
-    for c in fraction_columns(df.columns):
-        raw = df[c]
-        vals = pd.to_numeric(raw, errors="coerce")
-        text = raw.notna() & vals.isna()
-        outside = vals.notna() & ~vals.between(0.0, 1.0)
-        missing = ok & raw.isna() if c in REQUIRED_IN_OK_ROWS else pd.Series(False, index=df.index)
-        bad = (text | outside | missing).to_numpy()
-        if bad.any():
-            i = int(bad.nonzero()[0][0])
-            house = f" (house {df['house_id'].iloc[i]})" if "house_id" in df else ""
-            if missing.iloc[i]:
-                value = "missing in a row with status ok"
-            elif outside.iloc[i]:
-                value = f"{raw.iloc[i]} is outside [0, 1]"
-            else:
-                value = f"{raw.iloc[i]!s:.40} is not a number"
-            raise ValueError(f"{path}: line {i + 2}{house}, column {c!r}: {value}; expected a fraction in [0, 1]")
+    cols = fraction_columns(df.columns)
+    if not cols or df.empty:
+        return
+    raw = df[cols]
+    vals = np.column_stack([raw[c].to_numpy(float) if pd.api.types.is_numeric_dtype(raw[c])
+                            else pd.to_numeric(raw[c], errors="coerce").to_numpy(float) for c in cols])
+    absent = raw.isna().to_numpy()
+    ok = df["status"].astype(str).eq("ok").to_numpy() if "status" in df else np.zeros(len(df), bool)
+    required = np.array([c in REQUIRED_IN_OK_ROWS for c in cols])
+    with np.errstate(invalid="ignore"):
+        outside = ~np.isnan(vals) & ((vals < 0.0) | (vals > 1.0))
+    text = ~absent & np.isnan(vals)
+    missing = ok[:, None] & absent & required[None, :]
+    bad = outside | text | missing
+    if not bad.any():
+        return
+    i, j = (int(v) for v in np.argwhere(bad)[0])
+    value = raw.iloc[i, j]
+    if missing[i, j]:
+        what = "missing in a row with status ok"
+    elif outside[i, j]:
+        what = f"{value} is outside [0, 1]"
+    else:
+        what = f"{value!s:.40} is not a number"
+    house = f" (house {df['house_id'].iloc[i]})" if "house_id" in df else ""
+    raise ValueError(f"{path}: line {i + 2}{house}, column {cols[j]!r}: {what}; expected a fraction in [0, 1]")
 
 
 def read_metrics(path: str | Path):
@@ -462,5 +474,5 @@ def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
 
 
 __all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "flat_settings", "fraction_columns",
-           "iter_metric_files", "job_dir_for", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS", "SUMMARY", "CONFIG",
-           "IDENTITY", "SWEEP_SUMMARY"]
+           "iter_metric_files", "job_dir_for", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS",
+           "SELECTION_KEYS", "SUMMARY", "CONFIG", "IDENTITY", "SWEEP_SUMMARY"]

@@ -12,7 +12,7 @@ What a cell holds (:func:`load_rows`, :func:`summarise`):
 * each (configuration, house) once. A row's configuration is its job's settings (``job.json``:
   the resolved config without the settings that change no row) less the house selection
   (``houses``, ``run.limit``, ``run.houses``, ``env.start``/``stop``/``n_houses``/... :
-  :data:`benchmark.harness.runner.SELECTION_KEYS`), and the row's own names (dataset,
+  :data:`benchmark.harness.store.SELECTION_KEYS`), and the row's own names (dataset,
   classifier, aggregator, ...). Where several jobs hold the same pair, the newest job's row
   wins (``finished_at`` of its ``summary.json``, else the file's time) and the rows set aside
   are counted in ``load_rows(...).attrs["set_aside"]``, one line naming their folders;
@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.harness.cache import atomic_write_text
-from benchmark.harness.store import METRICS, Job, iter_metric_files, read_metrics
+from benchmark.harness.store import METRICS, SELECTION_KEYS, Job, iter_metric_files, read_metrics
 from benchmark.reports import formatting
 
 
@@ -132,12 +132,10 @@ HOUSE_SELECTION = ("houses", "run.limit", "run.houses")
 def job_configuration(settings: dict[str, Any] | None) -> dict[str, Any]:
     """The part of a job's configuration that its settings give: ``settings`` (flat, from
     :meth:`benchmark.harness.store.Job.settings`) less the house selection
-    (:data:`HOUSE_SELECTION` and ``env.<k>`` for ``k`` in the runner's ``SELECTION_KEYS``),
+    (:data:`HOUSE_SELECTION` and ``env.<k>`` for ``k`` in :data:`~benchmark.harness.store.SELECTION_KEYS`),
     and for a segmenter's job less the method's groups, which its rows do not use."""
     if not settings:
         return {}
-    from benchmark.harness.runner import SELECTION_KEYS  # noqa: PLC0415 - hydra is loaded only here
-
     drop = {*HOUSE_SELECTION, *(f"env.{k}" for k in SELECTION_KEYS)}
     out = {k: v for k, v in settings.items() if k not in drop}
     if any(k.startswith("segmenter.") for k in out):
