@@ -64,12 +64,14 @@ def test_counts_missing_values_and_failed_rows_pass(tmp_path):
 def test_which_columns_are_shares():
     from benchmark.harness.store import fraction_columns
 
+    robot = ["coverage_area", "coverage_rooms", "label_noise_share", "map_free_iou", "map_missed_share"]
     cols = fraction_columns([*METRIC_COLUMNS, "iou_kitchen", "view_accuracy", "view_accuracy_seen", "oracle_accuracy",
-                             "house_id", "t_score", "n_refused", "score_key"])
+                             *robot, "house_id", "t_score", "n_refused", "score_key", "severity",
+                             "pose_error_mean_m", "yaw_error_mean_deg"])
     assert "count_error" not in cols and not any(c.startswith("n_") for c in cols)
     assert {"iou", "precision", "recall", "matched_iou", "matched_precision", "matched_recall", "room_iou",
             "room_recall", "pq", "sq", "rq", "pq_semantic", "ipa_recall", "ipa_precision", "accuracy", "class_iou",
-            "iou_kitchen", "view_accuracy", "view_accuracy_seen", "oracle_accuracy"} == set(cols)
+            "iou_kitchen", "view_accuracy", "view_accuracy_seen", "oracle_accuracy", *robot} == set(cols)
 
 
 def test_tables_refuses_a_hand_edited_iou_with_one_line_and_exit_2(tmp_path, capsys):

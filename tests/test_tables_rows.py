@@ -200,3 +200,28 @@ def test_every_table_with_ipa_metrics_shows_the_count_error_next_to_them():
     cols = list(summary_table(rows).columns)
     # the baselines' summary: ipa R, ipa P, then the segment count and segments - rooms
     assert cols.index("count_error") - cols.index("ipa_precision") == 2 and cols[cols.index("count_error") - 1] == "segments"
+
+
+@pytest.mark.slow
+def test_a_robustness_sweep_keeps_each_severity_in_its_own_row(tmp_path, capsys):
+    """Issue #26: the clean run and a corrupted one of the same method, through the runner,
+    were one cell of Table IV (its columns do not name the corruption); now one row each,
+    labelled by corruption and severity, with each run's own mean."""
+    from benchmark.config import compose_job
+    from benchmark.harness.runner import run
+
+    res = tmp_path / "R"
+    means = {}
+    for corruption in ("clean", "pose_2"):
+        cfg, choices = compose_job(["env=synthetic", "classifier=oracle", "env.resolution=0.1", "viewpoints.spacing=1.0",
+                                    "run.progress=false", f"run.results_dir={res}", "run.name=c", "run.limit=2",
+                                    f"corruption={corruption}"])
+        df = run(cfg, res / "runs" / "c" / corruption, choices)
+        means[corruption] = df["iou"].mean()
+    assert means["clean"] != pytest.approx(means["pose_2"])
+    code, out, err = _tables([res / "runs" / "c", "--table", "table4", "--out", tmp_path / "t"], capsys)
+    assert code == 0, err
+    t4 = _csv(tmp_path / "t", "table4").set_index("settings")
+    assert t4["iou_mean"].to_dict() == pytest.approx({"corruption=clean, severity=0": means["clean"],
+                                                      "corruption=pose, severity=2": means["pose_2"]})
+    assert t4["n"].tolist() == [2, 2] and "2 houses per cell" in out

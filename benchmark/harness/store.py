@@ -305,8 +305,11 @@ def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tu
 
 
 #: name prefixes of share columns beyond :data:`benchmark.metrics.METRIC_COLUMNS` (per-class
-#: IoUs ``iou_<class>``, ``view_accuracy_seen``, and families the metrics may grow).
-FRACTION_PREFIXES = ("iou_", "matched_", "room_", "ipa_", "pq_", "view_accuracy")
+#: IoUs ``iou_<class>``, ``view_accuracy_seen``, the robot's coverage ``coverage_area`` /
+#: ``coverage_rooms``, and families the metrics may grow).
+FRACTION_PREFIXES = ("iou_", "matched_", "room_", "ipa_", "pq_", "view_accuracy", "coverage_")
+#: name suffixes of share columns (``map_free_iou``, ``label_noise_share``, ``map_missed_share``).
+FRACTION_SUFFIXES = ("_iou", "_share")
 #: share columns that are settings, not metrics (the oracle classifier's accuracy).
 FRACTION_SETTINGS = ("oracle_accuracy",)
 #: metrics an ``ok`` row always has (the paper's three, as the runner's cached-row check).
@@ -316,15 +319,16 @@ REQUIRED_IN_OK_ROWS = ("iou", "precision", "recall")
 def fraction_columns(columns: Sequence[str]) -> list[str]:
     """The columns of a metrics table that are shares in [0, 1]: every metric of
     :data:`benchmark.metrics.METRIC_COLUMNS`, every column named with one of
-    :data:`FRACTION_PREFIXES`, and :data:`FRACTION_SETTINGS`; never a count (``count_error``,
-    ``n_*``)."""
+    :data:`FRACTION_PREFIXES` or :data:`FRACTION_SUFFIXES`, and :data:`FRACTION_SETTINGS`;
+    never a count (``count_error``, ``n_*``)."""
     from benchmark.metrics import METRIC_COLUMNS
 
     out = []
     for c in map(str, columns):
         if c == "count_error" or c.startswith("n_"):
             continue
-        if c in METRIC_COLUMNS or c in FRACTION_SETTINGS or c.startswith(FRACTION_PREFIXES):
+        if c in METRIC_COLUMNS or c in FRACTION_SETTINGS or c.startswith(FRACTION_PREFIXES) \
+                or c.endswith(FRACTION_SUFFIXES):
             out.append(c)
     return out
 

@@ -119,7 +119,7 @@ def method_label(row: pd.Series) -> str:
 
 #: columns of a row that name its configuration (beside its job's settings).
 ROW_NAMES = ("dataset", "env", "viewpoints", "renderer", "classifier", "oracle_accuracy", "aggregator",
-             "postprocess", "segmenter", "label", "method")
+             "postprocess", "segmenter", "label", "corruption", "severity", "method")
 #: columns that tell configurations apart when nothing else does (rows read without their
 #: job's settings): the metric parameters in words and the scoring stage's cache key.
 ROW_KEYS_LAST = ("metric_params", "score_key")
