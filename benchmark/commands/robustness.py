@@ -80,6 +80,8 @@ def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str) -> dic
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str) -> str:
     """The Markdown of every table (and, with ``out``, the files). Raises RobustnessError."""
     rows = load_rows(paths)
+    if rows.attrs.get("set_aside"):
+        print(f"robustness: {rows.attrs['set_aside']}", file=sys.stderr)
     missing = [c for c in ("corruption", "severity") if c not in rows]
     if missing:
         raise rb.RobustnessError(f"the rows under {[str(p) for p in paths]} have no {missing} column: "
