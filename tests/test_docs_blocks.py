@@ -140,3 +140,34 @@ def test_every_block_of_getting_started_runs_from_a_fresh_copy(tmp_path, capsys)
     rows = pd.concat(pd.read_csv(j) for j in jobs)
     assert len(rows) == 20 and (rows["status"] == "ok").all() and set(rows["classifier"]) == {"oracle"}
     assert (work / "results" / "first" / "report.html").is_file()
+
+
+@pytest.mark.slow
+def test_own_robot_data_blocks_run_and_its_results_table_is_what_they_wrote(tmp_path, capsys):
+    """Every block of the page (a folder of maps as an environment, roomseg-segment and its
+    variants on the example building), then the page's results table against the
+    ``scores.json`` each command wrote."""
+    import json
+
+    page = ROOT / "docs" / "own-robot-data.md"
+    work = tmp_path / "clone"
+    rc = docs.run_blocks(page, workdir=work, venv_from=sys.executable)
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    rows = [line for line in page.read_text(encoding="utf-8").splitlines() if line.startswith("| `example/")]
+    assert len(rows) == 6
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        folder = cells[0].strip("`")
+        scores = json.loads((work / folder / "scores.json").read_text())
+        assert int(cells[2]) == scores["n_pred_segments"], folder
+        for cell, key in zip(cells[3:7], ("iou", "precision", "recall", "accuracy")):
+            got = scores.get(key)
+            if cell == "–":
+                assert got is None or got != got, (folder, key, got)  # no classes: NaN / null
+            else:
+                assert float(cell) == round(100 * got, 1), (folder, key, cell, got)
+    jobs = sorted((work / "results" / "runs" / "my_maps").glob("*/metrics.csv"))
+    assert len(jobs) == 3
+    df = pd.concat(pd.read_csv(j) for j in jobs)
+    assert (df["status"] == "ok").all() and len(df) == 3
