@@ -109,3 +109,5 @@ def test_seeded_offices_are_reproducible_and_furnished(tmp_path, capsys):
     assert main([str(tmp_path / "p"), "--maps", "1", "--seed", "3"]) == 0
     assert hashlib.sha256((tmp_path / "p" / "furnished" / "office_00.png").read_bytes()).hexdigest() == digest
     assert main([str(tmp_path / "q"), "--maps", "0"]) == 2
+    assert main([str(tmp_path / "h"), "--hand-made"]) == 0
+    assert sorted(p.name for p in (tmp_path / "h" / "furnished").iterdir()) == ["two_rooms.png", "two_rooms_gt.png"]

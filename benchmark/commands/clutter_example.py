@@ -237,11 +237,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out", type=Path, help="folder to write (furnished/ and empty/ inside)")
     ap.add_argument("--maps", type=int, default=7, help="number of offices (default 7)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the first office (default 0)")
+    ap.add_argument("--hand-made", action="store_true",
+                    help="write only the tests' two-room office (id two_rooms) instead of seeded ones")
     a = ap.parse_args(argv)
     if a.maps < 1 or a.seed < 0:
         print(f"error: --maps must be >= 1 and --seed >= 0, got {a.maps}, {a.seed}", file=sys.stderr)
         return 2
-    ids = write_offices(a.out, a.maps, a.seed)
+    if a.hand_made:
+        write_office(a.out, "two_rooms", two_room_office())
+        ids = ["two_rooms"]
+    else:
+        ids = write_offices(a.out, a.maps, a.seed)
     print(f"wrote {len(ids)} offices ({ids[0]} .. {ids[-1]}) to {a.out}/furnished and {a.out}/empty; segment them:")
     for sub in ("furnished", "empty"):
         print("  " + sweep_command(a.out, sub))
