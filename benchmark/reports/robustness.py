@@ -11,7 +11,8 @@ Rows come from ``experiment=robustness`` (``make robustness``): each carries ``c
   CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R), over the severities s = 1..5;
 * mCE(M) = the mean of CE_f(M) over the families (100 = as robust as the reference; lower is
   better);
-* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M): how much of its clean score the method loses.
+* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M): how much of its clean score the method loses
+  (negative: the condition helped it).
 
 A table cell never mixes house sets: every (method, family, severity) of one dataset must hold
 the same houses, or the table is refused with one line naming the cells that differ.
@@ -167,7 +168,7 @@ def to_latex(table: pd.DataFrame, caption: str, label: str, decimals: int = 1) -
 
 
 #: colour-blind safe colours (Okabe and Ito, 2008) and line styles, cycled per method.
-OKABE_ITO = ("#000000", "#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7")
+OKABE_ITO = ("#000000", "#E69F00", "#56B4E9", "#009E73", "#0072B2", "#D55E00", "#CC79A7", "#F0E442")  # yellow last
 STYLES = ("-", "--", ":", "-.")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 
@@ -194,7 +195,7 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
                 marker=MARKERS[i % len(MARKERS)], markersize=4, linewidth=1.4, label=m)
     ax.set_xlabel("severity (0 = clean)")
     ax.set_ylabel(f"{metric_words} (%)")
-    ax.set_xticks(range(6))
+    ax.set_xticks(range(int(cells["severity"].max()) + 1))
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)

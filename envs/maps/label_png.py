@@ -20,9 +20,8 @@ decoding, with one line naming the file, the size and the limit.
 
 from __future__ import annotations
 
+import io
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -30,7 +29,7 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-from envs.atomic import atomic_write_text
+from envs.atomic import atomic_write_bytes, atomic_write_text
 from envs.maps.images import read_image
 from envs.maps.scene import MAX_MAP_PIXELS
 from envs.world.classes import BACKGROUND_COLOR, UNLABELLED_COLOR, class_colors
@@ -40,15 +39,9 @@ DEFAULT_MIN_PIXELS = 500
 
 
 def _atomic_save(img: Image.Image, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + path.name, suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        img.save(tmp, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _sidecar(path: Path) -> Path:
