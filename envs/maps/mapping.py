@@ -4,7 +4,8 @@ Without it (``mapping: null``, the default) they see the house's floor plan, ras
 (:mod:`envs.maps.scene`): the perfect robot. ``mapping=scan`` (:class:`ScanMapping`) gives them
 the map a 2D laser builds along the robot's path through its views instead
 (:func:`envs.maps.scan.robot_scan_map`: what it models and leaves out is written there): free
-cells are walkable, unknown and occupied ones are not. The ground truth, and the area scored,
+cells 4-connected to the robot's views are walkable (:mod:`envs.maps.reachable`'s rule: a free
+pocket the laser saw under a table is not), unknown and occupied ones are not. The ground truth, and the area scored,
 stay the house's.
 
 A mapping stage is any object with ``__call__(scene, poses, house=None) -> (H, W) bool`` free
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from envs.maps.gridmap import GridMap
+from envs.maps.reachable import reachable_mask, seed_cells
 from envs.maps.scan import DEFAULT_WALL_HEIGHT, ScanSettings, house_wall_height, robot_scan_map
 from envs.maps.scene import Scene
 
@@ -35,7 +38,8 @@ class ScanMapping:
         self.settings = ScanSettings(**settings).check({k: f"mapping.{k}" for k in ScanSettings.__dataclass_fields__})
 
     def __call__(self, scene: Scene, poses: np.ndarray, house=None) -> np.ndarray:
-        """(H, W) bool free cells of the scan map built along ``poses`` (capture order).
+        """(H, W) bool free cells of the scan map built along ``poses`` (capture order), those
+        4-connected to a view (a view within 1 m of free space snaps to it).
 
         Raises:
             ValueError: the scan plane is not below the house's walls (one line)."""
@@ -44,7 +48,10 @@ class ScanMapping:
             raise ValueError(f"mapping.height = {self.settings.height!r}: expected metres below the house's walls "
                              f"({wall:g} m)")
         scan, _ = robot_scan_map(scene, poses, self.settings, wall)
-        return scan.free
+        # free pockets the laser saw but the robot cannot drive to (under a table, behind a
+        # ring of chairs) are left out, as the environment's reachable-area rule does
+        grid = GridMap(scan.free, scene.grid.resolution, scene.grid.origin)
+        return reachable_mask(scan.free, seed_cells(grid, np.asarray(poses)[:, :2]))
 
 
 __all__ = ["ScanMapping"]

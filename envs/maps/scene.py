@@ -1,7 +1,8 @@
 """House -> :class:`Scene`: occupancy map plus room ground truth, by rasterising the house.
 
 Walkable = inside some room's floor polygon, minus walls (a band of ``wall_thickness``
-centred on each wall line, with door openings cut out), minus the footprints of floor
+centred on each wall line, with door openings cut out; walls ProcTHOR marks ``empty``, fully
+opened between two rooms of an open plan, are not drawn), minus the footprints of floor
 furniture (rotated boxes sized from ProcTHOR's asset database), optionally eroded by a
 robot ``clearance`` radius. A pixel belongs to the room whose floor polygon contains its
 centre (the first such room in the house's room order, for pixels on a shared edge).
@@ -265,6 +266,8 @@ def rasterise_house(
     for wall in data.get("walls", []) or []:
         p0, p1 = _wall_segment(wall)
         wall_seg[wall["id"]] = (p0, p1)
+        if wall.get("empty"):  # ProcTHOR's open plan: a wall fully opened between two rooms
+            continue
         if half > 0:
             sl, band = _segment_band(grid0, p0, p1, half)
             if sl is not None:
