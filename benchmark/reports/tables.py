@@ -57,7 +57,7 @@ class TableSpec:
     where: dict = field(default_factory=dict)
     exclude: dict = field(default_factory=dict)
     #: keep the sanity segmenters' rows (one room, ground-truth geometry, grid) as rows of
-    #: their own: classifier "sanity", aggregator = the segmenter (README "Metrics").
+    #: their own: classifier "sanity", aggregator = the segmenter (docs/metrics.md).
     sanity: bool = False
     #: config groups a cell averages over on purpose (their settings and names may differ
     #: inside a cell); every other difference splits the cell (see the module doc).
@@ -68,7 +68,7 @@ class TableSpec:
 SANITY_SEGMENTERS = ("one_room", "gt_geometry", "grid")
 
 
-#: the metrics beside the paper's that merging cannot game (README "Metrics"), in every
+#: the metrics beside the paper's that merging cannot game (docs/metrics.md), in every
 #: comparison table (fractions, shown in percent; count_error, segments minus rooms, is a
 #: count and shown as it is).
 ROBUST_METRICS = ("matched_iou", "pq", "room_iou", "ipa_recall", "ipa_precision", "count_error")

@@ -1,6 +1,6 @@
 """A seeded generator of ProcTHOR-schema houses with all seven room classes and open plans.
 
-*Simplified generator* (documented in the README): houses are built from axis-aligned
+*Simplified generator* (documented in docs/houses.md): houses are built from axis-aligned
 rectangles in three bands along the footprint's long axis (x):
 
 * a **public band** (z from 0): kitchen | dining room | living room, in that order, so the

@@ -96,7 +96,7 @@ def load_annotation(folder: str | Path, house_id: str | None = None, classes: Se
     folder = Path(folder)
     if not (folder / "labels.png").is_file():
         raise FileNotFoundError(f"no annotation at {folder}/labels.png: convert the house's annotation with "
-                                "python -m benchmark.commands.annotations import (see README)")
+                                "python -m benchmark.commands.annotations import (see docs/gpu.md)")
     labels_local, names = read_label_png(folder / "labels.png")
     res, origin = _grid_meta(folder / "labels.json")
     used = set(np.unique(labels_local[labels_local >= 0]).tolist())
