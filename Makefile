@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness clean
+.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -65,6 +65,11 @@ bench-publish: setup  ## fresh timed `make bench`, its metrics -> results/publis
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory bench RESULTS=$(PUBLISH_TMP) BENCH_OUT=$(PUBLISH_TMP)/bench
 	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/bench --name bench --time $(PUBLISH_TMP)/time.txt
+
+robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results/published/robustness (then: make readme-tables)
+	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
+	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
+	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --command "make robustness" --columns robustness
 
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
 	$(PY) -m benchmark.commands.readme_tables write

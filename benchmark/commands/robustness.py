@@ -30,10 +30,7 @@ from benchmark.reports import robustness as rb
 from benchmark.reports.formatting import metric_words
 from benchmark.reports.tables import load_rows
 
-#: the geometric segmenters (the sanity rows are shown, but not ranked against the methods).
-GEOMETRIC = ("distance", "morphological", "voronoi")
-SANITY = ("one_room", "gt_geometry", "grid")
-DEFAULT_REFERENCE = "voronoi"
+GEOMETRIC, SANITY, DEFAULT_REFERENCE = rb.GEOMETRIC, rb.SANITY, rb.REFERENCE
 
 
 def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], str]:
@@ -73,7 +70,7 @@ def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str) -> dic
             out[(dataset, metric)] = {"table": table, "cells": cells, "dropped": dropped,
                                       "houses": int(cells["n"].iloc[0]) if len(cells) else 0,
                                       "notes": rb.rank_notes(table.drop(index=[m for m in SANITY if m in table.index]),
-                                                             GEOMETRIC)}
+                                                             GEOMETRIC, cells)}
     return out
 
 
