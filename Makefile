@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish clean
+.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -27,6 +27,9 @@ $(VENV)/.installed-test: $(VENV)/.installed
 	$(PIP) install -q $(TORCH_PIN)
 	$(PIP) install -q -e ".[test]"
 	touch $@
+
+setup-gpu: setup-test  ## GPU workstation: add the gpu extra (bitsandbytes, the VLM's 4-bit quantisation) to .venv (docs/gpu.md)
+	$(PIP) install -q -e ".[gpu]"
 
 test: setup-test  ## run the whole test suite (what CI runs)
 	$(PY) -m pytest -q

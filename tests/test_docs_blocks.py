@@ -154,7 +154,7 @@ def test_own_robot_data_blocks_run_and_its_results_table_is_what_they_wrote(tmp_
     rc = docs.run_blocks(page, workdir=work, venv_from=sys.executable)
     out = capsys.readouterr().out
     assert rc == 0, out
-    rows = [line for line in page.read_text(encoding="utf-8").splitlines() if line.startswith("| `example/")]
+    rows = [line for line in page.read_text(encoding="utf-8").splitlines() if line.startswith("| `results/example/")]
     assert len(rows) == 6
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split("|")]
