@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish clean
+.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -73,6 +73,19 @@ robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
 	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --command "make robustness" --columns robustness
+
+# ROSE² (segmenter=rose2) runs from your own checkout in an isolated environment with the
+# versions it needs: its requirements.txt as they install today on Python 3.11 (shapely < 2 for
+# cascaded_union and multi-geometry iteration, NumPy < 2 for that shapely, OpenCV < 5); the
+# project's driver handles the rest (benchmark/segmenters/rose2_driver.py, docs/baselines.md).
+ROSE2 ?= $(ROOMSEG_ROSE2)
+ROSE2_VENV ?= .venv-rose2
+ROSE2_PIN ?= numpy==1.26.4 shapely==1.8.5.post1 opencv-python-headless==4.11.0.86 scikit-learn==1.9.1 \
+	scikit-image==0.26.0 scipy==1.17.1 skan==0.13.1 networkx==3.6.1 matplotlib Pillow descartes tabulate pypng numba==0.68.1
+rose2-env:  ## ROSE²'s isolated environment in .venv-rose2 (then: segmenter=rose2 with ROSE2=<checkout> or ROOMSEG_ROSE2)
+	python3 -m venv $(ROSE2_VENV)
+	$(ROSE2_VENV)/bin/pip install -q $(ROSE2_PIN)
+	@echo "ROSE2 environment ready in $(ROSE2_VENV); point segmenter.checkout (or ROOMSEG_ROSE2) at your ROSE2 checkout$(if $(ROSE2), ($(ROSE2)),)"
 
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
 	$(PY) -m benchmark.commands.readme_tables write

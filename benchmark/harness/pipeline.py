@@ -685,6 +685,9 @@ class SegmenterPipeline(Pipeline):
         inst = (self.segmenter(grid, scene=scene) if getattr(self.segmenter, "uses_scene", False)
                 else self.segmenter(grid))
         inst = np.where(grid.walkable & scene.grid.walkable, inst, -1)
+        # a segmenter that runs elsewhere (ROSE² in its own environment) says how long it took
+        timings.update({k: float(v) for k, v in (getattr(self.segmenter, "last_info", None) or {}).items()
+                        if k.startswith("t_")})
         timings["t_segment"] = time.perf_counter() - t
         t = time.perf_counter()
         out = dict(score_instances(inst, scene.instances, self.metric_params, resolution=scene.grid.resolution))
