@@ -190,3 +190,25 @@ def test_a_killed_worker_ends_the_sweep_naming_it(tmp_path):
     _, err = p.communicate(timeout=15)
     assert p.returncode != 0 and f"a worker process of the sweep in {tmp_path / 'out'} died" in err
     assert subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True).returncode == 1
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads processes from /proc (Linux only)")
+@pytest.mark.parametrize("start_method", ["fork", "spawn"])
+def test_kill9_of_the_launching_process_leaves_no_worker(tmp_path, start_method):
+    """kill -9 of the sweep's launching process while its workers run jobs: no worker is alive
+    5 s later (they die with their parent instead of blocking on a pipe; issue #24)."""
+    import os
+    import signal
+
+    from procs import children, gone_within, wait_for
+
+    app = _app(tmp_path, "validate: quick")
+    env = dict(os.environ, JOB_SLEEP="60")
+    p = subprocess.Popen([sys.executable, str(app), "-m", "n=1,2,3,4", f"hydra.launcher.start_method={start_method}",
+                          "hydra.launcher.n_jobs=2"], cwd=app.parent, env=env, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    assert wait_for(lambda: len(children(p.pid)) >= 2, timeout=60), "the workers never appeared"
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=30)
+    assert gone_within(p.pid, 5.0) == []

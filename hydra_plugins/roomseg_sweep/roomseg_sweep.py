@@ -1,7 +1,8 @@
 """roomseg-bench's Hydra sweeper and launcher (``hydra/sweeper: grids``, ``hydra/launcher: local``).
 
 Hydra finds plugins only under the ``hydra_plugins`` namespace, so these two classes live
-here; the module imports Hydra and the standard library only (Hydra imports it at start-up).
+here; the module imports Hydra, the standard library and one standard-library-only module of
+the project, :mod:`benchmark.harness.lifeline` (Hydra imports it at start-up).
 
 ``GridsSweeper`` is Hydra's basic sweeper plus two things:
 
@@ -19,7 +20,13 @@ here; the module imports Hydra and the standard library only (Hydra imports it a
 ``hydra-joblib-launcher``, but its workers are forked from the launching process on Linux, so
 they start with Python, NumPy and the app already imported, and keep their per-process caches
 from job to job. Elsewhere (or with ``start_method: spawn``) they are spawned. Each worker
-composes its own jobs' configs. ``n_jobs: 1`` runs the jobs in the launching process.
+composes its own jobs' configs, and dies with the launching process (``kill -9`` of it leaves
+no worker behind: :mod:`benchmark.harness.lifeline`, a standard-library-only module).
+
+``n_jobs: 1`` (the default) runs the jobs one after another in the launching process, where
+the app may spread each job's houses over one pool of processes shared by every job of the
+sweep (roomseg-bench's ``run.workers``). A job that fails because such a pool lost a process
+(:class:`BrokenProcessPool`) ends the sweep, as a killed launcher worker does.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ from __future__ import annotations
 import importlib
 import logging
 import multiprocessing
-import signal
+import os
 import sys
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -51,6 +58,8 @@ from hydra.core.utils import (
 from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
+
+from benchmark.harness.lifeline import worker_init
 
 log = logging.getLogger(__name__)
 
@@ -155,9 +164,9 @@ def check_options(batch: Sequence[Sequence[str]], loader: Any) -> None:
 _SWEEP: tuple[HydraContext, DictConfig, TaskFunction, dict[Any, Any]] | None = None
 
 
-def _init_worker(sweep: tuple | bytes) -> None:
+def _init_worker(sweep: tuple | bytes, parent_pid: int) -> None:
     global _SWEEP
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the launching process's: it stops us
+    worker_init(parent_pid)  # dies with the launching process; Ctrl-C is the launching process's: it stops us
     if isinstance(sweep, bytes):  # spawned: the state comes cloudpickled (the task function is
         import cloudpickle  # the app's undecorated main, which pickle cannot name; as in joblib)
 
@@ -185,6 +194,14 @@ def _run(idx: int, overrides: Sequence[str]) -> JobReturn:
                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
     if ret.status == JobStatus.FAILED:
         ret.return_value = _picklable(ret._return_value)
+    return ret
+
+
+def _raise_if_pool_broken(ret: JobReturn) -> JobReturn:
+    """A job run in this process whose pool of house workers lost a process ends the sweep
+    (as a killed launcher worker does); any other failure is the job's own."""
+    if ret.status == JobStatus.FAILED and isinstance(ret._return_value, BrokenProcessPool):
+        raise ret._return_value
     return ret
 
 
@@ -237,7 +254,7 @@ class LocalLauncher(Launcher):
         jobs = [(initial_job_idx + i, list(o)) for i, o in enumerate(job_overrides)]
         if n <= 1:
             try:
-                return [_run(i, o) for i, o in jobs]
+                return [_raise_if_pool_broken(_run(i, o)) for i, o in jobs]
             finally:
                 configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         ctx = multiprocessing.get_context(self.start_method)
@@ -249,7 +266,7 @@ class LocalLauncher(Launcher):
             import cloudpickle
 
             state = cloudpickle.dumps(_SWEEP)
-        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state,))
+        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state, os.getpid()))
         try:
             futures = [pool.submit(mod._run, i, o) for i, o in jobs]
             return [f.result() for f in futures]
