@@ -176,8 +176,10 @@ def _init_worker(sweep: tuple | bytes, parent_pid: int) -> None:
     _SWEEP = sweep  # forked: the parent's objects as they are
 
 
-def _run(idx: int, overrides: Sequence[str]) -> JobReturn:
-    """Compose and run one job in this worker (a config that does not compose fails alone)."""
+def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
+    """Compose and run one job in this worker (a config that does not compose fails alone).
+    ``n_jobs``: the jobs that really run at once (the job's ``hydra.launcher.n_jobs`` says so:
+    fewer jobs than ``n_jobs`` run in this process)."""
     assert _SWEEP is not None
     hydra_context, config, task_function, _ = _SWEEP
     try:
@@ -189,6 +191,8 @@ def _run(idx: int, overrides: Sequence[str]) -> JobReturn:
     with open_dict(cfg):
         cfg.hydra.job.id = f"{cfg.hydra.job.name}_{idx}"
         cfg.hydra.job.num = idx
+        if cfg.hydra.get("launcher") is not None and "n_jobs" in cfg.hydra.launcher:
+            cfg.hydra.launcher.n_jobs = n_jobs
     HydraConfig.instance().set_config(cfg)
     ret = run_job(hydra_context=hydra_context, task_function=task_function, config=cfg,
                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
@@ -254,7 +258,7 @@ class LocalLauncher(Launcher):
         jobs = [(initial_job_idx + i, list(o)) for i, o in enumerate(job_overrides)]
         if n <= 1:
             try:
-                return [_raise_if_pool_broken(_run(i, o)) for i, o in jobs]
+                return [_raise_if_pool_broken(_run(i, o, 1)) for i, o in jobs]
             finally:
                 configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         ctx = multiprocessing.get_context(self.start_method)
@@ -268,7 +272,7 @@ class LocalLauncher(Launcher):
             state = cloudpickle.dumps(_SWEEP)
         pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state, os.getpid()))
         try:
-            futures = [pool.submit(mod._run, i, o) for i, o in jobs]
+            futures = [pool.submit(mod._run, i, o, n) for i, o in jobs]
             return [f.result() for f in futures]
         except BrokenProcessPool:
             _stop(pool)
