@@ -7,7 +7,7 @@
   the reports, which sit on top of them;
 * no import cycle between the modules of the project;
 * ``hydra_plugins`` (imported by Hydra whenever any app starts) imports no project module but
-  the standard-library-only ones of :data:`PLUGIN_SAFE` (the die-with-parent helper).
+  the standard-library-only ones of :data:`PLUGIN_SAFE` (cores, workers that die with their parent).
 """
 
 import ast
@@ -132,7 +132,7 @@ def test_no_import_cycles(graph):
 
 
 #: project modules the Hydra plugins may import: each imports the standard library only.
-PLUGIN_SAFE = ("benchmark.harness.lifeline",)
+PLUGIN_SAFE = ("benchmark.harness.processes",)
 
 
 def stdlib_only(path: Path) -> list[str]:

@@ -228,7 +228,7 @@ def test_die_with_parent(tmp_path, use_prctl):
         import os, time
         parent = os.getpid()
         if os.fork() == 0:
-            from benchmark.harness.lifeline import die_with_parent
+            from benchmark.harness.processes import die_with_parent
             how = die_with_parent(parent, use_prctl={use_prctl}, poll_s=0.1)
             open({str(tmp_path / 'how')!r}, 'w').write(how)
             time.sleep(120)

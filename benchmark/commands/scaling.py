@@ -15,7 +15,9 @@ with ``run.workers=W`` and an empty results folder and cache, and prints one tab
   every process); Linux only;
 - houses per second (N / wall) and the mean milliseconds per stage of the houses computed
   in the run (``timings.csv``: ``t_scene``, ``t_render``, ...), and per house in its worker;
-- whether ``metrics.csv`` is byte-identical to the first worker count's for the same N.
+- whether ``metrics.csv`` is byte-identical to the first worker count's for the same N;
+- the machine's 1-minute load average when the run started (other work on the machine
+  slows the run: compare runs taken at similar loads).
 
 Extra ``key=value`` arguments are Hydra overrides of the run (e.g. ``env=procthor_shared``);
 the ones here are defaults they replace. Exit status 1 when a run fails (one line naming it).
@@ -132,6 +134,7 @@ def measure(n_houses: int, workers: int, overrides: list[str], work: Path, execu
            f"run.workers={workers}", f"run.executor={executor}", f"run.results_dir={work}", "run.name=scaling",
            "run.progress=false", *overrides]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     with open(work.with_suffix(".log"), "w") as log:
@@ -154,7 +157,7 @@ def measure(n_houses: int, workers: int, overrides: list[str], work: Path, execu
            "peak PSS MB": peak.pss / 2**20 if peak else float("nan"),
            "peak RSS MB": peak.rss / 2**20 if peak else float("nan"),
            "processes": peak.procs if peak else float("nan"), "houses / s": n_houses / wall,
-           "computed": len(fresh), "ms / house": 1e3 * fresh["house_s"].mean()}
+           "computed": len(fresh), "ms / house": 1e3 * fresh["house_s"].mean(), "load before": load}
     cols = [c for c in STAGES if c in fresh] + sorted(c for c in fresh if c.startswith("t_") and c not in STAGES)
     for c in cols:
         row[f"{c[2:]} ms"] = 1e3 * fresh[c].mean()
@@ -163,7 +166,7 @@ def measure(n_houses: int, workers: int, overrides: list[str], work: Path, execu
 
 
 def main(argv: list[str] | None = None) -> int:
-    from benchmark.harness.executor import available_cores
+    from benchmark.harness.processes import available_cores
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                                  epilog="e.g. python -m benchmark.commands.scaling --houses 100 1000 --workers 1 2")

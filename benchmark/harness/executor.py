@@ -19,7 +19,7 @@ houses (:func:`pipeline_for`). The spec reaches a local worker through a file in
 temporary folder (written once per job, read once per worker) and a Ray worker through
 Ray's object store, so that a task carries only the job's key and one house id.
 
-Pool workers die with the driver (:mod:`benchmark.harness.lifeline`), ignore Ctrl-C (the
+Pool workers die with the driver (:mod:`benchmark.harness.processes`), ignore Ctrl-C (the
 driver stops them at once) and send their log records to the driver, which handles them
 with its current handlers (the job's log file, the console). A worker that dies (kill -9,
 out of memory) ends the job with :class:`WorkerDied`, one line naming it; the houses scored
@@ -50,7 +50,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from benchmark.harness.lifeline import worker_init
+from benchmark.harness.processes import worker_init
 
 log = logging.getLogger("roomseg-bench")
 
@@ -189,14 +189,6 @@ class SerialExecutor:
 
 
 # ---------------------------------------------------------------- local processes
-def available_cores() -> int:
-    """The cores this process may run on (``os.sched_getaffinity``; the CPU count elsewhere)."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except (AttributeError, OSError):
-        return max(os.cpu_count() or 1, 1)
-
-
 def _forward_logs(queue: Any) -> None:
     """In a worker: send every log record to the driver (instead of the handlers it inherited,
     which name the job that was running when the pool started)."""
@@ -480,4 +472,4 @@ def _ray_completed(ray, refs: list) -> Iterator[Any]:
 
 
 __all__ = ["Executor", "HouseResult", "JobSpec", "LocalPool", "RayExecutor", "SerialExecutor", "WorkerDied",
-           "available_cores", "close_pool", "import_ray", "local_pool", "pipeline_for", "run_house"]
+           "close_pool", "import_ray", "local_pool", "pipeline_for", "run_house"]

@@ -44,7 +44,6 @@ from benchmark.harness.executor import (
     JobSpec,
     RayExecutor,
     SerialExecutor,
-    available_cores,
     close_pool,
     local_pool,
 )
@@ -56,6 +55,7 @@ from benchmark.harness.pipeline import (
     StageError,
     expand_force,
 )
+from benchmark.harness.processes import available_cores
 from benchmark.harness.progress import house_progress, job_label, parallel_jobs
 from benchmark.harness.store import Job, claim_job_dir
 from benchmark.metrics import describe

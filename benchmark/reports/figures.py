@@ -548,7 +548,7 @@ def _draw(tasks: list[Callable[[], list[Path]]], workers: int | None) -> list[li
     n = max(1, min(n, len(tasks)))
     if n == 1 or sys.platform != "linux":
         return [t() for t in tasks]
-    from benchmark.harness.lifeline import die_with_parent
+    from benchmark.harness.processes import die_with_parent
 
     _TASKS = tasks
     # each drawing process dies with this one (kill -9 here leaves no worker blocked on a pipe)

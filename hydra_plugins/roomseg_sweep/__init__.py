@@ -3,5 +3,5 @@
 
 They live under the ``hydra_plugins`` namespace because that is where Hydra looks for
 plugins, and import nothing of the project but one standard-library-only module
-(:mod:`benchmark.harness.lifeline`): Hydra imports them whenever an app starts.
+(:mod:`benchmark.harness.processes`): Hydra imports them whenever an app starts.
 """

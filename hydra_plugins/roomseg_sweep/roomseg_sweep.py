@@ -2,7 +2,7 @@
 
 Hydra finds plugins only under the ``hydra_plugins`` namespace, so these two classes live
 here; the module imports Hydra, the standard library and one standard-library-only module of
-the project, :mod:`benchmark.harness.lifeline` (Hydra imports it at start-up).
+the project, :mod:`benchmark.harness.processes` (Hydra imports it at start-up).
 
 ``GridsSweeper`` is Hydra's basic sweeper plus two things:
 
@@ -21,12 +21,17 @@ the project, :mod:`benchmark.harness.lifeline` (Hydra imports it at start-up).
 they start with Python, NumPy and the app already imported, and keep their per-process caches
 from job to job. Elsewhere (or with ``start_method: spawn``) they are spawned. Each worker
 composes its own jobs' configs, and dies with the launching process (``kill -9`` of it leaves
-no worker behind: :mod:`benchmark.harness.lifeline`, a standard-library-only module).
+no worker behind: :mod:`benchmark.harness.processes`, a standard-library-only module).
 
-``n_jobs: 1`` (the default) runs the jobs one after another in the launching process, where
-the app may spread each job's houses over one pool of processes shared by every job of the
-sweep (roomseg-bench's ``run.workers``). A job that fails because such a pool lost a process
-(:class:`BrokenProcessPool`) ends the sweep, as a killed launcher worker does.
+``n_jobs: 1`` runs the jobs one after another in the launching process, where the app may
+spread each job's houses over one pool of processes shared by every job of the sweep
+(roomseg-bench's ``run.workers``). A job that fails because such a pool lost a process
+(:class:`BrokenProcessPool`) ends the sweep, as a killed launcher worker does. ``n_jobs:
+auto`` chooses between the two by the number of jobs: side by side on as many workers as
+the cores available when the sweep has at least :data:`AUTO_JOBS_PER_CORE` jobs per core
+(every core stays busy, and the few tenths of a second each job spends being composed and
+set up overlap other jobs' work), else one after another (only the houses can use the cores).
+Every job's ``hydra.launcher.n_jobs`` is the number of jobs that really run at once.
 """
 
 from __future__ import annotations
@@ -59,11 +64,20 @@ from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
-from benchmark.harness.lifeline import worker_init
+from benchmark.harness.processes import available_cores, worker_init
 
 log = logging.getLogger(__name__)
 
 VALIDATE = ("quick", "all", "none")
+
+#: ``n_jobs: auto`` runs jobs side by side when the sweep has at least this many jobs per core.
+AUTO_JOBS_PER_CORE = 2
+
+
+def auto_jobs(n_jobs_total: int, cores: int) -> int:
+    """``n_jobs: auto``: ``cores`` workers when the sweep has at least
+    :data:`AUTO_JOBS_PER_CORE` jobs per core, else 1 (jobs one after another)."""
+    return cores if n_jobs_total >= AUTO_JOBS_PER_CORE * cores else 1
 
 
 class GridsSweeper(BasicSweeper):
@@ -223,14 +237,18 @@ class LocalLauncher(Launcher):
     """Runs a sweep's jobs on ``n_jobs`` local worker processes (forked on Linux).
 
     Args:
-        n_jobs: worker processes (1: run the jobs in the launching process).
+        n_jobs: worker processes (1: run the jobs in the launching process; ``auto``: see the
+            module docstring).
         start_method: ``fork`` | ``spawn`` | ``forkserver``; None: ``fork`` on Linux, else ``spawn``.
     """
 
-    def __init__(self, n_jobs: int = 2, start_method: str | None = None) -> None:
-        self.n_jobs = int(n_jobs)
-        if self.n_jobs < 1:
-            raise ValueError(f"hydra.launcher.n_jobs must be >= 1, got {n_jobs}")
+    def __init__(self, n_jobs: int | str = "auto", start_method: str | None = None) -> None:
+        try:
+            self.n_jobs: int | None = None if n_jobs == "auto" else int(n_jobs)
+        except (TypeError, ValueError):
+            self.n_jobs = 0
+        if self.n_jobs is not None and self.n_jobs < 1:
+            raise ValueError(f"hydra.launcher.n_jobs must be an integer >= 1 or auto, got {n_jobs!r}")
         methods = multiprocessing.get_all_start_methods()
         if start_method is not None and start_method not in methods:
             raise ValueError(f"hydra.launcher.start_method must be one of {methods}, got {start_method!r}")
@@ -249,9 +267,14 @@ class LocalLauncher(Launcher):
         configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
         sweep_dir.mkdir(parents=True, exist_ok=True)
-        n = min(self.n_jobs, len(job_overrides))
-        log.info(f"Launching {len(job_overrides)} jobs on {n} {self.start_method} worker(s), "
-                 f"sweep output dir: {sweep_dir}")
+        wanted = self.n_jobs if self.n_jobs is not None else auto_jobs(len(job_overrides), available_cores())
+        n = min(wanted, len(job_overrides))
+        if n <= 1:
+            log.info(f"Launching {len(job_overrides)} jobs one after another in this process, "
+                     f"sweep output dir: {sweep_dir}")
+        else:
+            log.info(f"Launching {len(job_overrides)} jobs on {n} {self.start_method} worker(s), "
+                     f"sweep output dir: {sweep_dir}")
         for i, overrides in enumerate(job_overrides):
             log.info(f"\t#{initial_job_idx + i} : {' '.join(filter_overrides(overrides))}")
         _SWEEP = (self.hydra_context, self.config, self.task_function, Singleton.get_state())

@@ -1,5 +1,7 @@
-"""Worker processes that die with their parent. Standard library only: the Hydra launcher
-(``hydra_plugins/roomseg_sweep``, which Hydra imports whenever an app starts) uses it too.
+"""Worker processes: how many cores this process may use (:func:`available_cores`), and
+workers that die with their parent (:func:`die_with_parent`). Standard library only: the
+Hydra launcher (``hydra_plugins/roomseg_sweep``, which Hydra imports whenever an app starts)
+uses it too.
 
 A worker of a process pool that outlives its parent (``kill -9`` of the parent, an
 out-of-memory kill) blocks for ever on the pool's pipe, holding its memory. Call
@@ -26,6 +28,14 @@ import threading
 
 #: ``PR_SET_PDEATHSIG`` from ``<linux/prctl.h>``.
 PR_SET_PDEATHSIG = 1
+
+
+def available_cores() -> int:
+    """The cores this process may run on (``os.sched_getaffinity``; the CPU count elsewhere)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):
+        return max(os.cpu_count() or 1, 1)
 
 
 def _prctl_pdeathsig(sig: int) -> bool:
@@ -76,4 +86,4 @@ def worker_init(parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-__all__ = ["die_with_parent", "worker_init", "PR_SET_PDEATHSIG"]
+__all__ = ["available_cores", "die_with_parent", "worker_init", "PR_SET_PDEATHSIG"]
