@@ -142,10 +142,13 @@ def test_a_sweep_shares_one_pool_of_workers(tmp_path):
 
 @NEEDS_PROC
 @pytest.mark.slow
-def test_ctrl_c_stops_every_worker_at_once(tmp_path):
-    """Ctrl-C (SIGINT to the process group) of a run with 2 workers: exit 130 within seconds,
-    one line, no process left; the houses scored so far are cached."""
-    p = _bench(tmp_path, *SLOW_RUN, "run.workers=2")
+@pytest.mark.parametrize("mode", ["run", "multirun"])
+def test_ctrl_c_stops_every_worker_at_once(tmp_path, mode):
+    """Ctrl-C (SIGINT to the process group) of a run (or a multirun's shared pool) with 2
+    workers: exit 130 within seconds, one line, no process left; the houses scored so far are
+    cached."""
+    args = ["-m", "classifier.accuracy=0.8,0.9", "hydra.launcher.n_jobs=1"] if mode == "multirun" else []
+    p = _bench(tmp_path, *args, *SLOW_RUN, "run.workers=2")
     scores = tmp_path / "results" / "cache" / "scores"
     assert wait_for(lambda: len(children(p.pid)) >= 2 and list(scores.rglob("*.json")), timeout=180), \
         "no house was scored"
@@ -241,3 +244,26 @@ def test_die_with_parent(tmp_path, use_prctl):
     os.kill(p.pid, signal.SIGKILL)
     p.wait(timeout=30)
     assert gone_within(p.pid, 5.0) == []
+
+
+def test_a_killed_pools_spec_folder_is_removed_by_the_next_pool(tmp_path, monkeypatch):
+    """A pool killed with its process leaves its folder of job specs; the next pool removes
+    the folders of pools whose process is gone, and keeps those of living ones."""
+    import tempfile
+
+    from benchmark.harness.executor import LocalPool
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    gone = tmp_path / f".roomseg-pool.tmp-{int(dead.stdout)}-abc"
+    living = tmp_path / f".roomseg-pool.tmp-{os.getppid()}-def"
+    for d in (gone, living):
+        d.mkdir()
+        (d / "x.pkl").write_bytes(b"spec")
+    pool = LocalPool(1)
+    try:
+        assert not gone.exists() and living.exists()
+        assert pool._dir.parent == tmp_path and pool._dir.name.startswith(f".roomseg-pool.tmp-{os.getpid()}-")
+    finally:
+        pool.close()
+    assert not pool._dir.exists()

@@ -222,6 +222,16 @@ def _exit_reason(code: int | None) -> str:
     return f"exit status {code}"
 
 
+def _spec_dir() -> Path:
+    """A private folder for a pool's job specs: ``<tmp>/.roomseg-pool.tmp-<pid>-*``. The
+    folders of pools whose process is gone (killed: no chance to remove its own) go first."""
+    from benchmark.harness.cache import clean_leftovers, leftover_prefix
+
+    base = Path(tempfile.gettempdir()) / "roomseg-pool"
+    clean_leftovers(base)
+    return Path(tempfile.mkdtemp(prefix=leftover_prefix(base, "tmp"), dir=base.parent))
+
+
 class LocalPool:
     """``workers`` local processes that run the houses of any number of jobs.
 
@@ -240,7 +250,7 @@ class LocalPool:
         self.start_method = start_method or ("fork" if sys.platform.startswith("linux") and "fork" in methods
                                              else "spawn")
         self._ctx = multiprocessing.get_context(self.start_method)
-        self._dir = Path(tempfile.mkdtemp(prefix="roomseg-pool-"))
+        self._dir = _spec_dir()
         self._specs: set[str] = set()
         self._logs = self._ctx.Queue()
         self._listener: threading.Thread | None = None
