@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs clean
+.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -27,6 +27,9 @@ $(VENV)/.installed-test: $(VENV)/.installed
 	$(PIP) install -q $(TORCH_PIN)
 	$(PIP) install -q -e ".[test]"
 	touch $@
+
+setup-gpu: setup-test  ## GPU workstation: add the gpu extra (bitsandbytes, the VLM's 4-bit quantisation) to .venv (docs/gpu.md)
+	$(PIP) install -q -e ".[gpu]"
 
 test: setup-test  ## run the whole test suite (what CI runs)
 	$(PY) -m pytest -q
@@ -66,6 +69,11 @@ bench-publish: setup  ## fresh timed `make bench`, its metrics -> results/publis
 	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory bench RESULTS=$(PUBLISH_TMP) BENCH_OUT=$(PUBLISH_TMP)/bench
 	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/bench --name bench --time $(PUBLISH_TMP)/time.txt
 
+robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results/published/robustness (then: make readme-tables)
+	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
+	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
+	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --command "make robustness" --columns robustness
+
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
 	$(PY) -m benchmark.commands.readme_tables write
 
@@ -77,6 +85,14 @@ GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)
 
 gpu-check:  ## GPU workstation, first step: CUDA, AI2-THOR render, Habitat, real classifier weights, 1-house run (pass/FAIL/skipped table)
 	$(GPU_PY) -m benchmark.commands.gpu_check
+
+# make robustness: every method under the robot conditions of conf/corruption (5 families x 5
+# severities + clean) on ROBUST_HOUSES houses per dataset; tables and figures -> ROBUST_OUT.
+ROBUST_HOUSES ?= 20
+ROBUST_OUT ?= results/robustness
+robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS)
+	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --out $(ROBUST_OUT)
 
 sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity (+ docs/figures)
 	$(PY) -m benchmark.commands.bench experiment=sensitivity env=synthetic run.limit=20

@@ -52,6 +52,17 @@ two pieces of one class belong together, so there each piece is its own segment 
 With no segment every score is 0 (ipa precision and matched precision too); with no room of
 at least ``min_segment_m2`` the room-side scores are NaN.
 
+**Metrics of your own** (``extra``): callables ``fn(pred, gt_instances, gt_classes,
+resolution) -> {column: value}`` configured as ``metrics.extra: [{_target_: ...}]`` (a class
+whose instances are callable, or a function with ``_partial_: true``). Every scoring path
+calls them after the built-in metrics (:func:`extra_scores`): ``pred`` is the label map
+(class indices, -1 unlabelled; ``gt_classes`` the class index of each room) or the
+instance map (segment ids, -1 none; ``gt_classes`` None), both read-only, on the
+ground-truth grid of ``resolution`` m/px. Each value becomes a column of the row: a share
+(a float in [0, 1], or NaN when undefined) or a count (an int >= 0); a name must be new
+(not a column the row already has). Anything else is a ``ValueError`` naming the metric,
+the column and the value, so in a sweep that house fails alone with the reason.
+
 Scores are always computed on the ground-truth grid: resample a prediction at another
 resolution first with :func:`resample_nearest`.
 """
@@ -59,7 +70,8 @@ resolution first with :func:`resample_nearest`.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import re
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,6 +87,15 @@ METRIC_COLUMNS = ("iou", "precision", "recall", "matched_iou", "matched_precisio
 
 #: IoU above which a segment and a room are a panoptic match.
 PQ_IOU = 0.5
+
+#: Columns a runner row carries besides the metrics (the harness's descriptive and per-house
+#: columns): an extra metric may not take these names, nor ``iou_<class>`` or ``t_<stage>``.
+ROW_COLUMNS = ("house_id", "dataset", "env", "viewpoints", "renderer", "classifier", "oracle_accuracy",
+               "aggregator", "postprocess", "segmenter", "label", "status", "error", "traceback", "score_key",
+               "metric_params", "n_views", "n_refused", "view_accuracy", "view_accuracy_seen", "method",
+               "resolution", "prediction", "ground_truth")
+_RESERVED_PREFIXES = ("iou_", "t_")
+_COLUMN_NAME = re.compile(r"[a-z][a-z0-9_]*")
 
 
 @dataclass(frozen=True)
@@ -95,6 +116,8 @@ class MetricParams:
             0.2 m² = 500 px at 0.02 m/px, 80 px at 0.05 m/px.
         not_room_colours: external instance PNGs: colours that are never a room ("#rrggbb");
             their pixels are unassigned (-1). Default black (not walkable) and white.
+        extra: metrics of your own, callables ``(pred, gt_instances, gt_classes, resolution)
+            -> {column: value}`` (:func:`extra_scores`); ``()`` by default.
     """
 
     match: str = "iou"
@@ -103,6 +126,7 @@ class MetricParams:
     instances: str = "ids"
     min_colour_m2: float = 0.2
     not_room_colours: tuple = ("#000000", "#ffffff")
+    extra: tuple = ()
 
     def __post_init__(self) -> None:
         if self.match not in ("iou", "overlap"):
@@ -122,6 +146,16 @@ class MetricParams:
         object.__setattr__(self, "not_room_colours", norm)
         object.__setattr__(self, "min_segment_m2", float(self.min_segment_m2))
         object.__setattr__(self, "min_colour_m2", float(self.min_colour_m2))
+        extra = () if self.extra is None else self.extra
+        if isinstance(extra, str) or not hasattr(extra, "__iter__"):
+            raise ValueError(f"metrics.extra must be a list of metric callables ({{_target_: ...}}), got {extra!r}")
+        extra = tuple(extra)
+        for i, fn in enumerate(extra):
+            if not callable(fn):
+                raise ValueError(f"metrics.extra[{i}] is {fn!r}, expected a callable (pred, gt_instances, "
+                                 "gt_classes, resolution) -> {column: value}: a class with __call__ or a "
+                                 "function with _partial_: true")
+        object.__setattr__(self, "extra", extra)
 
     def min_segment_px(self, resolution: float) -> int:
         """The minimum segment/room size in pixels at ``resolution`` m/px (:func:`area_px`)."""
@@ -158,7 +192,74 @@ def describe(params: MetricParams, resolution: float | None = None, colours: boo
         cpx = f" ({params.min_colour_px(resolution)} px)" if resolution else ""
         text += (f"; PNG colours < {params.min_colour_m2:g} m²{cpx} anti-aliasing, "
                  f"not rooms: {' '.join(params.not_room_colours)}")
+    if params.extra:
+        text += f"; extra metrics: {', '.join(callable_name(fn) for fn in params.extra)}"
     return text
+
+
+def callable_name(fn: Callable) -> str:
+    """``module.qualname`` of a metric callable (a function, a partial of one, or an instance)."""
+    target = getattr(fn, "func", fn)  # functools.partial
+    if not hasattr(target, "__qualname__"):  # an instance: name its class
+        target = type(target)
+    return f"{target.__module__}.{target.__qualname__}"
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    v = np.asarray(a).view()
+    v.flags.writeable = False
+    return v
+
+
+def extra_scores(params: MetricParams, pred: np.ndarray, gt_instances: np.ndarray,
+                 gt_classes: Sequence[int] | None, resolution: float, taken: Sequence[str] = ()) -> dict:
+    """The columns of the metrics of your own (``params.extra``), checked.
+
+    Args:
+        params: metric parameters; ``params.extra`` the callables, called in order.
+        pred: (H, W) int label map (class indices, -1 unlabelled) or instance map (segment
+            ids, -1 none), on the ground-truth grid. Handed over read-only.
+        gt_instances: (H, W) int room ids, -1 not walkable. Read-only.
+        gt_classes: class index of each room (label maps), or None (instance maps).
+        resolution: metres per pixel of both maps.
+        taken: columns the row already has (the built-in metrics).
+    Returns: {column: value}; a value is a float in [0, 1] or NaN (a share) or an int >= 0
+        (a count).
+    Raises:
+        ValueError: one line naming the metric, the column and the value, for a result that
+            is not such a dict, a name that is not lower_snake_case or is already taken, or
+            a value that is neither a share nor a count.
+    """
+    out: dict = {}
+    if not params.extra:
+        return out
+    taken = set(taken) | set(ROW_COLUMNS) | set(METRIC_COLUMNS)
+    pred_ro, gt_ro = _read_only(pred), _read_only(gt_instances)
+    classes_ro = None if gt_classes is None else _read_only(np.asarray(gt_classes, dtype=np.int64))
+    for fn in params.extra:
+        name = callable_name(fn)
+        got = fn(pred_ro, gt_ro, classes_ro, resolution)
+        if not isinstance(got, Mapping):
+            raise ValueError(f"metric {name} returned {type(got).__name__}, expected a dict {{column: value}}")
+        for k, v in got.items():
+            if not isinstance(k, str) or not _COLUMN_NAME.fullmatch(k):
+                raise ValueError(f"metric {name}: column name {k!r} is not lower_snake_case ([a-z][a-z0-9_]*)")
+            if k in taken or k in out or k.startswith(_RESERVED_PREFIXES):
+                raise ValueError(f"metric {name}: column {k!r} is already a column of the row; choose another name")
+            if isinstance(v, bool | np.bool_) or not isinstance(v, int | float | np.integer | np.floating):
+                raise ValueError(f"metric {name}: {k}={v!r}, expected a share (float in [0, 1] or NaN) "
+                                 "or a count (int >= 0)")
+            if isinstance(v, int | np.integer):
+                if v < 0:
+                    raise ValueError(f"metric {name}: {k}={int(v)}, expected a count (int >= 0)")
+                out[k] = int(v)
+            else:
+                f = float(v)
+                if not (math.isnan(f) or 0.0 <= f <= 1.0):
+                    raise ValueError(f"metric {name}: {k}={f!r}, expected a share in [0, 1] (or NaN; "
+                                     "a count is an int)")
+                out[k] = f
+    return out
 
 
 def resample_nearest(labels: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -326,8 +427,8 @@ def score_semantic(pred_labels: np.ndarray, gt_instances: np.ndarray, gt_instanc
         params: segment, area and matching rules.
         classes: class names; adds ``iou_<name>`` per class.
         resolution: metres per pixel of both maps (turns ``min_segment_m2`` into pixels).
-    Returns: every column of :data:`METRIC_COLUMNS` (+ ``iou_<name>`` per class); fractions
-        in [0, 1], counts as ints.
+    Returns: every column of :data:`METRIC_COLUMNS` (+ ``iou_<name>`` per class, + the
+        columns of ``params.extra``); fractions in [0, 1], counts as ints.
     """
     pred, gt = _check(pred_labels, gt_instances)
     inst_cls = np.asarray(gt_instance_classes, dtype=np.int64)
@@ -354,6 +455,7 @@ def score_semantic(pred_labels: np.ndarray, gt_instances: np.ndarray, gt_instanc
         if classes is not None:
             out[f"iou_{classes[c]}"] = v
     out["class_iou"] = float(np.mean(ious)) if ious else float("nan")
+    out.update(extra_scores(params, pred, gt, inst_cls, resolution, taken=out))
     return out
 
 
@@ -367,8 +469,9 @@ def score_instances(pred_instances: np.ndarray, gt_instances: np.ndarray,
         gt_instances: (H, W) int room instance ids, -1 not walkable.
         params: segment, area and matching rules.
         resolution: metres per pixel of both maps.
-    Returns: every column of :data:`METRIC_COLUMNS`; accuracy, class IoU and semantic PQ are
-        not defined without classes and are NaN.
+    Returns: every column of :data:`METRIC_COLUMNS` (+ the columns of ``params.extra``, called
+        with ``gt_classes=None``); accuracy, class IoU and semantic PQ are not defined without
+        classes and are NaN.
     """
     pred, gt = _check(pred_instances, gt_instances)
     if params.instances == "connected":
@@ -382,4 +485,5 @@ def score_instances(pred_instances: np.ndarray, gt_instances: np.ndarray,
     out = _segment_scores(seg, gt, params, params.min_segment_px(resolution))
     out["accuracy"] = float("nan")
     out["class_iou"] = float("nan")
+    out.update(extra_scores(params, pred, gt, None, resolution, taken=out))
     return out

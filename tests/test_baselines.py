@@ -278,17 +278,19 @@ def test_room_area_limits_are_square_metres():
     """Known answers in square metres (0.05 m/px map; the same at 0.025 m/px)."""
     for scale in (1, 2):
         grid, gt = rooms_and_corridor(scale=scale)
-        # Voronoi limits whole parts: the 4.5 m^2 corridor is below 5 m^2 and joins a neighbour
-        # DistanceTransform limits seeds (the free space above a distance threshold): the 0.8 m
-        # doors part at thresholds >= 0.4 m, where the room seeds have (3 - 2t)^2 >= 3 m^2
-        # up to t = 0.63 m but the corridor seed has at most (1.5 - 0.8)(3 - 0.8) = 1.54 m^2
-        for seg in (Voronoi(min_area=5.0), DistanceTransform(min_area=3.0)):
+        # min_room_area limits whole rooms: the 4.5 m^2 corridor (with its doors) is below 5 m^2 and
+        # merges into a room; DistanceTransform's min_seed_area limits seeds (the free space above a
+        # distance threshold): the 0.8 m doors part at thresholds >= 0.4 m, where the room seeds have
+        # (3 - 2t)^2 >= 3 m^2 up to t = 0.63 m but the corridor seed has at most
+        # (1.5 - 0.8)(3 - 0.8) = 1.54 m^2
+        for seg in (Voronoi(min_room_area=5.0), DistanceTransform(min_seed_area=3.0),
+                    Morphological(min_room_area=5.0)):
             inst = seg(grid)
             assert inst.max() + 1 == 2, type(seg).__name__
             assert np.bincount(inst[gt == 0]).argmax() != np.bincount(inst[gt == 2]).argmax()
-        assert DistanceTransform(min_area=1.5)(grid).max() + 1 == 3
+        assert DistanceTransform(min_seed_area=1.5)(grid).max() + 1 == 3
         # no seed can reach 10 m^2: one segment per walkable component
-        assert DistanceTransform(min_area=10.0)(grid).max() == 0
+        assert DistanceTransform(min_seed_area=10.0)(grid).max() == 0
 
 
 def test_bad_input():
@@ -296,7 +298,9 @@ def test_bad_input():
         Morphological()(GridMap(np.zeros((5, 5), bool), 0.05, (0, 0)))
     grid, _ = rooms_and_corridor()
     with pytest.raises(ValueError, match="area limits"):
-        DistanceTransform(min_area=5, max_area=1)(grid)
+        DistanceTransform(min_seed_area=5, max_area=1)(grid)
+    with pytest.raises(ValueError, match="min_room_area is -1"):
+        Voronoi(min_room_area=-1)
     with pytest.raises(ValueError, match="max_door"):
         Voronoi(max_door=0)
 

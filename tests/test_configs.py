@@ -74,7 +74,8 @@ def test_groups_are_discovered():
     assert len(OPTIONS) >= 30
 
 
-@pytest.mark.parametrize("group,option", [o for o in OPTIONS if o[0] != "experiment"], ids=lambda v: str(v))
+@pytest.mark.parametrize("group,option", [o for o in OPTIONS if o[0] not in ("experiment", "corruption")],
+                         ids=lambda v: str(v))
 def test_every_option_composes_resolves_and_builds(group, option, tmp_path, monkeypatch, request):
     monkeypatch.setenv("ROOMSEG_ARCHITECTHOR_ANNOTATIONS", str(tmp_path))
     prefix = "" if group in _bench_defaults() else "+"
@@ -116,3 +117,21 @@ def test_unknown_option_is_an_error_listing_the_options():
 
     with pytest.raises((ConfigCompositionException, MissingConfigException), match="graph_knn"):
         _compose(["aggregator=nope"])
+
+
+@pytest.mark.parametrize("option", [o for g, o in OPTIONS if g == "corruption"])
+def test_every_corruption_level_composes_names_itself_and_builds(option):
+    """Each severity file (conf/corruption, package _global_) composes, says its family and
+    severity in ``robot`` as its name does, and every stage it sets is built."""
+    cfg = _compose([f"corruption={option}"])
+    family, _, level = option.rpartition("_")
+    if option == "clean":
+        family, level = "clean", "0"
+    assert cfg.robot.corruption == family and cfg.robot.severity == int(level)
+    for group in ("mapping", "pose_error", "label_noise", "viewpoints"):
+        node = cfg.get(group)
+        if node is not None:
+            assert type(instantiate(node)).__name__ == node._target_.rsplit(".", 1)[-1]
+    if option != "clean":
+        assert any(cfg.get(g) is not None for g in ("mapping", "pose_error", "label_noise")) or \
+            cfg.viewpoints._target_.endswith("Frontier")

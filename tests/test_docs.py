@@ -53,15 +53,27 @@ def test_the_site_builds_strict(tmp_path):
 @pytest.mark.slow
 def test_a_broken_link_fails_the_strict_build(tmp_path):
     """The check itself: the same site with one link to a missing page and one to a missing
-    anchor does not build."""
+    anchor does not build, nor with an included file that is missing."""
     exe = shutil.which("mkdocs", path=str(Path(sys.executable).parent)) or shutil.which("mkdocs")
     if exe is None:
         pytest.skip("mkdocs is not installed (pip install 'roomseg-bench[docs]')")
     shutil.copytree(ROOT / "docs", tmp_path / "docs")
-    with open(tmp_path / "docs" / "index.md", "a", encoding="utf-8") as f:
-        f.write("\n[gone](nope.md) and [here](reference/config.md#no-such-anchor)\n")
-    cfg = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
-    (tmp_path / "mkdocs.yml").write_text(cfg, encoding="utf-8")
-    r = subprocess.run([exe, "build", "--strict", "--site-dir", str(tmp_path / "site")], cwd=tmp_path,
-                       env={**os.environ, "NO_MKDOCS_2_WARNING": "1"}, capture_output=True, text=True, timeout=300)
+    shutil.copytree(ROOT / "examples", tmp_path / "examples")  # files the pages include (snippets)
+    shutil.copy(ROOT / "README.md", tmp_path / "README.md")
+    shutil.copy(ROOT / "mkdocs.yml", tmp_path / "mkdocs.yml")
+
+    def build() -> subprocess.CompletedProcess:
+        return subprocess.run([exe, "build", "--strict", "--site-dir", str(tmp_path / "site")], cwd=tmp_path,
+                              env={**os.environ, "NO_MKDOCS_2_WARNING": "1"}, capture_output=True, text=True,
+                              timeout=300)
+
+    assert build().returncode == 0  # the copy builds as it is
+    index = tmp_path / "docs" / "index.md"
+    good = index.read_text(encoding="utf-8")
+    index.write_text(good + "\n[gone](nope.md) and [here](reference/config.md#no-such-anchor)\n", encoding="utf-8")
+    r = build()
     assert r.returncode != 0 and "nope.md" in r.stderr and "no-such-anchor" in r.stderr
+    # an included file that is missing (an example moved without its page) fails too
+    index.write_text(good + '\n```python\n--8<-- "examples/plugins/gone.py"\n```\n', encoding="utf-8")
+    r = build()
+    assert r.returncode != 0 and "examples/plugins/gone.py" in r.stderr

@@ -116,6 +116,21 @@ def test_door_connects_rooms_and_wall_separates_them():
     assert z.min() > 0.9 and z.max() < 2.1
 
 
+def test_an_empty_wall_is_an_open_plan_not_a_wall():
+    """ProcTHOR marks a wall fully opened between two rooms ``empty`` (its open plans): it is
+    not drawn, so the rooms are one walkable area, split only by the ground truth."""
+    from scipy import ndimage
+
+    h = two_rooms(door=False)
+    for w in h["walls"]:
+        w["empty"] = True
+    s = rasterise_house(House("two", h), resolution=0.05)
+    assert ndimage.label(s.grid.walkable)[1] == 1 and not s.walls.any()
+    floor = s.rooms >= 0
+    assert (s.grid.walkable == floor).all()  # nothing but the floor's edge is lost
+    assert set(np.unique(s.instances[s.grid.walkable])) == {0, 1}
+
+
 def test_unknown_asset_uses_type_default_and_rotation():
     s = rasterise_house(House("two", two_rooms(chair=True)), resolution=0.02, wall_thickness=0.0)
     s0 = rasterise_house(House("two", two_rooms()), resolution=0.02, wall_thickness=0.0)

@@ -114,7 +114,7 @@ def test_split_dictionary_layout(tmp_path):
     assert recs[0].data["rooms"][0]["roomType"] == "Bathroom"
     with pytest.raises(ValueError, match=r"holds the splits \['train', 'val'\]; choose one with split"):
         read_house_records(path)
-    with pytest.raises(ValueError, match=r"no split 'test'; available splits: \['train', 'val'\]"):
+    with pytest.raises(ValueError, match=r"no split 'test'; splits with houses: \['train', 'val'\]"):
         read_house_records(path, split="test")
     env = ProcTHOREnv(path=str(path), split="val", resolution=0.1)
     assert env.house_ids() == ["splits-val-00000"]
@@ -124,6 +124,29 @@ def test_split_dictionary_layout(tmp_path):
     with gzip.open(path2, "wt") as f:
         json.dump({"train": [json.dumps(room_house())]}, f)
     assert read_house_records(path2, split="train")[0].data == room_house()
+
+
+def test_the_split_errors_list_only_splits_that_hold_houses(tmp_path):
+    from prior import Dataset, DatasetDict
+
+    path = tmp_path / "splits.json"
+    path.write_text(json.dumps({"train": [], "val": [room_house("Bathroom")], "test": []}))
+    with pytest.raises(ValueError, match=r"holds the splits \['val'\]; choose one with split"):
+        read_house_records(path)
+    with pytest.raises(ValueError, match=r"an empty split 'train'; splits with houses: \['val'\]"):
+        read_house_records(path, split="train")
+    with pytest.raises(ValueError, match=r"no split 'dev'; splits with houses: \['val'\]"):
+        read_house_records(path, split="dev")
+    path.write_text(json.dumps({"train": [], "val": []}))
+    with pytest.raises(ValueError, match=r"every split \(\['train', 'val'\]\) is empty"):
+        read_house_records(path, split="val")
+    # prior's dataset dict: an empty test split is not offered
+    ds = DatasetDict(train=Dataset([room_house()], "procthor-10k", "train"), test=Dataset([], "procthor-10k", "test"))
+    assert prior_splits(ds) == ["train"]
+    with pytest.raises(ValueError, match=r"split 'test' holds no houses; splits with houses: \['train'\]"):
+        prior_records(ds, "procthor-10k", "test")
+    with pytest.raises(ValueError, match=r"no split 'val'; splits with houses: \['train'\]"):
+        prior_records(ds, "procthor-10k", "val")
 
 
 def test_split_only_for_split_dictionaries_and_unknown_inputs(tmp_path):
@@ -340,7 +363,7 @@ def test_prior_splits_found_on_the_real_dataset_dict():
     with pytest.raises(KeyError, match="0"):
         list(ds)
     assert prior_splits(ds) == ["train", "val"]
-    assert prior_splits({"a": [], "b": []}) == ["a", "b"]
+    assert prior_splits({"a": [room_house()], "b": []}) == ["a"]  # only splits that hold houses
 
 
 def test_prior_loader_with_the_real_prior_classes(monkeypatch):
@@ -354,7 +377,7 @@ def test_prior_loader_with_the_real_prior_classes(monkeypatch):
     assert [h.id for h in houses] == ["procthor-10k-train-00001", "procthor-10k-train-00002"]
     assert [h.data["rooms"][0]["roomType"] for h in houses] == ["Bedroom", "Hallway"]
     assert len(load_prior_houses("procthor-10k", "val", 0, None)) == 2
-    with pytest.raises(ValueError, match=r"procthor-10k has no split 'test'; available splits: \['train', 'val'\]"):
+    with pytest.raises(ValueError, match=r"procthor-10k has no split 'test'; splits with houses: \['train', 'val'\]"):
         load_prior_houses("procthor-10k", "test")
 
     env = ProcTHOREnv(path=None, stop=100, resolution=0.1)  # split null -> train, as the paper's config

@@ -1,6 +1,6 @@
 """A plug-in from outside the repository: a user's own aggregator in their own package and
-config folder, picked up with Hydra's search path, runs through ``roomseg-bench`` (README
-"Your own stage from outside the repository")."""
+config folder, picked up with Hydra's search path, runs through ``roomseg-bench``
+(docs/plugins.md; the page's own examples: tests/test_plugin_examples.py)."""
 
 import subprocess
 import sys

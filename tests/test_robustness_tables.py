@@ -59,11 +59,14 @@ def test_corruption_error_and_drop_by_hand():
 
 def test_rank_notes_say_who_leads_and_whether_geometry_overtakes():
     t = summary_table(cell_means(_rows(), "iou"), reference="A")
-    notes = rank_notes(t, geometric=["A"])
-    assert "clean: B first (95.0)" in notes
-    assert any(n.startswith("pose error: A first") for n in notes)
-    assert "pose error: best view-based 60.0 vs best geometric 85.0 (geometric ahead)" in notes
-    assert "scan map: best view-based 80.0 vs best geometric 60.0 (view-based ahead)" in notes
+    cells = cell_means(_rows(), "iou")
+    notes = rank_notes(t, geometric=["A"], cells=cells)
+    assert notes[0] == "clean: B first (95.0); best view-based 95.0 vs best geometric 90.0 (view-based ahead)"
+    # pose: B (60) below A (85) at every severity, but above it clean: the ranking flips at severity 1
+    assert notes[2] == ("pose error: A first (85.0, mean over severities); best view-based 60.0 vs best geometric "
+                        "85.0 (geometric ahead); by severity: view-based at severity 0, geometric at severities 1-5")
+    assert notes[1] == ("scan map: B first (80.0, mean over severities); best view-based 80.0 vs best geometric "
+                        "60.0 (view-based ahead)")  # ahead at every severity: no flip to report
 
 
 def test_cells_never_mix_house_sets_or_hide_failures():

@@ -95,7 +95,8 @@ def test_force_redoes_the_named_stage_and_after(tmp_path, procthor_file):
     run(cfg, tmp_path / "o3", ch)
     again = _snapshot(cache)
     assert {Path(p).parts[-3] for p in after if again.get(p) != after[p]} == {"scores", "maps"}
-    assert expand_force(["render"]) == {"render", "classify", "aggregate", "score"}
+    assert expand_force(["render"]) == {"render", "map", "classify", "aggregate", "score"}
+    assert expand_force(["map"]) == {"map", "classify", "aggregate", "score"}
     assert expand_force(["aggregate"]) == {"aggregate", "score"}
     with pytest.raises(ValueError, match="run.force"):
         expand_force(["paint"])

@@ -35,7 +35,8 @@ def _expected_free_geometry(house, scene, wall_thickness=0.1, max_object_base=0.
     for w in house.data["walls"]:
         pts = [(p["x"], p["z"]) for p in w["polygon"] if p["y"] == min(q["y"] for q in w["polygon"])]
         walls[w["id"]] = (np.array(pts[0], float), np.array(pts[-1], float))
-    bands = shapely.union_all([shapely.LineString([a, b]).buffer(half) for a, b in walls.values()])
+    drawn = {w["id"] for w in house.data["walls"] if not w.get("empty")}  # "empty": an open-plan opening
+    bands = shapely.union_all([shapely.LineString([a, b]).buffer(half) for k, (a, b) in walls.items() if k in drawn])
     holes = []
     for d in house.data["doors"]:
         t0, t1 = sorted((d["holePolygon"][0]["x"], d["holePolygon"][-1]["x"]))

@@ -8,7 +8,8 @@ and every walkable cell a ray reaches with clear line of sight gets one vote fro
 several rays of one view still gets one vote. The label of a cell is the class with the
 most votes summed over the ``window`` x ``window`` pixels around it (ties: lower class
 index); walkable cells with no vote in their window stay unlabelled.
-Memory: (C, H, W) float32 vote counts and an (H, W) int32 stamp, linear in the map size.
+Memory: (C, H, W) float32 vote counts and an (H, W) int32 stamp, linear in the map size, and
+nothing per ray: every cone shares one array of ray offsets around its view's heading.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from envs.render.raycast import cone_thetas, ray_end, trace_ray
 
 
 @njit(cache=True)
-def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, labels, votes, counts, stamp):
+def _cone_votes(blocked, rows, cols, yaws, offsets, max_range, short_px, labels, votes, counts, stamp):
     cap = int(np.ceil(max(max_range, short_px))) + 2
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
@@ -38,8 +39,8 @@ def _cone_votes(blocked, rows, cols, yaws, thetas, max_range, short_px, labels, 
         if hr >= 0:
             continue
         used += 1
-        for t in range(thetas.shape[1]):
-            r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
+        for t in range(offsets.shape[0]):  # the cone's rays: the view's heading + fixed offsets
+            r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
             n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
             for j in range(n):
                 rr = buf_r[j]
@@ -101,10 +102,12 @@ class VisionCone(Aggregator):
         n_cls = p.shape[1]
         labels = np.argmax(p, axis=1).astype(np.int64) if self.vote == "label" else np.full(len(p), -1, np.int64)
         max_px = self.max_range_m / grid.resolution
-        thetas = np.stack([cone_thetas(y, self.fov, max_px, self.ray_density) for y in yaw])
+        # every cone has the same ray offsets around its heading: no (views x rays) array, so
+        # memory does not grow with the number of views (a million views fit)
+        offsets = cone_thetas(0.0, self.fov, max_px, self.ray_density)
         counts = np.zeros((n_cls, *grid.shape), np.float32)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), r.astype(np.int64), c.astype(np.int64),
-                                     np.deg2rad(yaw), thetas, float(max_px), float(self.blocked_ray_m / grid.resolution),
+                                     np.deg2rad(yaw), offsets, float(max_px), float(self.blocked_ray_m / grid.resolution),
                                      labels, p.astype(np.float32), counts, np.full(grid.shape, -1, np.int32))
         return counts
 

@@ -44,8 +44,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.interfaces import Classifier
-from envs.maps.frames import ros_to_world
-from envs.maps.pose_files import FRAME_COLUMNS, read_table
+from envs.maps.pose_files import FRAME_COLUMNS, poses_from_table, read_table
 from envs.render.image_folder import match_poses
 
 MATCHES = ("auto", "order", "id", "pose")
@@ -265,10 +264,7 @@ class LabelsFileClassifier(Classifier):
         if missing:
             raise ValueError(f"{path}: match=pose in frame {self.frame!r} needs column(s) {missing}, found "
                              f"{list(df.columns)}")
-        a, b, c = (_numeric(df, col, path, "a number") for col in cols)
-        if self.frame == "ros":
-            a, b, c = ros_to_world(a, b, c)
-        listed = np.column_stack([a, b, c])
+        listed = poses_from_table(df, path, self.frame)
         poses = np.array([o.pose for o in observations], dtype=float).reshape(-1, 3)
         rows = np.empty(len(poses), np.int64)
         for i, near in enumerate(match_poses(listed, poses, self.tolerance_m, self.tolerance_deg)):

@@ -25,6 +25,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from benchmark.harness import sweep
+from benchmark.harness.checks import check_run_overrides
 from benchmark.harness.executor import WorkerDied
 from benchmark.harness.pipeline import StageError
 from benchmark.harness.runner import CONF_DIR, ConfigError, run
@@ -65,6 +66,7 @@ def main() -> int:
 
     os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach this function instead of Hydra's printer
     try:
+        check_run_overrides(sys.argv[1:])  # run.<typo> or +run.<typo>: refused before Hydra writes anything
         app()
     except (ConfigError, StageError) as e:
         print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)

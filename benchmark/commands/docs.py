@@ -1,13 +1,29 @@
-"""``python -m benchmark.commands.docs``: the generated pages of the docs site.
+"""``python -m benchmark.commands.docs``: the generated pages of the docs site, and a runner for
+the command blocks of a page.
 
     python -m benchmark.commands.docs reference          # write docs/reference/{commands,config}.md
     python -m benchmark.commands.docs check              # exit 1 naming every stale generated page
+    python -m benchmark.commands.docs run-blocks docs/getting-started.md --skip '^make test( |$)=CI runs it'
 
 The reference is generated, never typed: ``commands.md`` holds the ``--help`` of every command
 (``python -m benchmark.commands.<name>``, run as a subprocess, sub-commands included), and
 ``config.md`` every config group of ``conf/`` with each option's file as it is (comments give
 the units). ``make docs`` writes them and builds the site (MkDocs, strict); the tests fail
 when a generated page differs from what this command writes.
+
+``run-blocks PAGE`` runs every fenced ``bash`` block of a page, in page order, in one bash
+session (as a user types them into one terminal: ``source .venv/bin/activate`` in one block
+holds for the next), stopping at the first command that fails, in a fresh copy of the
+working tree (the files git tracks or would track: a fresh clone with this tree's changes).
+The shell starts clean: no active virtual environment, no ``PYTHONPATH``. ``--env K=V`` sets
+a variable for the whole session (``BENCH_HOUSES=2`` keeps ``make bench`` small), ``--skip
+REGEX=REASON`` replaces each command line that matches by a line saying it was skipped and
+why, and ``--venv-from PYTHON`` makes the copy's ``.venv`` a light environment over that
+interpreter's installed packages (the copy's own code first, its console scripts, marked
+installed), so ``make setup`` has nothing to do: for tests, where the packages are installed
+already; without it ``make setup`` builds ``.venv`` in the copy (CI). Exit status: 0 when
+every block ran, 1 when one failed (the block and its line on the page are named), 2 for
+bad input.
 """
 
 from __future__ import annotations
@@ -15,10 +31,15 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shlex
+import shutil
 import subprocess
 import sys
+import tempfile
+import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -127,10 +148,234 @@ def pages() -> dict[Path, str]:
     return {REFERENCE / "commands.md": commands_page(), REFERENCE / "config.md": config_page()}
 
 
+@dataclass(frozen=True)
+class Block:
+    """A fenced code block of a page: its first code line's number on the page (1-based), its
+    language and its code (dedented)."""
+
+    line: int
+    lang: str
+    code: str
+
+
+_FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<fence>`{3,}|~{3,})[ \t]*(?P<lang>[\w+-]*)[^\n]*$")
+
+
+def blocks(text: str, lang: str | None = "bash") -> list[Block]:
+    """The fenced code blocks of Markdown ``text`` (of language ``lang``; None: all), in order.
+
+    A fence is three or more backticks or tildes, indented or not (blocks in lists and
+    admonitions); it closes at a line of the same character, at least as long. An unclosed
+    fence runs to the end of the page.
+    """
+    out: list[Block] = []
+    lines = text.splitlines()
+    i = 0
+    while i < len(lines):
+        m = _FENCE.match(lines[i])
+        if not m:
+            i += 1
+            continue
+        fence, indent, block_lang = m["fence"], len(m["indent"]), m["lang"].lower()
+        close = re.compile(rf"^[ \t]*{re.escape(fence[0])}{{{len(fence)},}}[ \t]*$")
+        body: list[str] = []
+        j = i + 1
+        while j < len(lines) and not close.match(lines[j]):
+            body.append(lines[j][indent:] if lines[j][:indent].strip() == "" else lines[j].lstrip())
+            j += 1
+        if lang is None or block_lang == lang:
+            out.append(Block(line=i + 2, lang=block_lang, code="\n".join(body).rstrip() + "\n"))
+        i = j + 1
+    return out
+
+
+def _commands(code: str) -> list[str]:
+    """Command lines of a block, with backslash-continued lines joined to the line they continue."""
+    out: list[str] = []
+    pending = ""
+    for line in code.splitlines():
+        if line.endswith("\\"):
+            pending += line + "\n"
+            continue
+        out.append(pending + line)
+        pending = ""
+    if pending:
+        out.append(pending.rstrip("\n"))
+    return out
+
+
+def session_script(page_blocks: Sequence[Block], skips: Sequence[tuple[str, str]], status_file: Path) -> str:
+    """One bash script running the blocks in order, ``set -e``: each block first appends
+    ``<index> <time>`` to ``status_file``; a command line matching a skip pattern becomes an
+    ``echo`` saying it was skipped and why."""
+    out = ["set -eo pipefail", ""]
+    for k, b in enumerate(page_blocks):
+        out.append(f"echo {k} \"$(date +%s.%N)\" >> {shlex.quote(str(status_file))}")
+        out.append(f"echo {shlex.quote(f'--- block {k + 1} (line {b.line})')} >&2")
+        for cmd in _commands(b.code):
+            reason = next((r for pat, r in skips if re.search(pat, cmd.strip())), None)
+            shown = cmd.split(" #", 1)[0].strip()
+            out.append(f"echo {shlex.quote(f'skipped: {shown} ({reason})')}" if reason is not None else cmd)
+        out.append("")
+    out.append(f"echo done \"$(date +%s.%N)\" >> {shlex.quote(str(status_file))}")
+    return "\n".join(out) + "\n"
+
+
+def fresh_copy(dest: Path, root: Path = ROOT) -> Path:
+    """Copy the working tree's files (``git ls-files --cached --others --exclude-standard``:
+    tracked files and untracked ones git does not ignore, as they are now) to ``dest``,
+    keeping modification times. Returns ``dest``."""
+    r = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=root,
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{root}: cannot list its files with git ({r.stderr.strip() or r.returncode}); "
+                           "run-blocks copies a git working tree")
+    for rel in filter(None, r.stdout.split("\0")):
+        src = root / rel
+        if not src.is_file():  # deleted in the working tree, not yet in the index
+            continue
+        (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(src, dest / rel, follow_symlinks=False)
+    return dest
+
+
+def _console_scripts(pyproject: Path) -> dict[str, str]:
+    import tomllib  # noqa: PLC0415
+
+    return dict(tomllib.loads(pyproject.read_text(encoding="utf-8")).get("project", {}).get("scripts", {}))
+
+
+def light_venv(copy: Path, python: str) -> Path:
+    """``copy/.venv``: a virtual environment over ``python``'s installed packages, for a copy
+    whose dependencies are installed already. Its site-packages holds one ``.pth`` file
+    naming the copy (so the copy's own code comes first) and ``python``'s site-packages (whose
+    own ``.pth`` files, an editable install of another checkout among them, are not read);
+    ``bin/`` gets the copy's console scripts and links to ``python``'s other tools; the
+    ``.installed`` markers of the Makefile are written last, so ``make setup`` and ``make
+    setup-test`` have nothing to do. Returns the folder."""
+    venv = copy / ".venv"
+    subprocess.run([python, "-m", "venv", "--without-pip", str(venv)], check=True, capture_output=True)
+    info = subprocess.run([python, "-c", "import site, sys; print(sys.prefix); print(*site.getsitepackages(), sep='\\n')"],
+                          check=True, capture_output=True, text=True).stdout.split("\n")
+    parent_bin, site_dirs = Path(info[0]) / "bin", [d for d in info[1:] if d]
+    (own_site,) = venv.glob("lib/python*/site-packages")
+    (own_site / "_roomseg_light_venv.pth").write_text("\n".join([str(copy), *site_dirs]) + "\n", encoding="utf-8")
+    scripts = _console_scripts(copy / "pyproject.toml")
+    for name, target in scripts.items():
+        module, func = target.split(":")
+        path = venv / "bin" / name
+        path.write_text(f"#!{venv / 'bin' / 'python'}\nimport sys\nfrom {module} import {func}\n"
+                        f"sys.exit({func}())\n", encoding="utf-8")
+        path.chmod(0o755)
+    for tool in sorted(parent_bin.iterdir()) if parent_bin.is_dir() else []:
+        target = venv / "bin" / tool.name
+        if not target.exists() and not target.is_symlink() and os.access(tool, os.X_OK):
+            target.symlink_to(tool)
+    for marker in (".installed", ".installed-test"):
+        (venv / marker).touch()
+    return venv
+
+
+def _clean_env(extra: dict[str, str]) -> dict[str, str]:
+    """The environment of a fresh shell: no active virtual environment, no PYTHONPATH."""
+    env = dict(os.environ)
+    active = env.pop("VIRTUAL_ENV", None)
+    for k in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV_PROMPT", "CONDA_PREFIX"):
+        env.pop(k, None)
+    drop = {str(Path(sys.prefix) / "bin")} | ({str(Path(active) / "bin")} if active else set())
+    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if p and p not in drop)
+    env.update(extra)
+    return env
+
+
+def run_blocks(page: Path, workdir: Path | None = None, env: dict[str, str] | None = None,
+               skips: Sequence[tuple[str, str]] = (), venv_from: str | None = None,
+               timeout: float | None = None) -> int:
+    """Run every ``bash`` block of ``page`` in a fresh copy of the working tree (module doc).
+
+    Args:
+        page: the Markdown page.
+        workdir: where the copy goes (an empty or new folder, kept); None: a temporary folder,
+            removed afterwards.
+        env: variables for the session.
+        skips: (regex, reason) pairs; a command line matching a regex is not run.
+        venv_from: a Python whose packages the copy's ``.venv`` uses (:func:`light_venv`).
+        timeout: seconds for the whole session.
+    Returns: 0 when every block ran, 1 when one failed. Prints a line per block.
+    """
+    page_blocks = blocks(page.read_text(encoding="utf-8"))
+    if not page_blocks:
+        raise ValueError(f"{page}: no ```bash block to run")
+    rel = page.resolve().relative_to(ROOT) if page.resolve().is_relative_to(ROOT) else page
+    if workdir is not None and workdir.exists() and any(workdir.iterdir()):
+        raise ValueError(f"--workdir {workdir}: not empty; expected a new or empty folder for the fresh copy")
+    with tempfile.TemporaryDirectory(prefix="run-blocks-") as tmp:
+        work = workdir if workdir is not None else Path(tmp) / "clone"
+        work.mkdir(parents=True, exist_ok=True)
+        fresh_copy(work)
+        if venv_from:
+            light_venv(work, venv_from)
+        status, script = Path(tmp) / "status", Path(tmp) / "session.sh"
+        script.write_text(session_script(page_blocks, skips, status), encoding="utf-8")
+        print(f"run-blocks: {len(page_blocks)} block(s) of {rel} in a fresh copy at {work}", flush=True)
+        t0 = time.time()
+        try:
+            rc = subprocess.run(["bash", str(script)], cwd=work, env=_clean_env(env or {}), timeout=timeout).returncode
+        except subprocess.TimeoutExpired:
+            rc = None
+        marks = [ln.split() for ln in status.read_text().splitlines()] if status.exists() else []
+    times = [float(t) for _, t in marks] + [time.time()]
+    for k, (idx, _) in enumerate(marks):
+        if idx == "done":
+            break
+        b = page_blocks[int(idx)]
+        state = "ok" if k + 1 < len(marks) else ("timed out" if rc is None else f"FAILED (exit status {rc})")
+        print(f"  block {int(idx) + 1} (line {b.line}): {state}, {times[k + 1] - times[k]:.1f} s")
+    done = bool(marks) and marks[-1][0] == "done"
+    print(f"run-blocks: {'every block ran' if done else 'stopped'} ({time.time() - t0:.0f} s)", flush=True)
+    return 0 if done and rc == 0 else 1
+
+
+def _pair(text: str, what: str) -> tuple[str, str]:
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"{what} {text!r}: expected {'REGEX=REASON' if what == '--skip' else 'K=V'}")
+    if what == "--skip":
+        try:
+            re.compile(key)
+        except re.error as e:
+            raise argparse.ArgumentTypeError(f"--skip {text!r}: {key!r} is not a regular expression ({e})") from e
+    return key, value
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmark.commands.docs", description=__doc__.split("\n\n")[0])
-    ap.add_argument("action", choices=["reference", "check"], help="write the generated pages, or check them")
+    sub = ap.add_subparsers(dest="action", required=True)
+    sub.add_parser("reference", help="write the generated pages")
+    sub.add_parser("check", help="exit 1 naming every stale generated page")
+    rb = sub.add_parser("run-blocks", help="run every bash block of a page in a fresh copy of the working tree")
+    rb.add_argument("page", type=Path, help="the Markdown page, e.g. docs/getting-started.md")
+    rb.add_argument("--workdir", type=Path, default=None,
+                    help="where the fresh copy goes (new or empty; kept); default: a temporary folder, removed")
+    rb.add_argument("--env", action="append", default=[], type=lambda t: _pair(t, "--env"), metavar="K=V",
+                    help="a variable for the session, e.g. BENCH_HOUSES=2 (repeat)")
+    rb.add_argument("--skip", action="append", default=[], type=lambda t: _pair(t, "--skip"), metavar="REGEX=REASON",
+                    help="do not run command lines matching REGEX; say REASON instead (repeat)")
+    rb.add_argument("--venv-from", default=None, metavar="PYTHON",
+                    help="make .venv a light environment over PYTHON's installed packages (make setup is then done)")
+    rb.add_argument("--timeout", type=float, default=None, help="seconds for the whole session")
     a = ap.parse_args(argv)
+    if a.action == "run-blocks":
+        if not a.page.is_file():
+            print(f"docs run-blocks: page {a.page}: no such file; expected a Markdown page", file=sys.stderr)
+            return 2
+        try:
+            return run_blocks(a.page, a.workdir, dict(a.env), a.skip, a.venv_from, a.timeout)
+        except (ValueError, RuntimeError, OSError, subprocess.CalledProcessError) as e:
+            from benchmark.commands.errors import one_line  # noqa: PLC0415
+
+            print(f"docs run-blocks: {one_line(e)}", file=sys.stderr)
+            return 2
     from envs.atomic import atomic_write_text
 
     stale = []

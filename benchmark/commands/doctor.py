@@ -92,7 +92,7 @@ def checks(hab_dataset: str | None = None, shared: str | None = None, annotation
     rows.append(("ArchitecTHOR annotations", OK if len(have) == len(ARCHITECTHOR_SCENES) else OPTIONAL_MISSING,
                  f"{len(have)}/{len(ARCHITECTHOR_SCENES)} houses under {ann}" +
                  ("" if len(have) == len(ARCHITECTHOR_SCENES) else
-                  ": python -m benchmark.commands.annotations import ... (README), set ROOMSEG_ARCHITECTHOR_ANNOTATIONS")))
+                  ": python -m benchmark.commands.annotations import ... (docs/gpu.md), set ROOMSEG_ARCHITECTHOR_ANNOTATIONS")))
     data = Path(shared or data_dir()).expanduser()
     ok = (data / "procthor").is_dir()
     rows.append(("shared ProcTHOR/SeLRoS data", OK if ok else OPTIONAL_MISSING,

@@ -11,6 +11,14 @@ Euclidean KNN (no reference) is timed alongside. Prints per-house medians, the s
 ratios, and peak traced memory (tracemalloc: Python and NumPy allocations, including the
 map-sized work arrays the numba kernels fill), also as bytes per map pixel: constant across
 resolutions means linear in the map size.
+
+Robot conditions (issue #25), per shared ProcTHOR house at 0.05 m/px (``--robot-houses``):
+scan-map construction (:func:`envs.maps.scan.scan_map`, default :class:`ScanSettings`: plane
+0.25 m, range 10 m, 1 degree beams, no noise; scans along the autotrace views' trajectory every
+0.5 m) and, with range noise 0.02 m and dropout 0.05, against the pure-Python reference on the
+first ``--scan-ref-scans`` scans (the fast mapper timed again on exactly those for the ratio);
+frontier exploration (:class:`benchmark.exploration.Frontier` with its defaults, 40 m budget)
+against its pure-Python reference on the whole exploration. Maps and poses must be identical.
 """
 
 from __future__ import annotations
@@ -101,6 +109,71 @@ def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: i
     return pd.DataFrame(rows)
 
 
+def run_robot(houses: int, scan_ref_scans: int, path: Path) -> pd.DataFrame:
+    """Scan-map and frontier-exploration timings per shared house at 0.05 m/px (module docstring)."""
+    from benchmark.exploration import Frontier, explore_frontier_reference
+    from benchmark.viewpoints import Autotrace
+    from envs.datasets.house_files import load_houses
+    from envs.maps.scan import (
+        ScanSettings,
+        house_wall_height,
+        scan_map,
+        scan_map_reference,
+        scan_obstacles,
+    )
+    from envs.maps.scene import rasterise_house
+    from envs.maps.trajectory import trajectory
+
+    rows = []
+    clean, noisy = ScanSettings(), ScanSettings(range_noise=0.02, dropout=0.05)
+    frontier = Frontier()
+    for house in load_houses(path, 0, houses):
+        s = rasterise_house(house, resolution=0.05)
+        traj = trajectory(s.grid.walkable, s.grid, Autotrace().generate(s), clean.spacing)
+        obstacles = scan_obstacles(s, clean.height, house_wall_height(house))
+        scan_map(obstacles, s.grid, traj[:2], clean)  # compile once
+        frontier.explore(s)
+        _, t_scan = _timed(scan_map, obstacles, s.grid, traj, clean)
+        _, t_noisy = _timed(scan_map, obstacles, s.grid, traj, noisy)
+        sub = traj[:scan_ref_scans]
+        eq = True
+        t_sub = t_ref = 0.0
+        for settings in (clean, noisy):
+            fast_sub, t = _timed(scan_map, obstacles, s.grid, sub, settings)
+            ref_sub, tr = _timed(scan_map_reference, obstacles, s.grid, sub, settings, repeat=1)
+            eq &= bool(np.array_equal(fast_sub.log_odds, ref_sub.log_odds)
+                       and np.array_equal(fast_sub.occupancy, ref_sub.occupancy))
+            t_sub, t_ref = t_sub + t, t_ref + tr
+        exp, t_front = _timed(frontier.explore, s)
+        ref, t_front_ref = _timed(explore_frontier_reference, s, frontier, repeat=1)
+        same = bool(len(exp.poses) == len(ref.poses) and np.allclose(exp.poses, ref.poses, rtol=0, atol=1e-9)
+                    and np.array_equal(exp.scan_map.occupancy, ref.scan_map.occupancy))
+        h_, w_ = s.grid.shape
+        rows.append({
+            "house": house.id, "pixels": h_ * w_, "scans": len(traj), "scan_ms": 1e3 * t_scan,
+            "scan_noisy_ms": 1e3 * t_noisy, "scan_speedup": t_ref / t_sub, "scan_equal": eq,
+            "frontier_ms": 1e3 * t_front, "frontier_ref_s": t_front_ref, "frontier_speedup": t_front_ref / t_front,
+            "frontier_equal": same, "frontier_views": len(exp.poses), "frontier_m": exp.length,
+        })
+        print(f"0.05 m/px {house.id}: scan map {1e3 * t_scan:.1f} ms ({len(traj)} scans, x{t_ref / t_sub:.0f} "
+              f"vs reference), noisy {1e3 * t_noisy:.1f} ms; frontier {1e3 * t_front:.1f} ms "
+              f"(x{t_front_ref / t_front:.0f}, {exp.length:.1f} m, {len(exp.poses)} views)", flush=True)
+    return pd.DataFrame(rows)
+
+
+def robot_table(df: pd.DataFrame) -> pd.DataFrame:
+    """The robot-conditions summary: medians and maxima over houses."""
+    return pd.DataFrame([{
+        "houses": len(df), "median pixels": df["pixels"].median(), "median scans": df["scans"].median(),
+        "scan map ms (median)": df["scan_ms"].median(), "scan map ms (max)": df["scan_ms"].max(),
+        "noisy scan map ms (median)": df["scan_noisy_ms"].median(), "scan speed-up": df["scan_speedup"].median(),
+        "scan identical": df["scan_equal"].all(),
+        "frontier ms (median)": df["frontier_ms"].median(), "frontier ms (max)": df["frontier_ms"].max(),
+        "frontier ref s (median)": df["frontier_ref_s"].median(), "frontier speed-up": df["frontier_speedup"].median(),
+        "frontier identical": df["frontier_equal"].all(), "median path m": df["frontier_m"].median(),
+    }])
+
+
 def main(argv: list[str] | None = None) -> int:
     default = procthor_houses()
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -109,10 +182,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--resolutions", type=float, nargs="+", default=[0.05, 0.02])
     ap.add_argument("--cone-ref-views", type=int, default=20)
     ap.add_argument("--data", type=Path, default=default)
+    ap.add_argument("--robot-houses", type=int, default=5,
+                    help="shared ProcTHOR houses for the scan-map and frontier timings (0: none)")
+    ap.add_argument("--scan-ref-scans", type=int, default=40, help="scans the scan-map reference runs on")
     a = ap.parse_args(argv)
-    if a.houses > 0 and not a.data.exists():
+    if (a.houses > 0 or a.robot_houses > 0) and not a.data.exists():
         print(f"error: shared ProcTHOR houses not found at {a.data} (pass --houses 0 for generated houses only)")
         return 2
+    if a.robot_houses > 0:
+        robot = run_robot(a.robot_houses, a.scan_ref_scans, a.data)
+        print()
+        print(robot_table(robot).to_markdown(index=False, floatfmt=".1f"))
+        print(f"\nRobot conditions at 0.05 m/px, shared houses. Times: best of 3 calls per house (references: 1 call; "
+              f"the scan-map reference on the first {a.scan_ref_scans} scans, clean and noisy). Targets: scan map "
+              f"<= 50 ms, frontier <= 200 ms per house.\n")
+    if a.houses == 0 and a.synthetic == 0:
+        return 0
     df = run(a.houses, a.synthetic, a.resolutions, a.cone_ref_views, a.data)
     g = df.groupby(["dataset", "resolution"])
     table = pd.DataFrame({

@@ -24,6 +24,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--name", required=True, help="published name (e.g. bench)")
     p.add_argument("--time", type=Path, default=None, help="GNU time output, -f '%%e %%M' (wall s, peak KiB)")
     p.add_argument("--command", default="make bench", help="the command that made the run (recorded)")
+    p.add_argument("--columns", default=None,
+                   help="robustness: keep these columns only, every job's rows in one metrics.csv "
+                        "(the robustness benchmark's published run)")
     for name, text in (("write", "rewrite the README's generated blocks"),
                        ("check", "exit 1 when a README block differs from what write would write")):
         q = sub.add_parser(name, help=text)
@@ -31,7 +34,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         if a.cmd == "publish":
-            print(publish(a.run_dir, a.name, ".", a.time, a.command))
+            from benchmark.reports.readme_tables import ROBUSTNESS_COLUMNS
+
+            columns = ROBUSTNESS_COLUMNS if a.columns == "robustness" else (a.columns.split(",") if a.columns else None)
+            print(publish(a.run_dir, a.name, ".", a.time, a.command, columns))
         elif a.cmd == "write":
             changed = write(a.readme, ".")
             print(f"{a.readme}: " + (f"rewrote {', '.join(changed)}" if changed else "every block up to date"))

@@ -77,16 +77,24 @@ def compose_config(overrides: Sequence[str]):
 
 
 def read_map(cfg) -> tuple[Any, tuple[float, float, float], dict]:
-    """The input map -> (GridMap, ROS origin (x, y, yaw) for the outputs, description)."""
+    """The input map -> (GridMap, ROS origin (x, y, yaw) for the outputs, description).
+
+    Every image or array is checked against ``max_map_pixels`` on its header before it is
+    decoded; the free space is then cut to the reachable area (``reachable``: the components
+    holding a view of ``poses``, else the largest; :mod:`envs.maps.reachable`)."""
     from envs.maps.frames import ros_origin_to_grid_origin  # noqa: PLC0415
-    from envs.maps.ros import grid_from_array, occupancy_png, read_ros_map  # noqa: PLC0415
+    from envs.maps.images import image_size  # noqa: PLC0415
+    from envs.maps.ros import grid_from_array, occupancy_png, read_npy_map, read_ros_map  # noqa: PLC0415
+    from envs.maps.scene import check_max_map_pixels  # noqa: PLC0415
 
     path = Path(str(cfg.map)).expanduser()
     suffix = path.suffix.lower()
+    limit = check_max_map_pixels(cfg.max_map_pixels, "max_map_pixels")
     if suffix in (".yaml", ".yml"):
-        m = read_ros_map(path, mode=cfg.map_mode, unknown_as=cfg.unknown_as)
-        return m.grid, m.origin, {"map": str(path), "map_format": "ros", "map_image": str(m.image_path),
-                                  "map_mode": m.mode}
+        m = read_ros_map(path, mode=cfg.map_mode, unknown_as=cfg.unknown_as, max_pixels=limit)
+        grid, origin = _reachable(cfg, m.grid), m.origin
+        return grid, origin, {"map": str(path), "map_format": "ros", "map_image": str(m.image_path),
+                              "map_mode": m.mode, **_reach_info(cfg, m.grid, grid)}
     if cfg.resolution is None:
         raise ValueError(f"{path}: an image or .npy map needs resolution=<metres per pixel> (a ROS YAML carries it)")
     res = float(cfg.resolution)
@@ -94,26 +102,41 @@ def read_map(cfg) -> tuple[Any, tuple[float, float, float], dict]:
         raise ValueError(f"resolution={cfg.resolution!r} for {path}; expected a positive number of metres per pixel")
     ox, oy = (0.0, 0.0) if cfg.origin is None else (float(cfg.origin[0]), float(cfg.origin[1]))
     if suffix == ".npy":
-        if not path.is_file():
-            raise FileNotFoundError(f"map not found: {path}")
-        arr = np.load(path, allow_pickle=False)
+        arr = read_npy_map(path, limit)
         h = arr.shape[0] if arr.ndim == 2 else 0
         grid = grid_from_array(arr, res, ros_origin_to_grid_origin((ox, oy), h, res), free_value=cfg.free_value)
         fmt = "npy"
     elif suffix in (".png", ".pgm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"):
-        from PIL import Image  # noqa: PLC0415
-
-        if not path.is_file():
-            raise FileNotFoundError(f"map not found: {path}")
-        with Image.open(path) as im:
-            h = im.size[1]
-        grid = occupancy_png(path, res, ros_origin_to_grid_origin((ox, oy), h, res), free_thresh=cfg.free_thresh,
-                             occupied_thresh=cfg.occupied_thresh, negate=bool(cfg.negate), unknown_as=cfg.unknown_as)
+        h = image_size(path, "the map image", limit)[1]
+        grid = occupancy_png(path, res, ros_origin_to_grid_origin((ox, oy), h, res), preset=cfg.image_preset,
+                             free_thresh=cfg.free_thresh, occupied_thresh=cfg.occupied_thresh,
+                             negate=bool(cfg.negate), unknown_as=cfg.unknown_as, max_pixels=limit)
         fmt = "image"
     else:
         raise ValueError(f"map={path}: unknown map type {suffix!r}; expected a ROS .yaml, an image "
                          f"(.png/.pgm/.bmp) or a .npy array")
-    return grid, (ox, oy, 0.0), {"map": str(path), "map_format": fmt}
+    reach = _reachable(cfg, grid)
+    return reach, (ox, oy, 0.0), {"map": str(path), "map_format": fmt, **_reach_info(cfg, grid, reach)}
+
+
+def _reachable(cfg, grid):
+    """``grid`` with its free space cut to the reachable area of ``cfg.reachable`` (seeds:
+    the views of ``cfg.poses`` in ``cfg.frame``, when given)."""
+    from envs.maps.pose_files import read_poses  # noqa: PLC0415
+    from envs.maps.reachable import check_rule, reachable_mask, seed_cells  # noqa: PLC0415
+
+    rule = check_rule(cfg.reachable, "reachable")
+    if rule == "all":
+        return grid
+    seeds = None
+    if rule == "start" and cfg.poses is not None:
+        seeds = seed_cells(grid, read_poses(Path(str(cfg.poses)).expanduser(), cfg.frame, grid)[:, :2])
+    reach = reachable_mask(grid.walkable, seeds)
+    return grid if reach.sum() == grid.walkable.sum() else type(grid)(reach, grid.resolution, grid.origin)
+
+
+def _reach_info(cfg, before, after) -> dict:
+    return {"reachable": str(cfg.reachable), "unreachable_free_px": int(before.walkable.sum() - after.walkable.sum())}
 
 
 def _pose_ids(path: Path, n: int) -> list[str | None]:
@@ -317,6 +340,7 @@ def _scores(cfg, grid, labels: np.ndarray | None, segs: np.ndarray, classes: Seq
     from envs.maps.ground_truth import read_ground_truth  # noqa: PLC0415
 
     opts = dict(cfg.gt_options or {})
+    opts.setdefault("max_pixels", cfg.max_map_pixels)
     if cfg.gt_format == "label" and not Path(str(cfg.gt)).expanduser().with_suffix(".json").exists():
         # a class-index PNG (no sidecar naming its classes): its values index the class list
         given = classes if classes is not None else cfg.get("classes")

@@ -1,12 +1,14 @@
 """``python -m benchmark.commands.tables``: the command-line front of :mod:`benchmark.reports.tables`.
 
-Every ``metrics.csv`` under the given paths is checked first (a truncated or malformed file
-is refused with one line naming it), and the rows are grouped by run (a job's ``run.name``;
-the folder name for files that are not runner jobs): one run gives the tables as before;
-several runs give one section per run (and ``--out DIR/<run>/`` per run), never one table
-mixing them. What was read is said on stderr. With ``--out``, the set of files is written
-as a whole (temporary folder + rename): an interrupted command leaves the old set or the
-new one, never a part.
+Every ``metrics.csv`` under the given paths is checked first (a truncated or malformed file,
+or a share outside [0, 1], is refused with one line naming it), and the rows are grouped by
+run (a job's ``run.name``; the folder name for files that are not runner jobs): one run gives
+the tables as before; several runs give one section per run (and ``--out DIR/<run>/`` per
+run), never one table mixing them. Within a run each (configuration, house) is counted once,
+the newest job's row (:func:`benchmark.reports.tables.load_rows`). What was read, and the
+older rows set aside, is said on stderr. With ``--out``, the set of files is written as a
+whole (temporary folder + rename): an interrupted command leaves the old set or the new one,
+never a part.
 """
 
 from __future__ import annotations
@@ -17,8 +19,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from benchmark.harness.cache import atomic_folder
-from benchmark.harness.store import METRICS, Job, iter_metric_files, read_metrics, safe_name
-from benchmark.reports.tables import TABLES, render
+from benchmark.harness.store import METRICS, Job, iter_metric_files, safe_name
+from benchmark.reports.tables import TABLES, load_rows, render
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -31,17 +33,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         runs = _runs(a.paths)
+        rows = {}
         for name, files in runs.items():
-            n_rows = sum(len(read_metrics(f)) for f in files)  # refuses a truncated or malformed file
+            rows[name] = load_rows(files)  # refuses a truncated or malformed file; newest row per house
             where = sorted({str(f.parent.parent if f.parent.parent.name != "runs" else f.parent) for f in files})
-            print(f"read run {name!r}: {len(files)} metrics file(s), {n_rows} rows ({', '.join(where)[:200]})",
-                  file=sys.stderr)
+            print(f"read run {name!r}: {len(files)} metrics file(s), {rows[name].attrs['n_read']} rows "
+                  f"({', '.join(where)[:200]})", file=sys.stderr)
+            if rows[name].attrs["set_aside"]:
+                print(f"run {name!r}: {rows[name].attrs['set_aside']}", file=sys.stderr)
 
         def make(out: Path | None) -> str:
             if len(runs) == 1:
-                return render(next(iter(runs.values())), a.table, out, percent=not a.fraction)
+                name, files = next(iter(runs.items()))
+                return render(files, a.table, out, percent=not a.fraction, rows=rows[name])
             return "\n".join(f"## Run {name}\n\n" + render(files, a.table, out / safe_name(name) if out else None,
-                                                              percent=not a.fraction)
+                                                              percent=not a.fraction, rows=rows[name])
                              for name, files in runs.items())
 
         if a.out is None:

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from filelock import FileLock
 
-from envs.atomic import atomic_write_text
+from envs.atomic import atomic_write_text, ordinary_temp_dir
 from envs.npz import ChecksumError, load_npz, save_npz  # noqa: F401 - the cache's readers and writers of .npz entries
 
 
@@ -196,15 +196,11 @@ def atomic_folder(out: str | Path) -> Iterator[Path]:
     Yields:
         The temporary folder (same parent as ``out``, so the final rename is atomic)."""
     import shutil
-    import tempfile
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     clean_leftovers(out)
-    tmp = Path(tempfile.mkdtemp(prefix=leftover_prefix(out, "tmp"), dir=out.parent))
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; the set is an ordinary folder
+    tmp = ordinary_temp_dir(out.parent, leftover_prefix(out, "tmp"))  # not private: the set is an ordinary folder
     try:
         yield tmp
         if out.exists():

@@ -4,7 +4,10 @@
 OmegaConf node). A rule is (group, key) -> test; the group is the config node the key sits
 in (``env``, ``aggregator``, ``run``, ...), so ``aggregator.window`` (pixels, odd) and
 ``segmenter.window`` (metres) are checked differently. Keys a rule does not name pass
-unchecked (a user's own stage validates its own arguments when it is built).
+unchecked (a user's own stage validates its own arguments when it is built), except under
+``run``: a key there that the ``run:`` node of ``conf/config.yaml`` does not have (a typo,
+or one added with ``+run.<key>``, which Hydra lets through) is refused, listing the valid
+keys (:func:`check_run_keys`).
 """
 
 from __future__ import annotations
@@ -83,6 +86,11 @@ def optional(rule: Rule) -> Rule:
     return opt
 
 
+def range_m(v: Any) -> bool:
+    """A range in metres: > 0, infinity allowed (an unlimited sensor)."""
+    return isinstance(v, int | float) and not isinstance(v, bool) and v > 0 and not math.isnan(v)
+
+
 def range_pair(v: Any) -> bool:
     return isinstance(v, list | tuple) and len(v) == 2 and all(positive(x) for x in v) and v[0] <= v[1]
 
@@ -90,6 +98,7 @@ def range_pair(v: Any) -> bool:
 _WHAT: dict[Callable, str] = {
     positive: "a number > 0", non_negative: "a number >= 0", fraction: "a number in [0, 1]",
     pos_int: "an integer >= 1", nonneg_int: "an integer >= 0", odd_int: "an odd integer >= 1",
+    range_m: "metres > 0 (.inf: unlimited)",
     angle: "an angle in (0, 360] degrees", range_pair: "[low, high] with 0 < low <= high",
 }
 
@@ -99,6 +108,9 @@ RULES: dict[tuple[str, str], Rule] = {
     ("env", "max_object_base"): non_negative, ("env", "n_houses"): pos_int, ("env", "seed_start"): nonneg_int,
     ("env", "start"): optional(nonneg_int), ("env", "stop"): optional(nonneg_int),
     ("env", "open_plan_share"): fraction, ("env", "length"): range_pair, ("env", "depth"): range_pair,
+    ("env", "reachable"): one_of("start", "largest", "all"), ("env", "image_preset"): one_of("ros", "white_only"),
+    ("env", "free_thresh"): optional(fraction), ("env", "occupied_thresh"): optional(fraction),
+    ("env", "max_map_pixels"): optional(pos_int), ("env", "poses_frame"): one_of("ros", "sim", "pixel"),
     ("viewpoints", "offset"): non_negative, ("viewpoints", "spacing"): positive,
     ("viewpoints", "n_headings"): pos_int, ("viewpoints", "heading_spread"): lambda v: _num(v) and 0 <= v <= 360,
     ("viewpoints", "min_contour"): non_negative, ("viewpoints", "off_map"): one_of("error", "drop"),
@@ -119,16 +131,32 @@ RULES: dict[tuple[str, str], Rule] = {
     ("metrics", "match"): one_of("iou", "overlap"), ("metrics", "connectivity"): one_of(4, 8),
     ("metrics", "min_segment_m2"): non_negative, ("metrics", "min_colour_m2"): non_negative,
     ("metrics", "instances"): one_of("ids", "connected"),
-    ("segmenter", "min_area"): non_negative, ("segmenter", "max_area"): positive, ("segmenter", "step"): positive,
+    ("segmenter", "min_seed_area"): non_negative, ("segmenter", "min_room_area"): non_negative,
+    ("segmenter", "max_area"): positive, ("segmenter", "step"): positive,
     ("segmenter", "max_door"): positive, ("segmenter", "window"): positive,
     ("segmenter", "widening"): lambda v: _num(v) and v >= 1,
+    # robot conditions (conf/mapping, conf/pose_error, conf/label_noise, exploration viewpoints):
+    # checked before any work, so that a bad value caches nothing
+    ("mapping", "height"): lambda v: _num(v) and 0 < v < 2.6, ("mapping", "max_range"): range_m,
+    ("mapping", "angular_step"): angle, ("mapping", "range_noise"): non_negative,
+    ("mapping", "dropout"): lambda v: _num(v) and 0 <= v < 1, ("mapping", "spacing"): positive,
+    ("pose_error", "sigma_xy"): non_negative, ("pose_error", "sigma_yaw"): non_negative,
+    ("pose_error", "drift_xy"): non_negative, ("pose_error", "drift_yaw"): non_negative,
+    ("pose_error", "loop_closure"): optional(positive), ("label_noise", "share"): fraction,
+    ("viewpoints", "budget"): positive, ("viewpoints", "sensor_range"): range_m,
+    ("viewpoints", "scan_height"): lambda v: _num(v) and 0 < v < 2.6, ("viewpoints", "scan_spacing"): positive,
+    ("viewpoints", "range_noise"): non_negative, ("viewpoints", "dropout"): lambda v: _num(v) and 0 <= v < 1,
+    ("viewpoints", "min_run"): positive, ("viewpoints", "max_run"): positive,
     ("run", "limit"): optional(pos_int), ("run", "progress"): one_of(True, False),
     ("run", "save_maps"): one_of(True, False), ("run", "allow_failures"): one_of(True, False),
-    ("run", "cache_failures"): one_of(True, False), ("run", "max_map_pixels"): optional(pos_int),
+    ("run", "cache_failures"): one_of(True, False),
     ("run", "workers"): optional(pos_int), ("run", "executor"): one_of("local", "ray"),
     ("run", "ray"): ray_settings,
 }
 _WHAT_EXTRA = {("viewpoints", "heading_spread"): "a number in [0, 360] degrees",
+               ("mapping", "height"): "metres, 0 < height < 2.6 (below the walls)",
+               ("viewpoints", "scan_height"): "metres, 0 < height < 2.6 (below the walls)",
+               ("mapping", "dropout"): "a share in [0, 1)", ("viewpoints", "dropout"): "a share in [0, 1)",
                ("renderer", "fov"): "an angle in (0, 180) degrees",
                ("segmenter", "widening"): "a number >= 1"}
 
@@ -149,13 +177,66 @@ def _plain(cfg: Any) -> Mapping[str, Any]:
     return cfg
 
 
-def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:
-    """Check every setting a rule names, and ``run.force`` / ``run.houses``.
+def run_keys() -> tuple[str, ...]:
+    """The valid keys under ``run``: those of the ``run:`` node of ``conf/config.yaml``, in
+    its order, read from the file each time (a key added there is valid at once; the
+    composed default config has the same, checked in tests/test_config_keys.py)."""
+    from omegaconf import DictConfig, OmegaConf
+
+    from benchmark.paths import CONF_DIR
+
+    node = OmegaConf.load(Path(CONF_DIR) / "config.yaml").get("run")
+    if not isinstance(node, DictConfig):
+        raise ConfigError(f"{Path(CONF_DIR) / 'config.yaml'}: no run: node")
+    return tuple(str(k) for k in node.keys())
+
+
+def check_run_keys(keys: Any) -> None:
+    """Refuse keys under ``run`` that the default config does not have.
+
+    Args:
+        keys: the keys given under ``run`` (e.g. ``["limt"]`` for ``+run.limt=3``).
 
     Raises:
-        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <rule>``.
+        ConfigError: ``run.<key>: unknown key; valid keys under run: name, label, ...``.
+    """
+    valid = run_keys()
+    unknown = [str(k) for k in keys if str(k) not in valid]
+    if unknown:
+        names = ", ".join(f"run.{k}" for k in unknown)
+        raise ConfigError(f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
+                          f"under run: {', '.join(valid)}")
+
+
+def check_run_overrides(args: Any) -> None:
+    """:func:`check_run_keys` on the command line, before Hydra composes or creates anything:
+    the ``run.<key>`` of every ``[+|++|~]run.<key>[=value]`` override in ``args`` (other
+    arguments are left to Hydra).
+
+    Raises:
+        ConfigError: as :func:`check_run_keys`."""
+    keys = []
+    for a in map(str, args):
+        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
+            continue
+        key = a.split("=", 1)[0].lstrip("+~")
+        if key.startswith("run.") and len(key) > 4:
+            keys.append(key[4:].split(".", 1)[0])
+    if keys:
+        check_run_keys(keys)
+
+
+def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:
+    """Check the keys under ``run`` (:func:`check_run_keys`), every setting a rule names, and
+    ``run.force`` / ``run.houses``.
+
+    Raises:
+        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <rule>``, or
+            the unknown keys under ``run`` with the valid ones.
     """
     c = _plain(cfg)
+    if isinstance(c.get("run"), Mapping):
+        check_run_keys(c["run"].keys())
     for group, node in c.items():
         if not isinstance(node, Mapping):
             continue
@@ -197,4 +278,4 @@ def check_writable(path: str | Path, key: str) -> Path:
     return p
 
 
-__all__ = ["ConfigError", "RULES", "check_config", "check_writable"]
+__all__ = ["ConfigError", "RULES", "check_config", "check_run_keys", "check_run_overrides", "check_writable", "run_keys"]

@@ -54,7 +54,7 @@ log = logging.getLogger("roomseg-bench")
 T = TypeVar("T")
 
 #: Stages that ``force`` can name, in pipeline order; forcing one forces those after it.
-STAGES = ("render", "classify", "aggregate", "score")
+STAGES = ("render", "map", "classify", "aggregate", "score")
 
 #: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
 _SCENES: OrderedDict[tuple[str, str], Any] = OrderedDict()
@@ -64,6 +64,10 @@ _HOUSE_CONTENTS: dict[tuple[str, str], str] = {}
 
 #: metrics every successful row carries, each in [0, 1] (accuracy may be NaN: segmenters).
 ROW_METRICS = ("iou", "precision", "recall")
+
+#: the camera of the coverage columns when the renderer does not say (the floorplan
+#: renderer's defaults): field of view (degrees), range (metres), occluding height (metres).
+COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 
 
 class StageError(RuntimeError):
@@ -223,17 +227,21 @@ class Pipeline:
         process as scenes are."""
         if hid not in self._contents:
             if self.env_key is None or callable(getattr(self.env, "input_files", None)):
-                acc = house_content(self.env, hid)  # (per-house files are fingerprinted each time)
+                house = house_content(self.env, hid)  # (per-house files are fingerprinted each time)
             else:  # a shared environment, whose key names its config and input files
                 key = (self.env_key, hid)
                 if key not in _HOUSE_CONTENTS:
                     _HOUSE_CONTENTS[key] = house_content(self.env, hid)
-                acc = _HOUSE_CONTENTS[key]
-            out = {}
+                house = _HOUSE_CONTENTS[key]
+            out, acc = {}, house
             for stage, groups in self.CONTENT_STAGES:
-                files = {g: config_inputs(self.inputs.get(g), hid) for g in groups}
+                # groups that are not set (no robot map, no pose error, ...) add nothing
+                files = {g: config_inputs(self.inputs.get(g), hid) for g in groups if self.inputs.get(g) is not None}
                 acc = content_hash([acc, stage, files])
                 out[stage] = acc
+            if self.inputs.get("mapping") is not None:  # the robot's map: the house, its views, the mapping
+                files = {g: config_inputs(self.inputs.get(g), hid) for g in ("viewpoints", "mapping")}
+                out["map"] = content_hash([house, "map", files])
             self._contents[hid] = out
         return self._contents[hid]
 
@@ -256,6 +264,57 @@ class Pipeline:
     @property
     def store(self) -> CacheStore:
         return CacheStore(Path(self.cache_dir))
+
+    # ---- the robot's map (mapping=scan ...), shared by the method and the segmenters
+    @property
+    def mapping(self) -> Any:
+        return self.stage("mapping")
+
+    def robot_map_path(self, hid: str) -> Path:
+        return self.store.robot_map_path(self.keys["map"], hid, content=self.contents(hid)["map"])
+
+    def _robot_grid(self, hid: str, scene, poses: np.ndarray | None, timings: dict) -> tuple[Any, dict[str, Any]]:
+        """The occupancy map the robot has: the house's floor plan without a ``mapping`` stage,
+        else the map it builds along its views (cached per house, views and mapping settings).
+
+        Args:
+            poses: (N, 3) the true poses of the views in capture order (None: the viewpoints
+                stage makes them, for segmenters).
+
+        Returns:
+            (GridMap on the scene's grid, row columns describing it: agreement with the floor
+            plan's walkable space).
+        """
+        if self.inputs.get("mapping") is None:
+            return scene.grid, {"map_free_iou": 1.0, "map_missed_share": 0.0}
+        from envs.maps.gridmap import GridMap
+
+        def load(path: Path) -> np.ndarray:
+            free = load_npz(path)["free"]
+            if free.shape != scene.grid.shape or free.dtype != np.bool_:
+                raise BadEntry(f"free has {free.dtype} {free.shape}, expected bool {scene.grid.shape}")
+            return free
+
+        def compute() -> np.ndarray:
+            views = poses
+            if views is None:
+                t = time.perf_counter()
+                views = poses_array(self.stage("viewpoints").generate(scene))
+                timings["t_viewpoints"] = time.perf_counter() - t
+            t = time.perf_counter()
+            free = np.asarray(self.mapping(scene, views, house=self.env.house(hid)), dtype=bool)
+            timings["t_map"] = time.perf_counter() - t
+            return free
+
+        def save(path: Path, free: np.ndarray) -> None:
+            atomic_save_npz(path, free=free)
+
+        free = self._cached("map", self.robot_map_path(hid), load, compute, save)
+        walk = scene.grid.walkable
+        union = int((free | walk).sum())
+        info = {"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
+                "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))}
+        return GridMap(free, scene.grid.resolution, scene.grid.origin), info
 
     def score_path(self, hid: str) -> Path:
         return self.store.score_path(self.keys["score"], hid, content=self.contents(hid)["score"])
@@ -383,8 +442,8 @@ class MethodPipeline(Pipeline):
     """The method: viewpoints -> render -> classify -> aggregate -> post-process -> score."""
 
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (
-        ("render", ("viewpoints", "renderer")), ("classify", ("classifier",)), ("aggregate", ("aggregator",)),
-        ("score", ("postprocess", "metrics")))
+        ("render", ("viewpoints", "renderer")), ("classify", ("classifier",)),
+        ("aggregate", ("aggregator", "mapping", "pose_error", "label_noise")), ("score", ("postprocess", "metrics")))
 
     @property
     def viewpoints(self) -> Viewpoints:
@@ -415,16 +474,17 @@ class MethodPipeline(Pipeline):
     def aggregate_path(self, hid: str) -> Path:
         return self.store.aggregate_path(self.keys["aggregate"], hid, content=self.contents(hid)["aggregate"])
 
-    def _aggregated(self, hid: str, scene, poses: np.ndarray, proba: np.ndarray, timings: dict) -> np.ndarray:
-        """The raw label map, cached per (views, classifier, aggregator): the jobs that differ
-        only in post-processing or metrics aggregate once."""
+    def _aggregated(self, hid: str, grid, poses: np.ndarray, proba: np.ndarray, timings: dict) -> np.ndarray:
+        """The raw label map on the robot's map ``grid`` from the poses and probabilities the
+        method received, cached per (views, classifier, robot conditions, aggregator): the jobs
+        that differ only in post-processing or metrics aggregate once."""
 
         def load(path: Path) -> np.ndarray:
-            return check_labels_entry(load_npz(path), scene.grid.shape, proba.shape[1])
+            return check_labels_entry(load_npz(path), grid.shape, proba.shape[1])
 
         def compute() -> np.ndarray:
             t = time.perf_counter()
-            raw = method.aggregate(self.aggregator, scene.grid, poses, proba, self.names.get("aggregator"))
+            raw = method.aggregate(self.aggregator, grid, poses, proba, self.names.get("aggregator"))
             timings["t_aggregate"] = time.perf_counter() - t
             return raw
 
@@ -505,30 +565,108 @@ class MethodPipeline(Pipeline):
                              f"class, so the method's class scores would be meaningless; give a label ground truth "
                              f"(env.gt_format=label) or score geometry only with a segmenter")
         poses, proba, n_refused, seen = self._classified(hid, scene, timings)
-        raw = self._aggregated(hid, scene, poses, proba, timings)
+        grid, robot = self._robot_grid(hid, scene, self._render_poses(hid) if self.inputs.get("mapping") else None,
+                                       timings)
+        # what the method receives: the poses as the robot's SLAM gives them, the classes as its
+        # classifier (and the classifier-noise stage) gives them; the camera saw from the true poses
+        received, pose_info = self._received_poses(hid, scene, poses)
+        proba_in, noise_info = self._received_labels(scene, received, poses, proba)
+        raw = self._aggregated(hid, grid, received, proba_in, timings)
         t = time.perf_counter()
-        post = method.postprocess(self.postprocess, raw, scene.grid)
+        post = method.postprocess(self.postprocess, raw, grid)
         timings["t_postprocess"] = time.perf_counter() - t
         t = time.perf_counter()
-        out: dict[str, Any] = score_semantic(post, scene.instances, scene.instance_classes, self.metric_params,
+        # scored on the ground truth's walkable area: cells the robot's map calls free beyond it
+        # are not scored; walkable cells it leaves unknown or occupied are unlabelled (-1)
+        scored = np.where(scene.grid.walkable, post, -1)
+        out: dict[str, Any] = score_semantic(scored, scene.instances, scene.instance_classes, self.metric_params,
                                              classes=list(scene.classes), resolution=scene.grid.resolution)
         timings["t_score"] = time.perf_counter() - t
         out["n_views"] = int(len(poses))
         out["n_refused"] = int(n_refused)
-        out["view_accuracy"] = view_accuracy(scene.grid, scene.semantic, poses, proba)
-        out["view_accuracy_seen"] = (seen_accuracy(seen, proba) if seen is not None  # vs what views see
-                                     else view_accuracy_seen(self.render_dir(hid), poses, proba))
+        out["view_accuracy"] = view_accuracy(scene.grid, scene.semantic, poses, proba_in)
+        out["view_accuracy_seen"] = (seen_accuracy(seen, proba_in) if seen is not None  # vs what views see
+                                     else view_accuracy_seen(self.render_dir(hid), poses, proba_in))
+        out.update(self._coverage(hid, scene, timings))
+        out.update(pose_info)
+        out.update(noise_info)
+        out.update(robot)
         if self.save_maps:
+            extra = {} if grid is scene.grid else {"free": grid.walkable}
+            if received is not poses:
+                extra["true_poses"] = poses
             atomic_save_npz(self.maps_path(hid), raw=raw.astype(np.int16), post=post.astype(np.int16),
-                            poses=poses, proba=proba.astype(np.float32))
+                            poses=received, proba=proba_in.astype(np.float32), **extra)
         return out
+
+    # ---- robot conditions between the views and the aggregator
+    @property
+    def pose_error(self) -> Any:
+        return self.stage("pose_error")
+
+    @property
+    def label_noise(self) -> Any:
+        return self.stage("label_noise")
+
+    def _render_poses(self, hid: str) -> np.ndarray:
+        """Every view's true pose in capture order (refused ones included): the robot's path."""
+        from envs.render import cache as render_cache
+
+        return render_cache.read_poses(self.render_dir(hid))[0]
+
+    def _received_poses(self, hid: str, scene, poses: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        """(the poses the method receives, their error against the true ones): the true poses
+        without a ``pose_error`` stage."""
+        if self.pose_error is None:
+            return poses, {"pose_error_mean_m": 0.0, "pose_error_max_m": 0.0, "yaw_error_mean_deg": 0.0}
+        noisy, stats = self.pose_error(poses, scene.grid, hid)
+        keep = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg")
+        return noisy, {k: float(stats[k]) for k in keep if k in stats}
+
+    def _received_labels(self, scene, received: np.ndarray, poses: np.ndarray,
+                         proba: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        """(the probabilities the method receives, the share relabelled): the classifier's
+        without a ``label_noise`` stage. Draws are seeded by the true poses (what was seen)."""
+        if self.label_noise is None:
+            return proba, {"label_noise_share": 0.0}
+        return self.label_noise(proba, poses, scene, classes=list(scene.classes))
+
+    def coverage_path(self, hid: str) -> Path:
+        return self.store.coverage_path(self.keys["render"], hid, content=self.contents(hid)["render"])
+
+    def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
+        """How much of the house the views saw (:func:`benchmark.coverage.view_coverage`) with
+        the renderer's field of view and range (90 degrees, 6 m when it has none) and the
+        floor plan's occluders (walls, tall furniture): cached per render."""
+        from benchmark.coverage import view_coverage
+        from envs.render.floorplan import occluders
+
+        def load(path: Path) -> dict[str, float]:
+            cov = dict(read_entry(path))
+            for k in ("coverage_area", "coverage_rooms"):
+                v = cov.get(k)
+                if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
+                    raise BadEntry(f"{k} is {v!r}, expected a share in [0, 1]")
+            return cov
+
+        def compute() -> dict[str, float]:
+            t = time.perf_counter()
+            fov = float(getattr(self.renderer, "fov", COVERAGE_FOV) or COVERAGE_FOV)
+            rng = float(getattr(self.renderer, "max_range", COVERAGE_RANGE) or COVERAGE_RANGE)
+            height = float(getattr(self.renderer, "occluder_height", COVERAGE_OCCLUDER))
+            cov = view_coverage(scene, self._render_poses(hid), fov, rng, occluders(scene, height))
+            timings["t_coverage"] = time.perf_counter() - t
+            return {"coverage_area": float(cov["coverage_area"]), "coverage_rooms": float(cov["coverage_rooms"])}
+
+        return self._cached("render", self.coverage_path(hid), load, compute, lambda p, v: write_entry(p, v))
 
 
 @dataclass
 class SegmenterPipeline(Pipeline):
     """A geometric baseline: scene -> segmenter -> score (no views, no classes)."""
 
-    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (("score", ("segmenter", "metrics")),)
+    CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (
+        ("score", ("segmenter", "metrics", "viewpoints", "mapping")),)
 
     @property
     def segmenter(self) -> Segmenter:
@@ -540,16 +678,21 @@ class SegmenterPipeline(Pipeline):
         t = time.perf_counter()
         scene = self.scene(hid)
         timings["t_scene"] = time.perf_counter() - t
+        grid, robot = self._robot_grid(hid, scene, None, timings)
         t = time.perf_counter()
-        # sanity rows that need the ground truth (segmenter=gt_geometry) say so with uses_scene
-        inst = (self.segmenter(scene.grid, scene=scene) if getattr(self.segmenter, "uses_scene", False)
-                else self.segmenter(scene.grid))
+        # sanity rows that need the ground truth (segmenter=gt_geometry) say so with uses_scene;
+        # every segmenter sees the robot's map only
+        inst = (self.segmenter(grid, scene=scene) if getattr(self.segmenter, "uses_scene", False)
+                else self.segmenter(grid))
+        inst = np.where(grid.walkable & scene.grid.walkable, inst, -1)
         timings["t_segment"] = time.perf_counter() - t
         t = time.perf_counter()
         out = dict(score_instances(inst, scene.instances, self.metric_params, resolution=scene.grid.resolution))
         timings["t_score"] = time.perf_counter() - t
+        out.update(robot)
         if self.save_maps:
-            atomic_save_npz(self.maps_path(hid), instances=inst.astype(np.int32))
+            extra = {} if grid is scene.grid else {"free": grid.walkable}
+            atomic_save_npz(self.maps_path(hid), instances=inst.astype(np.int32), **extra)
         return out
 
 

@@ -27,6 +27,7 @@ import os
 import time
 from collections import Counter
 from collections.abc import Sequence
+from datetime import datetime, timezone
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -57,42 +58,65 @@ from benchmark.harness.pipeline import (
 )
 from benchmark.harness.processes import available_cores
 from benchmark.harness.progress import house_progress, job_label, parallel_jobs
-from benchmark.harness.store import Job, claim_job_dir
+from benchmark.harness.store import NON_ROW_KEYS, SELECTION_KEYS, Job, claim_job_dir, flat_settings
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
 
 log = logging.getLogger("roomseg-bench")
 
 
-#: env config keys that select houses rather than change them (left out of cache keys).
-SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
-
 #: first columns of metrics.csv, in this order; the rest follow alphabetically.
 LEADING_COLUMNS = ("house_id", "dataset", "env", "viewpoints", "renderer", "classifier", "oracle_accuracy",
-                   "aggregator", "postprocess", "segmenter", "label", "status", "error", "iou", "precision",
-                   "recall", "accuracy", "n_pred_segments", "n_gt_segments", "n_views", "n_refused",
-                   "view_accuracy")
+                   "aggregator", "postprocess", "segmenter", "label", "corruption", "severity", "status", "error",
+                   "iou", "precision", "recall", "accuracy", "n_pred_segments", "n_gt_segments", "n_views",
+                   "n_refused", "view_accuracy")
 
-#: bump to invalidate every cache entry after a change in cached outputs' meaning.
-CACHE_VERSION = 1
+#: bump to invalidate every cache entry after a change in cached outputs' meaning (2: ProcTHOR's
+#: ``empty`` walls no longer drawn, so scenes changed with no change in any config).
+CACHE_VERSION = 2
 
 
 def _plain(node: Any) -> Any:
     return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
 
 
+#: the robot-condition stages between the views and the aggregator (null: the perfect robot).
+ROBOT_STAGES = ("mapping", "pose_error", "label_noise")
+
+
+def robot_settings(cfg: DictConfig) -> dict[str, Any]:
+    """The robot-condition stages that change anything, as plain configs: a stage that is
+    unset, or set to its identity (a pose error or label noise whose every amount is 0), is
+    left out, so that severity 0 of every condition has the clean run's keys and rows."""
+    out = {}
+    for g in ROBOT_STAGES:
+        node = _plain(cfg.get(g))
+        if node is None:
+            continue
+        amounts = {"pose_error": ("sigma_xy", "sigma_yaw", "drift_xy", "drift_yaw"), "label_noise": ("share",)}.get(g)
+        if amounts and all(not node.get(k) for k in amounts):
+            continue
+        out[g] = node
+    return out
+
+
 def stage_keys(cfg: DictConfig) -> dict[str, str]:
-    """Cache keys of the render, classify, aggregate and score stages for this config."""
+    """Cache keys of the render, map, classify, aggregate and score stages for this config."""
     env = {k: v for k, v in (_plain(cfg.env) or {}).items() if k not in SELECTION_KEYS}
     salt = (CACHE_VERSION, cfg.run.get("cache_salt", ""))
+    robot = robot_settings(cfg)
     render = config_key("render", salt, env, _plain(cfg.get("viewpoints")), _plain(cfg.get("renderer")))
     classify = config_key("classify", render, _plain(cfg.get("classifier")))
+    keys = {"render": render, "classify": classify}
+    if "mapping" in robot:  # the robot's map: the house, the views it drove through, the mapping
+        keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"])
     if cfg.get("segmenter") is not None:
-        score = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics))
-        return {"render": render, "classify": classify, "score": score}
-    aggregate = config_key("aggregate", classify, _plain(cfg.get("aggregator")))
-    score = config_key("score", aggregate, _plain(cfg.get("postprocess")), _plain(cfg.metrics))
-    return {"render": render, "classify": classify, "aggregate": aggregate, "score": score}
+        parts = [{"mapping": keys["map"]}] if "mapping" in robot else []
+        keys["score"] = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics), *parts)
+        return keys
+    keys["aggregate"] = config_key("aggregate", classify, _plain(cfg.get("aggregator")), *([robot] if robot else []))
+    keys["score"] = config_key("score", keys["aggregate"], _plain(cfg.get("postprocess")), _plain(cfg.metrics))
+    return keys
 
 
 def select_houses(all_ids: list[str], houses: Any, limit: Any) -> list[str]:
@@ -183,13 +207,21 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     extra["label"] = str(cfg.run.get("label") or "")
     metric_params = instantiate(cfg.metrics)
     extra["metric_params"] = describe(metric_params)
-    groups = ("segmenter",) if seg is not None else method_stages
+    robot_cfg = cfg.get("robot") or {}
+    extra["corruption"] = str(robot_cfg.get("corruption", "clean"))
+    extra["severity"] = int(robot_cfg.get("severity", 0))
+    robot = robot_settings(cfg)
+    groups: tuple[str, ...] = ("segmenter",) if seg is not None else method_stages
+    if seg is not None and "mapping" in robot:  # the robot's map is built along its views
+        groups = (*groups, "viewpoints")
+        names["viewpoints"] = choices.get("viewpoints", "")
+    robot_groups = tuple(g for g in ROBOT_STAGES if g in robot and (seg is None or g == "mapping"))
     common = dict(
         env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg), names=names,
         metric_params=metric_params, force=expand_force(cfg.run.get("force")),
         save_maps=bool(cfg.run.get("save_maps", True)), extra=extra,
-        builders={k: _builder(cfg.get(k)) for k in groups},
-        inputs={k: _plain(cfg.get(k)) for k in (*groups, "metrics")},
+        builders={k: _builder(cfg.get(k)) for k in (*groups, *robot_groups)},
+        inputs={k: _plain(cfg.get(k)) for k in (*groups, *robot_groups, "metrics")},
         cache_failures=bool(cfg.run.get("cache_failures", False)), env_key=env_key,
     )
     if seg is not None:
@@ -244,13 +276,6 @@ def _in_multirun() -> bool:
         return False
 
 
-#: run settings that change nothing in the rows (left out of a job's identity).
-NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
-                "run.allow_failures", "run.cache_failures", "run.name", "run.workers", "run.executor")
-#: run settings under these prefixes change nothing in the rows either (where the houses run).
-NON_ROW_PREFIXES = ("run.ray.",)
-
-
 def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
     """A job's identity: a key over every setting that changes its rows (the resolved config
     without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
@@ -261,17 +286,7 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
     """
     if plain is None:
         plain = OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
-    flat: dict[str, Any] = {}
-
-    def walk(v: Any, key: str) -> None:
-        if isinstance(v, dict):
-            for k, x in v.items():
-                walk(x, f"{key}.{k}" if key else str(k))
-        else:
-            flat[key] = v
-
-    walk(plain, "")
-    settings = {k: v for k, v in flat.items() if k not in NON_ROW_KEYS and not k.startswith(NON_ROW_PREFIXES)}
+    settings = {k: v for k, v in flat_settings(plain).items() if k not in NON_ROW_KEYS}
     settings["houses"] = f"{len(ids)} houses: {ids[0]} .. {ids[-1]} ({config_key(ids)})"
     return config_key("job", settings, ids), settings
 
@@ -339,6 +354,8 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         "job_key": key, "stages_built": built, "contents": {h: r.content for h, r in zip(ids, results)},
         "executor": executor.name, "workers": int(getattr(executor, "workers", 1) or 1),
         "n_cached": sum(r.cached for r in results),
+        # newest job wins where two jobs hold the same configuration and house (reports/tables.py)
+        "finished_at": datetime.now(timezone.utc).isoformat(),
     }
     ok = df[df["status"] == "ok"] if "status" in df else df
     for m in ("iou", "precision", "recall", "accuracy"):

@@ -23,6 +23,8 @@ the cache may live anywhere)::
     <cache_dir>/failures/<score key>/<entry>.json   the house's last failure (a log, not a result)
     <cache_dir>/maps/<score key>/<entry>.npz        raw / post-processed label maps, poses
                                                     (segmenters: instances)
+    <cache_dir>/robot_maps/<map key>/<entry>.npz    the map the robot built (mapping=scan): free cells
+    <cache_dir>/coverage/<render key>/<entry>.json  the share of the house the views saw
     <cache_dir>/models/<kind>/<key>.npz             fitted models (objects classifier)
 
 ``<entry>`` is ``<house id made safe>@<content>``: ``content`` is a hash of the house's JSON and
@@ -104,9 +106,42 @@ class CacheStore:
     def maps_path(self, key: str, house_id: str, *, content: str) -> Path:
         return self.root / "maps" / key / f"{entry_name(house_id, content)}.npz"
 
+    def robot_map_path(self, key: str, house_id: str, *, content: str) -> Path:
+        """The map the robot built of a house (``mapping=scan``...): its free cells."""
+        return self.root / "robot_maps" / key / f"{entry_name(house_id, content)}.npz"
+
+    def coverage_path(self, key: str, house_id: str, *, content: str) -> Path:
+        """How much of a house a render's views saw (keyed like the render)."""
+        return self.root / "coverage" / key / f"{entry_name(house_id, content)}.json"
+
     def model_path(self, kind: str, key: str, suffix: str = ".npz") -> Path:
         """A fitted model (e.g. the objects classifier) cached by the content of its training set."""
         return self.root / "models" / kind / f"{key}{suffix}"
+
+
+#: env config keys that select houses rather than change them (left out of cache keys, and
+#: of the configuration tables compare).
+SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
+#: run settings that change nothing in the rows (left out of a job's identity, see
+#: :func:`benchmark.harness.runner.job_identity`, and of the configuration tables compare).
+NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
+                "run.allow_failures", "run.cache_failures", "run.name", "run.workers", "run.executor",
+                "run.ray.address")
+
+
+def flat_settings(plain: dict[str, Any]) -> dict[str, Any]:
+    """A plain (resolved) config as ``{dotted key: value}``; lists and scalars are values."""
+    flat: dict[str, Any] = {}
+
+    def walk(v: Any, key: str) -> None:
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(x, f"{key}.{k}" if key else str(k))
+        else:
+            flat[key] = v
+
+    walk(plain, "")
+    return flat
 
 
 @dataclass(frozen=True)
@@ -181,6 +216,43 @@ class Job:
             return None
         return out if isinstance(out, dict) and "key" in out else None
 
+    def settings(self) -> dict[str, Any] | None:
+        """What this job's rows depend on, flat ``{dotted key: value}``: the ``settings`` of its
+        ``job.json`` (the runner's identity: the resolved config without the settings that change
+        no row, and a ``houses`` summary), else its resolved config flattened the same way (a job
+        of an older layout); None when it has neither."""
+        ident = self.identity()
+        if ident is not None and isinstance(ident.get("settings"), dict):
+            return dict(ident["settings"])
+        if not self.config_path.exists():
+            return None
+        from omegaconf import OmegaConf
+
+        try:
+            plain = OmegaConf.to_container(self.config(), resolve=True)
+        except Exception as e:  # noqa: BLE001 - any YAML or interpolation error is a malformed file
+            raise ValueError(f"{self.config_path}: unreadable config ({type(e).__name__}: {str(e).strip()[:120]})") from None
+        if not isinstance(plain, dict):
+            raise ValueError(f"{self.config_path}: expected a mapping, got {type(plain).__name__}")
+        return {k: v for k, v in flat_settings(plain).items() if k not in NON_ROW_KEYS}
+
+    def finished_at(self) -> float:
+        """When the job finished, POSIX seconds: ``finished_at`` of its ``summary.json`` (ISO
+        8601, written by the runner), else the modification time of its summary, else of its
+        ``metrics.csv``."""
+        from datetime import datetime
+
+        try:
+            stamp = self.summary().get("finished_at")
+            if isinstance(stamp, str):
+                return datetime.fromisoformat(stamp).timestamp()
+        except (OSError, ValueError, AttributeError):
+            pass
+        for p in (self.summary_path, self.metrics_path):
+            if p.exists():
+                return p.stat().st_mtime
+        raise FileNotFoundError(f"no {SUMMARY} or {METRICS} in {self.dir}")
+
     def run_name(self) -> str:
         """The run this job belongs to: its ``run.name`` (the folder's parent name for jobs
         without a resolved config, e.g. per-map tables of the baselines)."""
@@ -241,13 +313,81 @@ def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tu
                           f"choose another run.name ({json.dumps(describe)[:200]})")
 
 
+#: name prefixes of share columns beyond :data:`benchmark.metrics.METRIC_COLUMNS` (per-class
+#: IoUs ``iou_<class>``, ``view_accuracy_seen``, the robot's coverage ``coverage_area`` /
+#: ``coverage_rooms``, and families the metrics may grow).
+FRACTION_PREFIXES = ("iou_", "matched_", "room_", "ipa_", "pq_", "view_accuracy", "coverage_")
+#: name suffixes of share columns (``map_free_iou``, ``label_noise_share``, ``map_missed_share``).
+FRACTION_SUFFIXES = ("_iou", "_share")
+#: share columns that are settings, not metrics (the oracle classifier's accuracy).
+FRACTION_SETTINGS = ("oracle_accuracy",)
+#: metrics an ``ok`` row always has (the paper's three, as the runner's cached-row check).
+REQUIRED_IN_OK_ROWS = ("iou", "precision", "recall")
+
+
+def fraction_columns(columns: Sequence[str]) -> list[str]:
+    """The columns of a metrics table that are shares in [0, 1]: every metric of
+    :data:`benchmark.metrics.METRIC_COLUMNS`, every column named with one of
+    :data:`FRACTION_PREFIXES` or :data:`FRACTION_SUFFIXES`, and :data:`FRACTION_SETTINGS`;
+    never a count (``count_error``, ``n_*``)."""
+    from benchmark.metrics import METRIC_COLUMNS
+
+    out = []
+    for c in map(str, columns):
+        if c == "count_error" or c.startswith("n_"):
+            continue
+        if c in METRIC_COLUMNS or c in FRACTION_SETTINGS or c.startswith(FRACTION_PREFIXES) \
+                or c.endswith(FRACTION_SUFFIXES):
+            out.append(c)
+    return out
+
+
+def _check_fractions(path: Path, df) -> None:
+    """Refuse a share outside [0, 1] or a cell that is not a number (one line: file, line,
+    house, column, value); missing values (NaN) pass, except :data:`REQUIRED_IN_OK_ROWS` in
+    a row whose status is ``ok``. The first bad cell in file order is named."""
+    import numpy as np
+    import pandas as pd
+
+    cols = fraction_columns(df.columns)
+    if not cols or df.empty:
+        return
+    raw = df[cols]
+    vals = np.column_stack([raw[c].to_numpy(float) if pd.api.types.is_numeric_dtype(raw[c])
+                            else pd.to_numeric(raw[c], errors="coerce").to_numpy(float) for c in cols])
+    absent = raw.isna().to_numpy()
+    ok = df["status"].astype(str).eq("ok").to_numpy() if "status" in df else np.zeros(len(df), bool)
+    required = np.array([c in REQUIRED_IN_OK_ROWS for c in cols])
+    with np.errstate(invalid="ignore"):
+        outside = ~np.isnan(vals) & ((vals < 0.0) | (vals > 1.0))
+    text = ~absent & np.isnan(vals)
+    missing = ok[:, None] & absent & required[None, :]
+    bad = outside | text | missing
+    if not bad.any():
+        return
+    i, j = (int(v) for v in np.argwhere(bad)[0])
+    value = raw.iloc[i, j]
+    if missing[i, j]:
+        what = "missing in a row with status ok"
+    elif outside[i, j]:
+        what = f"{value} is outside [0, 1]"
+    else:
+        what = f"{value!s:.40} is not a number"
+    house = f" (house {df['house_id'].iloc[i]})" if "house_id" in df else ""
+    raise ValueError(f"{path}: line {i + 2}{house}, column {cols[j]!r}: {what}; expected a fraction in [0, 1]")
+
+
 def read_metrics(path: str | Path):
-    """A job's ``metrics.csv`` as a DataFrame, checked whole.
+    """A job's ``metrics.csv`` (or a per-map table of the baselines) as a DataFrame, checked whole.
 
     Checked: it parses and its last line ends with a newline (a truncated write does not);
-    for a runner job (``summary.json`` beside it) also: ``house_id`` and ``status`` columns,
-    every row with a house id and a status of ``ok`` or ``failed``, and as many rows as the
-    summary's ``n_houses``.
+    every share column (:func:`fraction_columns`: iou, precision, recall, matched_*, room_*,
+    pq, sq, rq, pq_semantic, ipa_*, accuracy, class_iou, iou_<class>, view_accuracy*, ...)
+    holds numbers in [0, 1] or nothing (NaN), and ``iou``/``precision``/``recall`` are
+    present in every ``ok`` row; for a runner job (``summary.json`` beside it) also:
+    ``house_id`` and ``status`` columns, every row with a house id and a status of ``ok`` or
+    ``failed``, and as many rows as the summary's ``n_houses``. Line numbers in messages
+    count the header as line 1.
 
     Raises:
         ValueError: one line naming the file and what is wrong.
@@ -271,6 +411,7 @@ def read_metrics(path: str | Path):
         df = pd.read_csv(io.BytesIO(raw), keep_default_na=True)
     except Exception as e:  # noqa: BLE001 - any parser error is a malformed file
         raise ValueError(f"{path}: malformed CSV ({type(e).__name__}: {str(e).strip()[:120]})") from None
+    _check_fractions(path, df)
     summary = path.parent / SUMMARY
     if not summary.exists():  # not a runner job (e.g. a per-map table of the baselines)
         return df
@@ -329,15 +470,22 @@ def find_jobs(paths: Sequence[str | Path], finished_only: bool = True) -> list[J
 
 
 def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
-    """The ``metrics.csv`` of every job under ``paths`` (a path may be a CSV file itself)."""
+    """The ``metrics.csv`` of every job under ``paths`` (a path may be a CSV file itself), each
+    file once."""
+    seen: set[Path] = set()
     for p in map(Path, paths):
         if p.is_file():
-            yield p
+            found = [p]
         elif p.is_dir():
-            yield from sorted(p.rglob(METRICS))
+            found = sorted(p.rglob(METRICS))
         else:
             raise FileNotFoundError(f"no run folder or metrics file at {p}")
+        for f in found:  # a file under two of the paths (a run and its parent) is read once
+            if f.resolve() not in seen:
+                seen.add(f.resolve())
+                yield f
 
 
-__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "iter_metric_files", "job_dir_for",
-           "read_metrics", "safe_name", "METRICS", "SUMMARY", "CONFIG", "TIMINGS", "IDENTITY", "SWEEP_SUMMARY"]
+__all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "flat_settings", "fraction_columns",
+           "iter_metric_files", "job_dir_for", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS",
+           "SELECTION_KEYS", "SUMMARY", "CONFIG", "TIMINGS", "IDENTITY", "SWEEP_SUMMARY"]

@@ -54,7 +54,16 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
     Block("bench-timing", ("bench",)),
     Block("bench-table4", ("bench",), "table4"),
     Block("bench-table3", ("bench",), "table3"),
+    Block("robustness-timing", ("robustness",)),
+    Block("robustness", ("robustness",), "robustness"),
 )}
+
+#: the columns a published robustness run keeps (one ``metrics.csv`` of every job's rows: 12,480
+#: rows for 20 houses per dataset; the rest of each row is in the run's own folders).
+ROBUSTNESS_COLUMNS = ("house_id", "dataset", "env", "viewpoints", "classifier", "oracle_accuracy", "aggregator",
+                      "postprocess", "segmenter", "corruption", "severity", "status", "iou", "matched_iou", "pq",
+                      "accuracy", "coverage_area", "coverage_rooms", "pose_error_mean_m", "label_noise_share",
+                      "map_free_iou")
 
 
 def machine() -> str:
@@ -89,11 +98,12 @@ def _commit(root: Path) -> str:
 
 
 def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: str | Path | None = None,
-            command: str = "make bench") -> Path:
+            command: str = "make bench", columns: Sequence[str] | None = None) -> Path:
     """Copy a finished run's per-house metrics into ``<root>/results/published/<name>/``.
 
     Each job's ``metrics.csv`` keeps its relative folder and every column but the stage
-    timings (``t_*``, which differ run to run). ``provenance.json`` records ``command``,
+    timings (``t_*``, which differ run to run). With ``columns``, every job's rows go into one
+    ``metrics.csv`` with those columns only (a large sweep: the robustness benchmark). ``provenance.json`` records ``command``,
     the UTC date, :func:`machine`, the commit and, from ``time_file`` (GNU time's
     ``-f "%e %M"``: wall seconds and peak RSS in KiB), the wall time and peak memory.
 
@@ -112,12 +122,19 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
     dest = root / PUBLISHED / name
     tmp = dest.with_name(f".{name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
+    frames = []
     for job in jobs:
         df = pd.read_csv(job.metrics_path, keep_default_na=True)
         df = df[[c for c in df.columns if not c.startswith("t_")]]
+        if columns is not None:
+            frames.append(df.reindex(columns=list(columns)))
+            continue
         rel = job.dir.relative_to(run_dir) if job.dir != run_dir else Path(".")
         (tmp / rel).mkdir(parents=True, exist_ok=True)
         df.to_csv(tmp / rel / "metrics.csv", index=False)
+    if columns is not None:
+        tmp.mkdir(parents=True, exist_ok=True)
+        pd.concat(frames, ignore_index=True).to_csv(tmp / "metrics.csv", index=False)
     import os
 
     prov = {"command": command, "run": str(run_dir), "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
@@ -181,6 +198,8 @@ def render_block(block: Block, root: str | Path = ".") -> str:
     paths = [root / PUBLISHED / s for s in block.sources]
     for s in block.sources:
         provenance(root, s)  # a missing published run: one line saying how to publish it
+    if block.table == "robustness":
+        return _robustness_block(root, paths, block.sources)
     df = load_rows(paths)
     spec = TABLES[block.table]
     summ = summarise(df, spec)
@@ -191,6 +210,37 @@ def render_block(block: Block, root: str | Path = ".") -> str:
     notes = metric_notes(df)
     return (formatting.to_markdown(grid) + "\n\n" + f"Mean ± std over {grid.over}, in percent. " + " ".join(grid.notes)
             + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n")
+
+
+def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str]) -> str:
+    """Per dataset: matched IoU clean and under each condition (mean over its severities),
+    the corruption error against the reference for matched IoU and for the paper's IoU, and
+    what the table shows in words (who leads clean and under each condition; whether the best
+    view-based method and the best geometric one change places)."""
+    from benchmark.reports import robustness as rb
+    from benchmark.reports.tables import load_rows
+
+    df = load_rows(paths)
+    df["severity"] = df["severity"].astype(int)
+    out = []
+    for dataset, d in df.groupby("dataset"):
+        d = d[~d["house_id"].astype(str).isin(set(d.loc[d["status"] != "ok", "house_id"].astype(str)))]
+        cells = {m: rb.cell_means(d, m) for m in ("matched_iou", "iou")}
+        tables = {m: rb.summary_table(c, rb.REFERENCE) for m, c in cells.items()}
+        t = tables["matched_iou"]
+        fams = [f for f in rb.FAMILIES if f in t.columns]
+        show = t[["clean", *fams, "mCE"]].copy()
+        show["mCE (paper IoU)"] = tables["iou"]["mCE"]
+        show = show.rename(columns={f: rb.FAMILY_WORDS[f] for f in fams})
+        n = int(cells["matched_iou"]["n"].iloc[0])
+        ranked = [m for m in t.index if m not in rb.SANITY]
+        sane = cells["matched_iou"][cells["matched_iou"]["method"].isin(ranked)]
+        notes = rb.rank_notes(t.loc[ranked], rb.GEOMETRIC, sane)
+        out += [f"**{formatting.value_label('dataset', dataset)}** ({n} houses per cell; matched IoU in percent, "
+                f"conditions averaged over their severities 1-5; mCE relative to {rb.REFERENCE}, lower is better):",
+                "", rb.to_markdown(show).rstrip(), "", "What it shows (matched IoU):", "",
+                *[f"- {x}" for x in notes], ""]
+    return "\n".join(out) + _source_line(root, sources) + "\n"
 
 
 def blocks_in(text: str) -> dict[str, str]:

@@ -11,7 +11,8 @@ Rows come from ``experiment=robustness`` (``make robustness``): each carries ``c
   CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R), over the severities s = 1..5;
 * mCE(M) = the mean of CE_f(M) over the families (100 = as robust as the reference; lower is
   better);
-* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M): how much of its clean score the method loses.
+* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M): how much of its clean score the method loses
+  (negative: the condition helped it).
 
 A table cell never mixes house sets: every (method, family, severity) of one dataset must hold
 the same houses, or the table is refused with one line naming the cells that differ.
@@ -29,6 +30,13 @@ import pandas as pd
 FAMILIES = ("scan", "pose", "explore", "classifier", "realistic")
 #: the metrics summarised (fractions in the rows, percent in the tables).
 METRICS = ("iou", "matched_iou", "pq")
+#: the method corruption errors are relative to by default: the classic geometric baseline
+#: (Voronoi segmentation), which no view, pose or label reaches.
+REFERENCE = "voronoi"
+#: the geometric segmenters and the sanity rows among the methods (the sanity rows are shown,
+#: not ranked).
+GEOMETRIC = ("distance", "morphological", "voronoi")
+SANITY = ("one_room", "gt_geometry", "grid")
 #: words for the families, in tables and figures.
 FAMILY_WORDS = {"scan": "scan map", "pose": "pose error", "explore": "exploration budget",
                 "classifier": "classifier noise", "realistic": "realistic (all combined)"}
@@ -122,24 +130,49 @@ def summary_table(cells: pd.DataFrame, reference: str, families: Sequence[str] =
     return out.sort_values(["mCE", "clean"], ascending=[True, False], na_position="last")
 
 
-def rank_notes(table: pd.DataFrame, geometric: Sequence[str]) -> list[str]:
-    """Sentences a reader needs: which method ranks first clean and under each family, and
-    whether the best view-based method and the best geometric one change places."""
+def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFrame | None = None) -> list[str]:
+    """One sentence per condition: which method ranks first, and whether the best view-based
+    method or the best geometric one is ahead; with ``cells`` (:func:`cell_means`), also at
+    which severities each is ahead, so a flip with severity shows."""
     notes = []
     fams = [c for c in table.columns if c in FAMILIES]
-    best = table["clean"].idxmax()
-    notes.append(f"clean: {best} first ({table.loc[best, 'clean']:.1f})")
-    for f in fams:
-        b = table[f].idxmax()
-        notes.append(f"{FAMILY_WORDS.get(f, f)}: {b} first ({table.loc[b, f]:.1f} averaged over its severities)")
     geo = [m for m in table.index if m in set(geometric)]
     view = [m for m in table.index if m not in set(geometric)]
-    if geo and view:
-        for col in ("clean", *fams):
+    for col in ("clean", *fams):
+        first = table[col].idxmax()
+        words = FAMILY_WORDS.get(col, col)
+        line = (f"{words}: {first} first ({table.loc[first, col]:.1f}"
+                + (")" if col == "clean" else ", mean over severities)"))
+        if geo and view:
             g, w = table.loc[geo, col].max(), table.loc[view, col].max()
-            notes.append(f"{FAMILY_WORDS.get(col, col)}: best view-based {w:.1f} vs best geometric {g:.1f} "
-                         f"({'view-based ahead' if w > g else 'geometric ahead' if g > w else 'tied'})")
+            line += (f"; best view-based {w:.1f} vs best geometric {g:.1f}"
+                     f" ({'view-based ahead' if w > g else 'geometric ahead' if g > w else 'tied'})")
+            if cells is not None and col != "clean":
+                line += _flip(cells, col, geo, view)
+        notes.append(line)
     return notes
+
+
+def _flip(cells: pd.DataFrame, family: str, geo: Sequence[str], view: Sequence[str]) -> str:
+    """", view-based ahead at severities 0-2, geometric at 3-5" (or "" when one side leads at
+    every severity)."""
+    v = cells.set_index(["method", "corruption", "severity"])["value"]
+    sev = [0, *sorted(cells.loc[cells["corruption"] == family, "severity"].unique())]
+    ahead = []
+    for s in sev:
+        c = "clean" if s == 0 else family
+        g = max(v.get((m, c, s), -1.0) for m in geo)
+        w = max(v.get((m, c, s), -1.0) for m in view)
+        ahead.append("view-based" if w > g else "geometric" if g > w else "tied")
+    if len(set(ahead)) == 1:
+        return ""
+    runs, start = [], 0
+    for i in range(1, len(sev) + 1):
+        if i == len(sev) or ahead[i] != ahead[start]:
+            span = f"{sev[start]}" if i - 1 == start else f"{sev[start]}-{sev[i - 1]}"
+            runs.append(f"{ahead[start]} at severit{'y' if i - 1 == start else 'ies'} {span}")
+            start = i
+    return "; by severity: " + ", ".join(runs)
 
 
 def to_markdown(table: pd.DataFrame, decimals: int = 1) -> str:
@@ -167,7 +200,7 @@ def to_latex(table: pd.DataFrame, caption: str, label: str, decimals: int = 1) -
 
 
 #: colour-blind safe colours (Okabe and Ito, 2008) and line styles, cycled per method.
-OKABE_ITO = ("#000000", "#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7")
+OKABE_ITO = ("#000000", "#E69F00", "#56B4E9", "#009E73", "#0072B2", "#D55E00", "#CC79A7", "#F0E442")  # yellow last
 STYLES = ("-", "--", ":", "-.")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 
@@ -194,7 +227,7 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
                 marker=MARKERS[i % len(MARKERS)], markersize=4, linewidth=1.4, label=m)
     ax.set_xlabel("severity (0 = clean)")
     ax.set_ylabel(f"{metric_words} (%)")
-    ax.set_xticks(range(6))
+    ax.set_xticks(range(int(cells["severity"].max()) + 1))
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)

@@ -3,21 +3,41 @@
 ``python -m benchmark.commands.tables RUN_DIR [RUN_DIR ...] [--table table4] [--out DIR]``
 
 Reads every ``metrics.csv`` under the given folders (runs of :mod:`benchmark.harness.runner`, or
-per-map tables of the baselines), keeps successful rows, and reports mean and standard
-deviation over houses per table cell, with the number of houses and of failed houses.
+per-map tables of the baselines), each checked by :func:`benchmark.harness.store.read_metrics`,
+keeps successful rows, and reports mean and standard deviation over houses per table cell, with
+the number of houses and of failed houses.
+
+What a cell holds (:func:`load_rows`, :func:`summarise`):
+
+* each (configuration, house) once. A row's configuration is its job's settings (``job.json``:
+  the resolved config without the settings that change no row) less the house selection
+  (``houses``, ``run.limit``, ``run.houses``, ``env.start``/``stop``/``n_houses``/... :
+  :data:`benchmark.harness.store.SELECTION_KEYS`), and the row's own names (dataset,
+  classifier, aggregator, ...). Where several jobs hold the same pair, the newest job's row
+  wins (``finished_at`` of its ``summary.json``, else the file's time) and the rows set aside
+  are counted in ``load_rows(...).attrs["set_aside"]``, one line naming their folders;
+* never two settings: where rows of different configurations fall into one cell (equal in
+  every column the table groups by, e.g. two ``aggregator.k``), the table gets one row per
+  configuration, labelled in a ``settings`` column by what differs, and a line under the table
+  says so. Tables that pool on purpose (Table III: over classifiers and aggregators) name
+  what they pool in :attr:`TableSpec.pools`;
+* when the cells compared hold different sets of houses (within a dataset), a line under the
+  table says so.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from benchmark.harness.cache import atomic_write_text
-from benchmark.harness.store import iter_metric_files
+from benchmark.harness.store import METRICS, SELECTION_KEYS, Job, iter_metric_files, read_metrics
 from benchmark.reports import formatting
 
 
@@ -37,15 +57,18 @@ class TableSpec:
     where: dict = field(default_factory=dict)
     exclude: dict = field(default_factory=dict)
     #: keep the sanity segmenters' rows (one room, ground-truth geometry, grid) as rows of
-    #: their own: classifier "sanity", aggregator = the segmenter (README "Metrics").
+    #: their own: classifier "sanity", aggregator = the segmenter (docs/metrics.md).
     sanity: bool = False
+    #: config groups a cell averages over on purpose (their settings and names may differ
+    #: inside a cell); every other difference splits the cell (see the module doc).
+    pools: tuple[str, ...] = ()
 
 
 #: the sanity segmenters (benchmark/segmenters/sanity.py), shown in comparison tables.
 SANITY_SEGMENTERS = ("one_room", "gt_geometry", "grid")
 
 
-#: the metrics beside the paper's that merging cannot game (README "Metrics"), in every
+#: the metrics beside the paper's that merging cannot game (docs/metrics.md), in every
 #: comparison table (fractions, shown in percent; count_error, segments minus rooms, is a
 #: count and shown as it is).
 ROBUST_METRICS = ("matched_iou", "pq", "room_iou", "ipa_recall", "ipa_precision", "count_error")
@@ -55,7 +78,8 @@ TABLES: dict[str, TableSpec] = {
                         rows=("dataset", "classifier", "aggregator"), cols=("viewpoints",),
                         where={"postprocess": "none"}, exclude={"segmenter_row": True}),
     "table3": TableSpec("Table III: post-processing, mean over all classifier x aggregator combinations",
-                        rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True}),
+                        rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True},
+                        pools=("classifier", "aggregator")),
     "table4": TableSpec("Table IV: classifier x aggregator per dataset (with post-processing)",
                         rows=("classifier", "aggregator"), cols=("dataset",),
                         metrics=("iou", "matched_iou", "pq", "accuracy"),
@@ -93,14 +117,115 @@ def method_label(row: pd.Series) -> str:
     return "+".join(p for p in parts if p) + (" +post" if post and post != "none" else "")
 
 
+#: columns of a row that name its configuration (beside its job's settings).
+ROW_NAMES = ("dataset", "env", "viewpoints", "renderer", "classifier", "oracle_accuracy", "aggregator",
+             "postprocess", "segmenter", "label", "corruption", "severity", "method")
+#: columns that tell configurations apart when nothing else does (rows read without their
+#: job's settings): the metric parameters in words and the scoring stage's cache key.
+ROW_KEYS_LAST = ("metric_params", "score_key")
+#: config groups a method's rows use and a segmenter's rows do not.
+METHOD_GROUPS = ("viewpoints", "renderer", "classifier", "aggregator", "postprocess")
+#: settings that select houses rather than change a house's row.
+HOUSE_SELECTION = ("houses", "run.limit", "run.houses")
+
+
+def job_configuration(settings: dict[str, Any] | None) -> dict[str, Any]:
+    """The part of a job's configuration that its settings give: ``settings`` (flat, from
+    :meth:`benchmark.harness.store.Job.settings`) less the house selection
+    (:data:`HOUSE_SELECTION` and ``env.<k>`` for ``k`` in :data:`~benchmark.harness.store.SELECTION_KEYS`),
+    and for a segmenter's job less the method's groups, which its rows do not use."""
+    if not settings:
+        return {}
+    drop = {*HOUSE_SELECTION, *(f"env.{k}" for k in SELECTION_KEYS)}
+    out = {k: v for k, v in settings.items() if k not in drop}
+    if any(k.startswith("segmenter.") for k in out):
+        out = {k: v for k, v in out.items() if k.split(".", 1)[0] not in METHOD_GROUPS}
+    return out
+
+
+def _plain(v: Any) -> Any:
+    """A CSV cell as a JSON value: NaN -> None, NumPy scalars -> Python."""
+    if isinstance(v, np.generic):
+        v = v.item()
+    return None if isinstance(v, float) and np.isnan(v) else v
+
+
+def _configurations(df: pd.DataFrame, settings: dict[str, Any]) -> list[str]:
+    """Per row, its configuration as canonical JSON: ``{"settings": ..., "row": ...}``. The
+    row's ``score_key`` counts only without settings (it also follows ``run.cache_salt``,
+    which changes no row)."""
+    cols = [c for c in (*ROW_NAMES, *ROW_KEYS_LAST) if c in df and not (settings and c == "score_key")]
+    return [json.dumps({"settings": settings, "row": {c: _plain(v) for c, v in zip(cols, rec)}}, sort_keys=True,
+                       default=str) for rec in df[cols].itertuples(index=False, name=None)]
+
+
+def _folders(paths: Sequence[str], limit: int = 4) -> str:
+    counts = pd.Series(list(paths)).value_counts(sort=False)
+    parts = [f"{p} ({n})" for p, n in counts.items()]
+    return ", ".join(parts[:limit]) + (f" and {len(parts) - limit} more" if len(parts) > limit else "")
+
+
+def _newest_only(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """``df`` with each (configuration, house) once, the newest job's row; and one line saying
+    how many older rows were set aside and from which folders ("" when none).
+
+    Raises:
+        ValueError: one file holding the same house twice for one configuration."""
+    if "house_id" not in df:
+        return df, ""
+    has = df["house_id"].notna()
+    key = ["_config", "house_id"]
+    twice = has & df.duplicated(["source", *key], keep=False)
+    if twice.any():
+        rows = df[twice]
+        first = rows.iloc[0]
+        lines = rows[(rows["source"] == first["source"]) & (rows["house_id"] == first["house_id"])
+                     & (rows["_config"] == first["_config"])]["_line"].tolist()
+        raise ValueError(f"{first['source']}: house {first['house_id']} is on lines {lines[0]} and {lines[1]} with "
+                         f"the same configuration; expected one row per house and configuration")
+    older = df.sort_values(["_finished", "source"], kind="stable").duplicated(key, keep="last")
+    older = older.reindex(df.index) & has
+    if not older.any():
+        return df, ""
+    kept = df[~older & has].drop_duplicates(key).set_index(key)["source"]
+    aside = df[older]
+    newer = kept.reindex(pd.MultiIndex.from_frame(aside[key])).tolist()
+    line = (f"set aside {int(older.sum())} older row(s) whose configuration and house a newer job also holds, "
+            f"from {_folders([str(Path(s).parent) for s in aside['source']])}; kept the newer rows of "
+            f"{_folders([str(Path(s).parent) for s in newer])}")
+    return df[~older], line
+
+
 def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
-    """All rows of all metrics files, with a ``method`` and a ``segmenter_row`` column."""
+    """All rows of the metrics files at or under ``paths``, each file checked by
+    :func:`benchmark.harness.store.read_metrics`, each (configuration, house) once (the newest
+    job's row; see the module doc).
+
+    Returns:
+        The rows, with ``method`` and ``segmenter_row`` columns, ``source`` (the file),
+        ``_config`` (the configuration as JSON), ``_finished`` (the job's finish time, POSIX s)
+        and ``_line`` (the row's line in its file); ``attrs["n_read"]`` is the number of rows
+        read and ``attrs["set_aside"]`` one line about the older rows set aside ("" if none).
+
+    Raises:
+        FileNotFoundError: no metrics file.
+        ValueError: a malformed file or value, or one file holding a house twice for one
+            configuration (one line naming the file).
+    """
     frames = []
     for f in find_metric_files(paths):
-        df = pd.read_csv(f, keep_default_na=True)
+        df = read_metrics(f)
+        job = Job(f.parent)
+        is_job = f.name == METRICS
         df["source"] = str(f)
+        df["_config"] = _configurations(df, job_configuration(job.settings() if is_job else None))
+        df["_finished"] = job.finished_at() if is_job else f.stat().st_mtime
+        df["_line"] = np.arange(len(df)) + 2
         frames.append(df)
     df = pd.concat(frames, ignore_index=True)
+    n_read = len(df)
+    df, line = _newest_only(df)
+    df = df.reset_index(drop=True)
     for col in ("classifier", "aggregator", "postprocess", "viewpoints", "segmenter", "dataset"):
         if col not in df:
             df[col] = ""
@@ -109,11 +234,109 @@ def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
         df["status"] = "ok"
     df["method"] = df.apply(method_label, axis=1)
     df["segmenter_row"] = df["segmenter"].str.len() > 0
+    df.attrs.update(n_read=n_read, set_aside=line)
     return df
 
 
+def _pooled(key: str, pools: Sequence[str], row: bool) -> bool:
+    """Whether a configuration key is one a table pools over (its differences do not split)."""
+    if not pools:
+        return False
+    if row:  # the method's name and the score key follow the pooled groups too
+        return key in pools or key in ("method", "score_key") or (key == "oracle_accuracy" and "classifier" in pools)
+    return key.split(".", 1)[0] in pools
+
+
+def _differing(configs: Sequence[dict], part: str) -> set[str]:
+    """The keys of ``part`` ("settings" or "row") whose values are not the same in every one
+    of ``configs`` (a key some configurations lack counts as different)."""
+    def value(c: dict, k: str) -> str | None:
+        return json.dumps(c[part][k], sort_keys=True, default=str) if k in c[part] else None
+
+    names = set().union(*(c[part] for c in configs))
+    return {k for k in names if len({value(c, k) for c in configs}) > 1}
+
+
+def _value_words(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_value_words(x) for x in v) + "]"
+    return str(v)
+
+
+def settings_labels(configs: Sequence[str], cells: Sequence[Sequence[str]],
+                    pools: Sequence[str] = ()) -> tuple[dict[str, str], list[str]]:
+    """Labels that tell apart the configurations sharing a cell.
+
+    Args:
+        configs: every configuration of the table's rows (JSON, as ``_config``).
+        cells: per cell, the configurations in it.
+        pools: config groups the table pools over (ignored in comparisons).
+
+    Returns:
+        ({configuration: label}, the keys the labels show). A label is ``key=value`` for each
+        key shown that the configuration has, joined by ``, ``. The keys are chosen by tiers,
+        each only where the earlier ones leave configurations of a cell equal: the row's names
+        (``viewpoints=autotrace_sparse``), then the job's settings (``aggregator.k=3``), then
+        the metric parameters and score key. ({}, []) when no cell mixes configurations.
+    """
+    parsed = {c: json.loads(c) for c in configs}
+    for p in parsed.values():
+        p["row"] = {k: v for k, v in p["row"].items() if not _pooled(k, pools, True)}
+        p["settings"] = {k: v for k, v in p["settings"].items() if not _pooled(k, pools, False)}
+    tiers = [("row", lambda k: k not in ROW_KEYS_LAST), ("settings", lambda k: True),
+             ("row", lambda k: k in ROW_KEYS_LAST)]
+    shown: list[tuple[str, str]] = []
+
+    def label(c: str) -> tuple:
+        return tuple(json.dumps(parsed[c][part].get(k), default=str) if k in parsed[c][part] else None
+                     for part, k in shown)
+
+    for part, wanted in tiers:
+        for cell in cells:
+            groups: dict[tuple, list[dict]] = {}
+            for c in dict.fromkeys(cell):
+                groups.setdefault(label(c), []).append(parsed[c])
+            for same in groups.values():
+                if len(same) > 1:
+                    new = sorted(k for k in _differing(same, part) if wanted(k) and (part, k) not in shown)
+                    shown += [(part, k) for k in new]
+    if not shown:
+        return {}, []
+    out = {}
+    for c in parsed:
+        out[c] = ", ".join(f"{k}={_value_words(parsed[c][part][k])}" for part, k in shown if k in parsed[c][part])
+    return out, [k for _, k in shown]
+
+
+def house_set_note(ok: pd.DataFrame, keys: Sequence[str]) -> str | None:
+    """One line when the cells of a table (grouped by ``keys``; compared within one dataset
+    when ``dataset`` is a key) hold different sets of successful houses, else None."""
+    if "house_id" not in ok or ok.empty or not keys:
+        return None
+    sets = ok.groupby(list(keys), dropna=False)["house_id"].agg(lambda h: frozenset(map(str, h)))
+    parts = sets.groupby(level="dataset") if "dataset" in keys else [("", sets)]
+    for ds, part in parts:
+        if len(set(part)) < 2:
+            continue
+        union, common = frozenset().union(*part), frozenset.intersection(*part)
+        lacking = [cell for cell, h in part.items() if h != union]
+        example = sorted(union - common)[0]
+        where = f" of dataset {ds}" if ds else ""
+        return (f"Note: the cells{where} hold different house sets: {len(union)} houses in all, {len(common)} in every "
+                f"cell; {len(lacking)} of {len(part)} cells lack some (e.g. {example}), so their means are not over "
+                f"the same houses.")
+    return None
+
+
 def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
-    """Mean, std and count over houses per (rows, cols) cell; ``n_failed`` per cell too."""
+    """Mean, std and count over houses per (rows, cols) cell; ``n_failed`` per cell too.
+
+    A cell holding rows of different configurations (other than in :attr:`TableSpec.pools`)
+    is split: a ``settings`` column labels each configuration by what differs
+    (:func:`settings_labels`). ``attrs["notes"]`` holds the lines to print under the table
+    (the split, different house sets)."""
     sel = df
     sanity = None
     if spec.sanity and "segmenter" in df:
@@ -131,6 +354,15 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     keys = [c for c in (*spec.rows, *spec.cols) if c in sel]
     if sel.empty or not keys:
         return pd.DataFrame()
+    notes = []
+    if "_config" in sel:
+        cells = sel.groupby(keys, dropna=False)["_config"].unique().tolist()
+        labels, shown = settings_labels(sel["_config"].unique().tolist(), cells, spec.pools)
+        if labels:
+            sel = sel.assign(settings=sel["_config"].map(labels))
+            keys = [*keys, "settings"]
+            notes.append(f"Note: rows of different settings that would share a cell are kept apart, labelled by "
+                         f"{', '.join(shown)}.")
     ok = sel[sel["status"] == "ok"]
     metrics = [m for m in spec.metrics if m in ok]
     g = ok.groupby(keys, dropna=False)[metrics]
@@ -139,7 +371,12 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     out["n"] = ok.groupby(keys, dropna=False).size()
     out["n_failed"] = sel[sel["status"] != "ok"].groupby(keys, dropna=False).size()
     out["n_failed"] = out["n_failed"].fillna(0).astype(int)
-    return out.reset_index()
+    houses = house_set_note(ok, keys)
+    if houses:
+        notes.append(houses)
+    out = out.reset_index()
+    out.attrs["notes"] = notes
+    return out
 
 
 #: tables that compare values of one column: printed only when that column takes >= 2
@@ -175,8 +412,11 @@ def why_empty(df: pd.DataFrame, name: str, summary: pd.DataFrame) -> str | None:
 
 def format_cells(summary: pd.DataFrame, spec: TableSpec, percent: bool = True, name: str = "") -> formatting.Grid:
     """The display grid of one table (see :mod:`benchmark.reports.formatting`)."""
-    return formatting.build_grid(summary, spec.rows, spec.cols, spec.metrics, spec.title, percent,
+    rows = (*spec.rows, "settings") if "settings" in summary else spec.rows
+    grid = formatting.build_grid(summary, rows, spec.cols, spec.metrics, spec.title, percent,
                                  by_metric=name in formatting.BY_METRIC, pooled=name in formatting.POOLED)
+    grid.notes += summary.attrs.get("notes", [])
+    return grid
 
 
 def metric_notes(df: pd.DataFrame) -> list[str]:
@@ -187,13 +427,15 @@ def metric_notes(df: pd.DataFrame) -> list[str]:
 
 
 def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out_dir: Path | None = None,
-           percent: bool = True) -> str:
+           percent: bool = True, rows: pd.DataFrame | None = None) -> str:
     """Markdown text of the requested tables; with ``out_dir`` also write .md/.csv/.tex each.
 
     ``tables`` None: every table the rows have data for; a table left out (or asked for
-    and empty) gets one line saying why. Returns the text printed by the command.
+    and empty) gets one line saying why. ``rows``: the rows already read by
+    :func:`load_rows` (``paths`` is then not read again). Returns the text printed by the
+    command.
     """
-    df = load_rows(paths)
+    df = load_rows(paths) if rows is None else rows
     chunks, skipped = [], []
     asked = tables is not None
     for name in (tables if asked else list(TABLES)):
@@ -221,7 +463,10 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
             atomic_write_text(out_dir / f"{name}.md", md)
             atomic_write_text(out_dir / f"{name}.csv", summ.to_csv(index=False))
             atomic_write_text(out_dir / f"{name}.tex", formatting.to_latex(grid, f"tab:{name}", caption.strip()))
-        if name == "sensitivity" and out_dir is not None and reason is None:
+        if name == "sensitivity" and out_dir is not None and reason is None and "settings" in summ:
+            chunks.append("Sensitivity plot left out: its curves would join rows of different settings "
+                          "(see the settings column).\n")
+        elif name == "sensitivity" and out_dir is not None and reason is None:
             from benchmark.reports.sensitivity_plots import plot_sensitivity_per_noise  # noqa: PLC0415
 
             if not plot_sensitivity_per_noise(summ, out_dir):  # one plot per noise model, and an overview

@@ -7,22 +7,31 @@ import numpy as np
 from scipy import ndimage
 
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import FOUR, check_area_limits, grow_seeds
+from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
 from envs.maps.gridmap import GridMap
 
 
 class DistanceTransform(Segmenter):
     """Threshold sweep on the distance map.
 
-    Args: min_area: smallest seed, square metres; max_area: largest room (seeds above it are
-    still kept: no smaller split exists at that threshold); step: threshold step, metres.
+    Args:
+        min_seed_area: smallest seed, square metres (a part of the free space above the
+            threshold; the threshold with the most such parts wins).
+        max_area: largest room, square metres (seeds above it are still kept: no smaller
+            split exists at that threshold).
+        step: threshold step, metres.
+        min_room_area: rooms smaller than this (square metres) merge into the neighbour
+            sharing the longest border (:func:`benchmark.segmenters.common.merge_small_rooms`).
     """
 
-    def __init__(self, min_area: float = 0.5, max_area: float = 60.0, step: float = 0.05):
-        self.min_area, self.max_area, self.step = min_area, max_area, step
+    def __init__(self, min_seed_area: float = 0.5, max_area: float = 60.0, step: float = 0.05,
+                 min_room_area: float = 1.0):
+        self.min_seed_area, self.max_area, self.step = min_seed_area, max_area, step
+        self.min_room_area = check_room_area(min_room_area)
 
     def __call__(self, grid: GridMap) -> np.ndarray:
-        lo, _ = check_area_limits(grid, self.min_area, self.max_area)
+        """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
+        lo, _ = check_area_limits(grid, self.min_seed_area, self.max_area)
         dist = ndimage.distance_transform_edt(grid.walkable) * grid.resolution
         best, best_seeds = -1, None
         for t in np.arange(0.0, dist.max(), max(self.step, grid.resolution)):
@@ -35,4 +44,4 @@ class DistanceTransform(Segmenter):
                 for j, i in enumerate(keep):
                     seeds[lab == i] = j + 1
                 best_seeds = seeds
-        return grow_seeds(best_seeds, grid.walkable)
+        return finish_rooms(best_seeds, grid, self.min_room_area)

@@ -7,21 +7,27 @@ import numpy as np
 from scipy import ndimage
 
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import FOUR, check_area_limits, grow_seeds
+from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
 from envs.maps.gridmap import GridMap
 
 
 class Morphological(Segmenter):
     """Erode until rooms break off, then grow back.
 
-    Args: min_area, max_area: room seed area limits, square metres (measured on the eroded map).
+    Args:
+        min_seed_area, max_area: room seed area limits, square metres (measured on the
+            eroded map).
+        min_room_area: rooms smaller than this (square metres) merge into the neighbour
+            sharing the longest border (:func:`benchmark.segmenters.common.merge_small_rooms`).
     """
 
-    def __init__(self, min_area: float = 0.5, max_area: float = 60.0):
-        self.min_area, self.max_area = min_area, max_area
+    def __init__(self, min_seed_area: float = 0.5, max_area: float = 60.0, min_room_area: float = 1.0):
+        self.min_seed_area, self.max_area = min_seed_area, max_area
+        self.min_room_area = check_room_area(min_room_area)
 
     def __call__(self, grid: GridMap) -> np.ndarray:
-        lo, hi = check_area_limits(grid, self.min_area, self.max_area)
+        """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
+        lo, hi = check_area_limits(grid, self.min_seed_area, self.max_area)
         work = grid.walkable.copy()
         prev, _ = ndimage.label(work, FOUR)
         seeds = np.zeros(grid.shape, np.int32)
@@ -32,7 +38,7 @@ class Morphological(Segmenter):
             parent = np.zeros(n + 1, np.int64)
             parent[ids] = prev.ravel()[first]
             sizes = np.bincount(lab.ravel(), minlength=n + 1)
-            # a real split: at least two parts of room size (>= min_area) from one parent
+            # a real split: at least two parts of room size (>= min_seed_area) from one parent
             big = np.nonzero(sizes[1:] >= lo)[0] + 1
             siblings = np.bincount(parent[big], minlength=prev.max() + 1)
             nxt = ndimage.binary_erosion(work, np.ones((3, 3), bool))
@@ -45,4 +51,4 @@ class Morphological(Segmenter):
                     seeds[part] = k
                     nxt &= ~part
             prev, work = lab, nxt
-        return grow_seeds(seeds, grid.walkable)
+        return finish_rooms(seeds, grid, self.min_room_area)

@@ -1,4 +1,4 @@
-"""Sanity rows for every comparison table (README "Metrics"): segmentations that know nothing
+"""Sanity rows for every comparison table (docs/metrics.md): segmentations that know nothing
 (one room, a fixed grid) or everything (the ground truth's own rooms). A metric worth reading
 ranks one room below every real method and gives the ground-truth geometry 100.
 

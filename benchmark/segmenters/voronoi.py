@@ -9,7 +9,7 @@ from skimage.draw import line as draw_line
 from skimage.morphology import skeletonize
 
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import FOUR, check_area_limits, grow_seeds
+from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
 from envs.maps.gridmap import GridMap
 
 
@@ -17,7 +17,9 @@ class Voronoi(Segmenter):
     """Cut the free space at the critical points of its skeleton (simplified, see module doc).
 
     Args:
-        min_area: smallest room, square metres (smaller parts join their neighbours).
+        min_room_area: smallest room, square metres: smaller parts of the cut free space
+            merge into the neighbour sharing the longest border
+            (:func:`benchmark.segmenters.common.merge_small_rooms`).
         max_area: largest room, square metres (a larger part is kept whole: the method has
             no finer split; recorded for symmetry with the other baselines).
         max_door: widest passage treated as a door, metres.
@@ -26,12 +28,12 @@ class Voronoi(Segmenter):
             own within ``2 * window`` (ratio), i.e. wider space beyond the narrowing.
     """
 
-    def __init__(self, min_area: float = 0.5, max_area: float = 60.0, max_door: float = 1.2, window: float = 0.6,
-                 widening: float = 1.25):
+    def __init__(self, min_room_area: float = 1.0, max_area: float = 60.0, max_door: float = 1.2,
+                 window: float = 0.6, widening: float = 1.25):
         if max_door <= 0 or window <= 0 or widening < 1:
             raise ValueError(f"Voronoi needs max_door > 0 m, window > 0 m and widening >= 1, got "
                              f"{max_door}, {window}, {widening}")
-        self.min_area, self.max_area, self.max_door = min_area, max_area, max_door
+        self.min_room_area, self.max_area, self.max_door = check_room_area(min_room_area), max_area, max_door
         self.window, self.widening = window, widening
 
     def critical_points(self, grid: GridMap) -> np.ndarray:
@@ -81,7 +83,8 @@ class Voronoi(Segmenter):
         return lines
 
     def __call__(self, grid: GridMap) -> np.ndarray:
-        lo, _ = check_area_limits(grid, self.min_area, self.max_area)
+        """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
+        check_area_limits(grid, self.min_room_area, self.max_area, "min_room_area < max_area")
         cut = grid.walkable.copy()
         h, w = grid.shape
         for b1, p, b2 in self.critical_lines(grid):
@@ -89,9 +92,5 @@ class Voronoi(Segmenter):
                 rr, cc = draw_line(*a, *b)
                 ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
                 cut[rr[ok], cc[ok]] = False
-        lab, n = ndimage.label(cut, FOUR)
-        sizes = np.bincount(lab.ravel())
-        seeds = np.zeros(grid.shape, np.int32)
-        for j, i in enumerate(np.nonzero(sizes[1:] >= lo)[0] + 1):
-            seeds[lab == i] = j + 1
-        return grow_seeds(seeds, grid.walkable)
+        seeds, _ = ndimage.label(cut, FOUR)  # every part of the cut free space is a seed
+        return finish_rooms(seeds.astype(np.int32), grid, self.min_room_area)

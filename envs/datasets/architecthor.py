@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from envs.datasets.base import Environment
+from envs.maps.reachable import check_rule, restrict_scene
 from envs.maps.scene import Scene
 from envs.world.classes import PAPER_CLASSES
 from envs.world.house import House
@@ -26,10 +27,12 @@ ARCHITECTHOR_SCENES = tuple([f"ArchitecTHOR-Val-{i:02d}" for i in range(5)] +
 class ArchitecTHOREnv(Environment):
     """Args: annotations (root folder with one annotation folder per house, named as the
     house), houses (names; each must be one of :data:`ARCHITECTHOR_SCENES`), classes,
-    name (dataset name in tables)."""
+    name (dataset name in tables), reachable (``largest`` | ``start`` | ``all``,
+    :mod:`envs.maps.reachable`: the annotations carry no start pose, so ``start`` is the
+    largest 4-connected component too)."""
 
     def __init__(self, annotations: str, houses: Sequence[str] = ARCHITECTHOR_SCENES,
-                 classes: Sequence[str] = PAPER_CLASSES, name: str = "architecthor"):
+                 classes: Sequence[str] = PAPER_CLASSES, name: str = "architecthor", reachable: str = "largest"):
         names = list(houses)
         unknown = [h for h in names if h not in ARCHITECTHOR_SCENES]
         if unknown:
@@ -37,6 +40,7 @@ class ArchitecTHOREnv(Environment):
         if len(set(names)) != len(names) or not names:
             raise ValueError(f"ArchitecTHOR houses must be a non-empty list without repeats, got {names}")
         self.root, self.names, self.classes, self.name = Path(annotations).expanduser(), names, tuple(classes), name
+        self.reachable = check_rule(reachable)
 
     def house_ids(self) -> list[str]:
         return list(self.names)
@@ -53,7 +57,7 @@ class ArchitecTHOREnv(Environment):
 
         if house_id not in self.names:
             raise KeyError(f"no house {house_id!r} in environment {self.name!r}")
-        return load_annotation(self.root / house_id, house_id, self.classes)
+        return restrict_scene(load_annotation(self.root / house_id, house_id, self.classes), self.reachable)
 
     def input_files(self, house_id: str) -> list[Path]:
         """The annotation files the scene of ``house_id`` is read from (the run's caches follow

@@ -152,10 +152,14 @@ def _json(path: Path, prefix: str, split: str | None) -> Iterator[HouseRecord]:
         raise ValueError(f"house file {path}: not valid JSON: {e.msg} (line {e.lineno}, column {e.colno})") from None
     splits = split_keys(data)
     if splits is not None:
+        full = [k for k in splits if data[k]]  # the error lines list only splits that hold houses
+        if not full:
+            raise ValueError(f"house file {path}: every split ({splits}) is empty; no houses")
         if split is None:
-            raise ValueError(f"house file {path} holds the splits {splits}; choose one with split (env.split)")
-        if split not in data:
-            raise ValueError(f"house file {path}: no split {split!r}; available splits: {splits}")
+            raise ValueError(f"house file {path} holds the splits {full}; choose one with split (env.split)")
+        if split not in data or not data[split]:
+            why = "no split" if split not in data else "an empty split"
+            raise ValueError(f"house file {path}: {why} {split!r}; splits with houses: {full}")
         for i, item in enumerate(data[split]):
             yield _item(item, f"{prefix}-{split}-{i:05d}", f"{path} [{split}][{i}]")
         return
@@ -297,24 +301,24 @@ def load_houses(
 
 
 def prior_splits(ds: Any) -> list[str]:
-    """Split names present in a ``prior`` ``DatasetDict``.
+    """Names of the splits of a ``prior`` ``DatasetDict`` that hold houses.
 
     prior's ``DatasetDict`` has only ``__getitem__`` (no ``keys``, ``__iter__`` or
     ``__contains__``) and knows the splits train, val and test, raising ``KeyError`` for an
-    absent one; a plain mapping is listed directly.
+    absent one; a plain mapping is listed directly. Splits with no house are left out.
 
     Returns:
         list of split names.
     """
-    if isinstance(ds, Mapping):
-        return [str(k) for k in ds]
+    names = [str(k) for k in ds] if isinstance(ds, Mapping) else ["train", "val", "test"]
     out = []
-    for name in ("train", "val", "test"):
+    for name in names:
         try:
-            ds[name]
+            n = len(ds[name])
         except KeyError:
             continue
-        out.append(name)
+        if n:
+            out.append(name)
     return out
 
 
@@ -328,14 +332,17 @@ def prior_records(ds: Any, dataset: str, split: str, start: int = 0, stop: int |
         list of :class:`HouseRecord` with ids ``<dataset>-<split>-<index, 5 digits>``.
 
     Raises:
-        ValueError: ``split`` is not in ``ds`` (the message lists the available splits).
+        ValueError: ``split`` is not in ``ds`` or holds no house (the message lists the splits
+            that hold houses).
     """
     if start < 0 or (stop is not None and stop < 0):
         raise ValueError(f"house range start={start}, stop={stop}: expected non-negative indices")
     try:
         data = ds[split]
     except KeyError:
-        raise ValueError(f"{dataset} has no split {split!r}; available splits: {prior_splits(ds)}") from None
+        raise ValueError(f"{dataset} has no split {split!r}; splits with houses: {prior_splits(ds)}") from None
+    if not len(data):
+        raise ValueError(f"{dataset}: split {split!r} holds no houses; splits with houses: {prior_splits(ds)}")
     stop = len(data) if stop is None else min(stop, len(data))
     out = []
     for i in range(start, stop):

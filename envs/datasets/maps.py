@@ -6,8 +6,10 @@ with caches, tables and figures as for houses.
 
 **Maps.** A ROS ``map_server`` YAML (+ its image; :func:`envs.maps.ros.read_ros_map`), a
 plain occupancy image (``.png``/``.pgm``/``.bmp``: free = light, needs ``image_resolution``;
-:func:`envs.maps.ros.occupancy_png`) or a ``.npy`` bool array (True = walkable; needs
-``image_resolution``). The map's id is the part of the file name that ``{id}`` matches in the
+:func:`envs.maps.ros.occupancy_png`, read with ``image_preset`` ``ros`` = as a YAML without
+thresholds, or ``white_only`` = only white is free, the convention of ``rooms_white`` map
+sets) or a ``.npy`` bool array (True = walkable; needs ``image_resolution``). Every image
+and array is checked against ``max_map_pixels`` on its header, before it is decoded. The map's id is the part of the file name that ``{id}`` matches in the
 ``maps`` pattern: the full stem for ``{id}.yaml``, so ``office_a.yaml`` .. ``office_i.yaml``
 are nine maps.
 
@@ -24,6 +26,12 @@ carried onto the *input* map: the segmenters take their free space from the map,
 from the ground truth; ground-truth rooms on cells the map calls occupied are dropped, and
 walkable cells that no room covers take the nearest room within ``fill_distance`` metres.
 A map without ground truth cannot be scored: its scene fails with one line.
+
+**Reachable area** (``reachable``, :mod:`envs.maps.reachable`): ``start`` cuts the map's
+free space, and the ground truth scored, to the 4-connected components that hold a view of
+the poses file (``poses``, read in ``poses_frame``), or, with no poses file, to the largest
+component; ``largest`` always the largest; ``all`` keeps every free cell. Free pockets
+enclosed by furniture are then no room for any method.
 
 **Poses, labels, images** are what the other stages read (``viewpoints=file``,
 ``classifier=labels``, ``renderer=images``) through their own ``{house_id}`` path patterns,
@@ -49,8 +57,16 @@ import numpy as np
 from envs.datasets.base import Environment
 from envs.maps.gridmap import GridMap
 from envs.maps.ground_truth import FORMATS, read_ground_truth
-from envs.maps.ros import grid_from_array, occupancy_png, read_ros_map
-from envs.maps.scene import Scene
+from envs.maps.pose_files import read_poses
+from envs.maps.reachable import check_rule, restrict_scene
+from envs.maps.ros import (
+    grid_from_array,
+    image_thresholds,
+    occupancy_png,
+    read_npy_map,
+    read_ros_map,
+)
+from envs.maps.scene import MAX_MAP_PIXELS, Scene, check_max_map_pixels
 from envs.world.classes import PAPER_CLASSES
 from envs.world.house import House
 
@@ -102,23 +118,32 @@ class MapsEnv(Environment):
             theirs).
         origin: world (x0, z0) metres of the top-left corner of plain images and ``.npy``
             maps; null puts their bottom-left corner at (0, 0).
-        free_thresh, occupied_thresh, negate: plain images: occupancy thresholds as in ROS.
+        image_preset: plain images: ``ros`` (thresholds of a YAML that leaves them out: free
+            below p = 0.196, occupied above 0.65) | ``white_only`` (only grey >= 250 is free).
+        free_thresh, occupied_thresh: plain images: occupancy thresholds overriding the
+            preset's (null: the preset's); negate: dark = free.
         mode: override every ROS YAML's ``mode`` (null: each YAML's own).
         unknown_as: ``obstacle`` | ``free``: unknown map cells.
         min_room_m2, light_threshold, fill_distance, not_room_colours: ground-truth reading
             (:func:`envs.maps.ground_truth.read_ground_truth`).
         classes: ordered class names (label ground truth maps onto them).
         name: dataset name in tables.
+        max_map_pixels: the largest map, ground-truth image or array (width x height pixels)
+            read, checked on the file's header before decoding; null: no limit.
+        reachable: ``start`` | ``largest`` | ``all`` (module doc).
+        poses_frame: the frame of the poses files (``ros`` | ``sim`` | ``pixel``, as
+            ``viewpoints.frame``), read for ``reachable=start``.
     """
 
     def __init__(self, dir: str, maps: str = "{id}.yaml", manifest: str | None = None,
                  ground_truth: str | None = "{id}_gt.png", poses: str | None = None, labels: str | None = None,
                  images: str | None = None, gt_format: str = "instance", image_resolution: float | None = None,
-                 origin: Sequence[float] | None = None, free_thresh: float = 0.25, occupied_thresh: float = 0.65,
-                 negate: bool = False, mode: str | None = None, unknown_as: str = "obstacle",
-                 min_room_m2: float = 0.2, light_threshold: int = 230, fill_distance: float | None = 0.5,
-                 not_room_colours: Sequence = ("#000000", "#ffffff"), classes: Sequence[str] = PAPER_CLASSES,
-                 name: str = "maps"):
+                 origin: Sequence[float] | None = None, image_preset: str = "ros", free_thresh: float | None = None,
+                 occupied_thresh: float | None = None, negate: bool = False, mode: str | None = None,
+                 unknown_as: str = "obstacle", min_room_m2: float = 0.2, light_threshold: int = 230,
+                 fill_distance: float | None = 0.5, not_room_colours: Sequence = ("#000000", "#ffffff"),
+                 classes: Sequence[str] = PAPER_CLASSES, name: str = "maps",
+                 max_map_pixels: int | None = MAX_MAP_PIXELS, reachable: str = "start", poses_frame: str = "ros"):
         if dir is None or str(dir) in ("", "???"):
             raise ValueError("env.dir is not set; expected the folder of maps (env.dir=DIR)")
         self.dir = Path(str(dir)).expanduser()
@@ -133,11 +158,17 @@ class MapsEnv(Environment):
             raise ValueError(f"env.origin is {origin!r}; expected [x0, z0] (metres) or null")
         self.name, self.classes, self.gt_format = name, tuple(classes), gt_format
         self.resolution, self.origin = image_resolution, (None if origin is None else tuple(map(float, origin)))
-        self.png = dict(free_thresh=free_thresh, occupied_thresh=occupied_thresh, negate=bool(negate),
-                        unknown_as=unknown_as)
+        image_thresholds(image_preset, free_thresh, occupied_thresh, "env.")  # one line when they are bad
+        self.max_pixels = check_max_map_pixels(max_map_pixels, "env.max_map_pixels")
+        self.png = dict(preset=image_preset, free_thresh=free_thresh, occupied_thresh=occupied_thresh,
+                        negate=bool(negate), unknown_as=unknown_as, max_pixels=self.max_pixels, where="env.")
         self.mode, self.unknown_as = mode, unknown_as
         self.gt_opts = dict(min_room_m2=min_room_m2, light_threshold=light_threshold, fill_distance=fill_distance,
-                            not_room_colours=tuple(not_room_colours))
+                            not_room_colours=tuple(not_room_colours), max_pixels=self.max_pixels)
+        self.reachable = check_rule(reachable)
+        if poses_frame not in ("ros", "sim", "pixel"):
+            raise ValueError(f"env.poses_frame is {poses_frame!r}; expected ros, sim or pixel")
+        self.poses_frame = poses_frame
         patterns = {"ground_truth": ground_truth, "poses": poses, "labels": labels, "images": images}
         if manifest:
             entries = self._from_manifest(Path(str(manifest)).expanduser())
@@ -239,11 +270,11 @@ class MapsEnv(Environment):
             raise FileNotFoundError(f"map {house_id!r}: map file not found: {path}")
         suffix = path.suffix.lower()
         if suffix in (".yaml", ".yml"):
-            return read_ros_map(path, mode=self.mode, unknown_as=self.unknown_as).grid
+            return read_ros_map(path, mode=self.mode, unknown_as=self.unknown_as, max_pixels=self.max_pixels).grid
         if self.resolution is None:
             raise ValueError(f"{path}: a {suffix} map has no resolution; set env.image_resolution (metres/pixel)")
         if suffix == ".npy":
-            arr = np.load(path, allow_pickle=False)
+            arr = read_npy_map(path, self.max_pixels)
             if arr.dtype != bool:
                 raise ValueError(f"{path}: .npy map has dtype {arr.dtype}; expected bool (True = walkable)")
             return grid_from_array(arr, self.resolution, self.origin)
@@ -251,12 +282,21 @@ class MapsEnv(Environment):
             return occupancy_png(path, self.resolution, self.origin, **self.png)
         raise ValueError(f"{path}: unknown map file type {suffix!r}; expected .yaml, .npy or an image")
 
+    def seeds(self, house_id: str, grid: GridMap) -> np.ndarray | None:
+        """World (x, z) of the views in the map's poses file (the reachable area's seeds), or
+        None without a poses file."""
+        path = self.entry(house_id).files.get("poses")
+        if path is None:
+            return None
+        return read_poses(path, self.poses_frame, grid)[:, :2]
+
     def scene(self, house_id: str) -> Scene:
-        """The map and its ground truth carried onto it.
+        """The map and its ground truth carried onto it, cut to the reachable area.
 
         Returns:
-            :class:`Scene` with ``grid`` = the input map, ``instances`` = the ground-truth
-            rooms on its walkable cells, ``rooms`` = the same, no walls, no objects.
+            :class:`Scene` with ``grid`` = the input map's reachable free cells
+            (``reachable``), ``instances`` = the ground-truth rooms on them, ``rooms`` = the
+            ground-truth rooms on every free cell of the map, no walls, no objects.
 
         Raises:
             FileNotFoundError / ValueError: one line naming the map's file and the problem
@@ -279,8 +319,10 @@ class MapsEnv(Environment):
         remap[present] = np.arange(len(present), dtype=np.int32)
         inst = np.where(inst >= 0, remap[np.maximum(inst, 0)], -1).astype(np.int32)
         classes = np.asarray(gt.instance_classes, np.int64)[present]
-        return Scene(house_id=house_id, grid=grid, rooms=inst.copy(), instances=inst, instance_classes=classes,
-                     room_ids=[f"room{int(k)}" for k in present], classes=self.classes)
+        scene = Scene(house_id=house_id, grid=grid, rooms=inst.copy(), instances=inst, instance_classes=classes,
+                      room_ids=[f"room{int(k)}" for k in present], classes=self.classes)
+        seeds = self.seeds(house_id, grid) if self.reachable == "start" else None
+        return restrict_scene(scene, self.reachable, seeds)
 
 
 __all__ = ["MapEntry", "MapHouse", "MapsEnv"]

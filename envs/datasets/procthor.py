@@ -12,6 +12,7 @@ from envs.datasets.house_files import (
     prior_records,
     read_house_records,
 )
+from envs.maps.reachable import check_rule, restrict_scene, start_points
 from envs.maps.scene import (
     MAX_MAP_PIXELS,
     Scene,
@@ -46,6 +47,11 @@ class ProcTHOREnv(Environment):
         occupancy: "floorplan" (rasterised from the house) or "ai2thor" (AI2-THOR's
             reachable positions, ``thor`` = keyword arguments of the AI2-THOR renderer;
             needs the simulator); the ground truth is carried onto that map.
+        reachable: ``start`` | ``largest`` | ``all``: the scene's free space (and the
+            ground truth scored) is cut to the cells reachable from the house's start pose
+            (``metadata.agent.position``; the largest component when the house has none), to
+            the largest 4-connected component, or kept whole
+            (:mod:`envs.maps.reachable`).
 
     Houses that cannot be read (a line that is not valid JSON) or fail validation (an
     unmapped room type, a map over ``max_map_pixels``, ...) are kept as ids: :meth:`house`
@@ -70,10 +76,12 @@ class ProcTHOREnv(Environment):
         name: str = "procthor",
         occupancy: str = "floorplan",
         thor: dict | None = None,
+        reachable: str = "start",
     ):
         if occupancy not in ("floorplan", "ai2thor"):
             raise ValueError(f"occupancy must be 'floorplan' or 'ai2thor', got {occupancy!r}")
         self.name, self.occupancy, self.thor = name, occupancy, dict(thor or {})
+        self.reachable = check_rule(reachable)
         self._renderer = None
         self.classes = tuple(classes)
         self.room_types = room_type_mapping(room_types)
@@ -101,17 +109,19 @@ class ProcTHOREnv(Environment):
         return self._records[house_id].house(room_types=self.room_types, classes=self.classes)
 
     def scene(self, house_id: str) -> Scene:
+        """The house rasterised (or on AI2-THOR's reachable positions), cut to the reachable
+        area of ``reachable``."""
         house = self.house(house_id)
         scene = rasterise_house(house, **self.raster)
-        if self.occupancy == "floorplan":
-            return scene
-        from envs.render.thor import AI2THORRenderer, reachable_grid  # noqa: PLC0415
+        if self.occupancy == "ai2thor":
+            from envs.render.thor import AI2THORRenderer, reachable_grid  # noqa: PLC0415
 
-        if self._renderer is None:
-            self._renderer = AI2THORRenderer(**self.thor)
-        grid = reachable_grid(self._renderer.reachable_positions(house), self._renderer.grid_size,
-                              self.raster["resolution"])
-        return scene_on_grid(scene, grid)
+            if self._renderer is None:
+                self._renderer = AI2THORRenderer(**self.thor)
+            grid = reachable_grid(self._renderer.reachable_positions(house), self._renderer.grid_size,
+                                  self.raster["resolution"])
+            scene = scene_on_grid(scene, grid)
+        return restrict_scene(scene, self.reachable, start_points(house.data))
 
 
 __all__ = ["ProcTHOREnv", "HouseError"]

@@ -1,6 +1,6 @@
 """A seeded generator of ProcTHOR-schema houses with all seven room classes and open plans.
 
-*Simplified generator* (documented in the README): houses are built from axis-aligned
+*Simplified generator* (documented in docs/houses.md): houses are built from axis-aligned
 rectangles in three bands along the footprint's long axis (x):
 
 * a **public band** (z from 0): kitchen | dining room | living room, in that order, so the
@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs.datasets.base import Environment
+from envs.maps.reachable import check_rule, restrict_scene, start_points
 from envs.maps.scene import Scene, rasterise_house
 from envs.world.assets import AssetInfo, assets_by_type
 from envs.world.classes import PAPER_CLASSES
@@ -381,17 +382,20 @@ class SyntheticEnv(Environment):
     """``n_houses`` generated houses with seeds ``seed_start``, ``seed_start + 1``, ...
 
     Generation and rasterisation parameters as in :func:`generate_house` and
-    :class:`envs.datasets.procthor.ProcTHOREnv`.
+    :class:`envs.datasets.procthor.ProcTHOREnv`; ``reachable`` as there (every generated
+    house has a start pose: the living room's centre, moved to the nearest free cell when
+    furniture stands there).
     """
 
     def __init__(self, n_houses: int = 20, seed_start: int = 0, length: Sequence[float] = (9.0, 14.0),
                  depth: Sequence[float] = (8.0, 11.0), open_plan_share: float = 0.5,
                  shapes: Sequence[str] = ("rect", "L", "T"), resolution: float = 0.05, wall_thickness: float = 0.1,
                  clearance: float = 0.0, max_object_base: float = 0.5, classes: Sequence[str] = PAPER_CLASSES,
-                 name: str = "synthetic"):
+                 name: str = "synthetic", reachable: str = "start"):
         if n_houses < 1 or seed_start < 0:
             raise ValueError(f"n_houses must be >= 1 and seed_start >= 0, got {n_houses}, {seed_start}")
         self.name = name
+        self.reachable = check_rule(reachable)
         self.gen = dict(length=tuple(length), depth=tuple(depth), open_plan_share=float(open_plan_share),
                         shapes=tuple(shapes))
         self.raster = dict(resolution=resolution, wall_thickness=wall_thickness, clearance=clearance,
@@ -405,4 +409,5 @@ class SyntheticEnv(Environment):
         return generate_house(seed_from_house_id(house_id), **self.gen)
 
     def scene(self, house_id: str) -> Scene:
-        return rasterise_house(self.house(house_id), **self.raster)
+        house = self.house(house_id)
+        return restrict_scene(rasterise_house(house, **self.raster), self.reachable, start_points(house.data))

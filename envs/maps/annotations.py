@@ -46,6 +46,7 @@ from scipy import ndimage
 
 from envs.atomic import atomic_write_text
 from envs.maps.gridmap import GridMap
+from envs.maps.images import read_image
 from envs.maps.label_png import read_instance_png, read_label_png, write_label_png
 from envs.maps.scene import Scene, scene_on_grid
 from envs.world.classes import PAPER_CLASSES, class_index
@@ -95,7 +96,7 @@ def load_annotation(folder: str | Path, house_id: str | None = None, classes: Se
     folder = Path(folder)
     if not (folder / "labels.png").is_file():
         raise FileNotFoundError(f"no annotation at {folder}/labels.png: convert the house's annotation with "
-                                "python -m benchmark.commands.annotations import (see README)")
+                                "python -m benchmark.commands.annotations import (see docs/gpu.md)")
     labels_local, names = read_label_png(folder / "labels.png")
     res, origin = _grid_meta(folder / "labels.json")
     used = set(np.unique(labels_local[labels_local >= 0]).tolist())
@@ -115,7 +116,7 @@ def load_annotation(folder: str | Path, house_id: str | None = None, classes: Se
     walk_png, walk_json = folder / "walkable.png", folder / "walkable.json"
     own = walk_png.is_file() and walk_json.is_file()
     if walk_png.is_file() and not own:
-        walk = np.asarray(Image.open(walk_png).convert("L")) > 127
+        walk = read_image(walk_png, "the navmesh map", "L") > 127
         if walk.shape != labels.shape:
             raise ValueError(f"{folder}: walkable.png {walk.shape} and labels.png {labels.shape} differ in size "
                              "(add a walkable.json with its resolution and origin to put it on its own grid)")
@@ -127,7 +128,7 @@ def load_annotation(folder: str | Path, house_id: str | None = None, classes: Se
                   [f"room|{i}" for i in range(len(room_cls))], tuple(classes))
     if own:
         wres, worigin = _grid_meta(walk_json)
-        wgrid = GridMap(np.asarray(Image.open(walk_png).convert("L")) > 127, wres, worigin)
+        wgrid = GridMap(read_image(walk_png, "the navmesh map", "L") > 127, wres, worigin)
         scene = scene_on_grid(scene, wgrid)
     return scene
 
@@ -155,7 +156,7 @@ def walkable_agreement(folder: str | Path) -> dict | None:
     if not (folder / "labels.png").is_file():
         raise FileNotFoundError(f"no annotation at {folder}/labels.png")
     labels, lgrid = _labels_grid(folder)
-    walk = np.asarray(Image.open(walk_png).convert("L")) > 127
+    walk = read_image(walk_png, "the navmesh map", "L") > 127
     if walk_json.is_file():
         wres, worigin = _grid_meta(walk_json)
         wgrid = GridMap(walk, wres, worigin)
@@ -247,7 +248,7 @@ def import_room_map(map_png: str | Path, colour_classes: Mapping[str, str], reso
                     origin=(float(origin[0]), float(origin[1])), legend=False)
     if rooms == "colour":
         tmp = out / ".instances.png.tmp"
-        Image.open(map_png).convert("RGB").save(tmp, format="PNG")
+        Image.fromarray(read_image(map_png, "the annotation map", "RGB")).save(tmp, format="PNG")
         tmp.replace(out / "instances.png")
     elif (out / "instances.png").exists():
         (out / "instances.png").unlink()

@@ -21,6 +21,10 @@ lines, anti-aliased edges, specks) take the room of the nearest room pixel (Eucl
 pixels) when it is at most ``fill_distance`` metres away (``None``: any distance), else
 stay -1 (not scored). Without ``grid``, instances are the rooms as drawn.
 
+Images are opened through :func:`envs.maps.images.read_image`: one declaring more than
+``max_pixels`` (default :data:`envs.maps.scene.MAX_MAP_PIXELS`) is refused on its header,
+before decoding, with one line naming the file, the size and the limit.
+
 Sanity checks, each a ``UserWarning`` naming the file: more than ``MANY_COLOURS`` distinct
 colours in an instance map (probably not instance-coloured); the ground truth scored
 against itself (each 4-connected region of one room id against its room, IoU averaged over
@@ -37,12 +41,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 from scipy import ndimage
 from skimage import measure
 
 from envs.maps.gridmap import GridMap
+from envs.maps.images import open_image, read_image
 from envs.maps.label_png import read_instance_png, read_label_png
+from envs.maps.scene import MAX_MAP_PIXELS
 
 FORMATS = ("instance", "label", "rooms_white")
 #: An instance map with more distinct colours than this draws a warning.
@@ -85,12 +90,8 @@ def _min_pixels(min_room_m2: float, resolution: float | None) -> int:
     return max(1, int(math.ceil(min_room_m2 / resolution ** 2 - 1e-9)))
 
 
-def _open_rgb(path: Path) -> np.ndarray:
-    try:
-        with Image.open(path) as img:
-            return np.asarray(img.convert("RGB"))
-    except OSError as e:
-        raise ValueError(f"{path}: cannot read the ground-truth image ({e})") from None
+def _open_rgb(path: Path, max_pixels: int | None = MAX_MAP_PIXELS) -> np.ndarray:
+    return read_image(path, "the ground-truth image", "RGB", max_pixels)
 
 
 def _n_colours(rgb: np.ndarray) -> int:
@@ -132,8 +133,8 @@ def _relabel(lab: np.ndarray) -> np.ndarray:
     return out
 
 
-def _rooms_white(path: Path, light_threshold: int, min_px: int) -> tuple[np.ndarray, int]:
-    rgb = _open_rgb(path)
+def _rooms_white(path: Path, light_threshold: int, min_px: int, max_pixels: int | None) -> tuple[np.ndarray, int]:
+    rgb = _open_rgb(path, max_pixels)
     grey = rgb.astype(np.int64).sum(axis=-1) // 3
     light = grey >= light_threshold
     lab, n = ndimage.label(light, _FOUR)
@@ -144,13 +145,13 @@ def _rooms_white(path: Path, light_threshold: int, min_px: int) -> tuple[np.ndar
     return _relabel(rooms), _n_colours(rgb)
 
 
-def _label(path: Path, classes: Sequence[str] | None, unlabelled_value: int) -> tuple[np.ndarray, np.ndarray,
-                                                                                     tuple[str, ...], int]:
+def _label(path: Path, classes: Sequence[str] | None, unlabelled_value: int, max_pixels: int | None
+           ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], int]:
     """-> (instances, instance_classes, classes, n_colours) of a label map."""
     side = path.with_suffix(".json")
     if side.exists():
-        labels, gt_classes = read_label_png(path)
-        n_col = _n_colours(_open_rgb(path))
+        labels, gt_classes = read_label_png(path, max_pixels)
+        n_col = _n_colours(_open_rgb(path, max_pixels))
         if classes is None:
             classes = tuple(gt_classes)
         unknown = [c for c in gt_classes if c not in classes]
@@ -162,14 +163,11 @@ def _label(path: Path, classes: Sequence[str] | None, unlabelled_value: int) -> 
     else:
         if classes is None:
             raise ValueError(f"{path}: an index label PNG without a .json sidecar needs the class list (classes)")
-        try:
-            with Image.open(path) as img:
-                if img.mode not in ("L", "P", "I", "I;16"):
-                    raise ValueError(f"{path}: image mode {img.mode!r} for an index label PNG with no sidecar; "
-                                     f"expected one channel (class index per pixel)")
-                raw = np.asarray(img).astype(np.int64)
-        except OSError as e:
-            raise ValueError(f"{path}: cannot read the ground-truth image ({e})") from None
+        with open_image(path, "the ground-truth image", max_pixels) as img:
+            if img.mode not in ("L", "P", "I", "I;16"):
+                raise ValueError(f"{path}: image mode {img.mode!r} for an index label PNG with no sidecar; "
+                                 f"expected one channel (class index per pixel)")
+        raw = read_image(path, "the ground-truth image", None, max_pixels).astype(np.int64)
         n_col = int(len(np.unique(raw)))
         bad = (raw != unlabelled_value) & ((raw < 0) | (raw >= len(classes)))
         if bad.any():
@@ -219,7 +217,7 @@ def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None
                       classes: Sequence[str] | None = None, resolution: float | None = None,
                       min_room_m2: float = 0.2, light_threshold: int = 230, unlabelled_value: int = 255,
                       not_room_colours: Sequence = ("#000000", "#ffffff"), fill_distance: float | None = 0.5,
-                      warn: bool = True) -> GroundTruth:
+                      warn: bool = True, max_pixels: int | None = MAX_MAP_PIXELS) -> GroundTruth:
     """Read a ground-truth room map in the given format (see the module doc).
 
     Args:
@@ -236,6 +234,8 @@ def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None
             ``[r, g, b]`` or packed ints); black is always one.
         fill_distance: metres, see :func:`carry_onto_grid`.
         warn: emit the sanity-check warnings.
+        max_pixels: the largest image (width x height) read, checked on its header before
+            decoding; ``None``: no limit.
 
     Returns:
         :class:`GroundTruth` (instances on ``grid`` when given).
@@ -254,14 +254,14 @@ def read_ground_truth(path: str | Path, format: str, grid: GridMap | None = None
     min_px = _min_pixels(min_room_m2, res)
     gt_classes: tuple[str, ...] | None = None
     if format == "instance":
-        inst = read_instance_png(path, min_pixels=min_px, not_room=tuple(not_room_colours))
-        n_col = _n_colours(_open_rgb(path))
+        inst = read_instance_png(path, min_pixels=min_px, not_room=tuple(not_room_colours), max_pixels=max_pixels)
+        n_col = _n_colours(_open_rgb(path, max_pixels))
         cls = np.full(int(inst.max()) + 1 if (inst >= 0).any() else 0, -1, np.int64)
     elif format == "rooms_white":
-        inst, n_col = _rooms_white(path, light_threshold, min_px)
+        inst, n_col = _rooms_white(path, light_threshold, min_px, max_pixels)
         cls = np.full(int(inst.max()) + 1 if (inst >= 0).any() else 0, -1, np.int64)
     else:
-        inst, cls, gt_classes, n_col = _label(path, classes, unlabelled_value)
+        inst, cls, gt_classes, n_col = _label(path, classes, unlabelled_value, max_pixels)
     if not (inst >= 0).any():
         hint = (" (rooms drawn white between black lines are format 'rooms_white'; white is a not-room colour "
                 "of format 'instance')" if format == "instance" else "")

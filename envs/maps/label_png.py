@@ -12,13 +12,16 @@
   ``not_room`` (black always, and e.g. white: the 1-px lines along the border of the SeLRoS
   and VRF outputs) are never rooms and stay unlabelled (-1), whatever their size. Callers that
   score maps set ``min_pixels`` from an area in m² (benchmark.metrics.MetricParams).
+
+Both readers open images through :func:`envs.maps.images.read_image`: a header declaring more
+than ``max_pixels`` (default :data:`envs.maps.scene.MAX_MAP_PIXELS`) is refused before
+decoding, with one line naming the file, the size and the limit.
 """
 
 from __future__ import annotations
 
+import io
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -26,7 +29,9 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-from envs.atomic import atomic_write_text
+from envs.atomic import atomic_write_bytes, atomic_write_text
+from envs.maps.images import read_image
+from envs.maps.scene import MAX_MAP_PIXELS
 from envs.world.classes import BACKGROUND_COLOR, UNLABELLED_COLOR, class_colors
 
 #: Default minimum colour count (pixels) for a colour of an instance PNG to be a room.
@@ -34,15 +39,9 @@ DEFAULT_MIN_PIXELS = 500
 
 
 def _atomic_save(img: Image.Image, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + path.name, suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        img.save(tmp, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _sidecar(path: Path) -> Path:
@@ -108,18 +107,19 @@ def _write_legend(path: Path, classes: Sequence[str]) -> None:
     plt.close(fig)
 
 
-def read_label_png(path: str | Path) -> tuple[np.ndarray, list[str]]:
+def read_label_png(path: str | Path, max_pixels: int | None = MAX_MAP_PIXELS) -> tuple[np.ndarray, list[str]]:
     """Read a label PNG written by :func:`write_label_png` -> (labels (H, W) int32, classes).
 
     Colours are matched exactly against the sidecar's class colours; unlabelled and
-    background colours become -1; any other colour is an error naming it.
+    background colours become -1; any other colour is an error naming it. ``max_pixels``:
+    the largest image read (checked on the header; ``None``: no limit).
     """
     path = Path(path)
     side = _sidecar(path)
     if not side.exists():
         raise FileNotFoundError(f"{path}: no sidecar {side.name} with the class list; write maps with write_label_png")
     meta = json.loads(side.read_text())
-    rgb = np.asarray(Image.open(path).convert("RGB"))
+    rgb = read_image(path, "the label PNG", "RGB", max_pixels)
     key = _pack(rgb)
     labels = np.full(key.shape, -2, dtype=np.int32)
     for i, c in enumerate(meta["colors"]):
@@ -138,7 +138,8 @@ def _pack(rgb: np.ndarray) -> np.ndarray:
 
 
 def read_instance_png(path: str | Path, min_pixels: int = DEFAULT_MIN_PIXELS, assign: str = "neighbour",
-                      return_colors: bool = False, not_room: Sequence = (0x000000,), return_info: bool = False):
+                      return_colors: bool = False, not_room: Sequence = (0x000000,), return_info: bool = False,
+                      max_pixels: int | None = MAX_MAP_PIXELS):
     """Read an instance-coloured map -> (H, W) int32 instance ids (0..K-1), -1 not a room.
 
     Args:
@@ -152,6 +153,7 @@ def read_instance_png(path: str | Path, min_pixels: int = DEFAULT_MIN_PIXELS, as
         return_info: also return a dict: ``rooms`` (colours that became rooms),
             ``antialias_px`` (pixels of colours under ``min_pixels``), ``unassigned_px``
             (pixels of ``not_room`` colours other than black).
+        max_pixels: the largest image read (checked on the header; ``None``: no limit).
     Returns: ``inst``, then ``colors`` and/or ``info`` when asked, in that order. Instances
         are numbered by decreasing pixel count.
     """
@@ -161,7 +163,7 @@ def read_instance_png(path: str | Path, min_pixels: int = DEFAULT_MIN_PIXELS, as
     if assign not in ("neighbour", "drop"):
         raise ValueError(f"assign must be 'neighbour' or 'drop', got {assign!r}")
     skip = {0} | {colour_int(c) for c in not_room}
-    rgb = np.asarray(Image.open(path).convert("RGB"))
+    rgb = read_image(path, "the instance map", "RGB", max_pixels)
     if rgb.size == 0:
         raise ValueError(f"{path}: empty image")
     key = _pack(rgb)

@@ -29,6 +29,11 @@ from envs.maps.gridmap import GridMap
 FRAME_COLUMNS = {"ros": ("x", "y", "theta"), "sim": ("x", "z", "yaw"), "pixel": ("row", "col", "yaw")}
 _UNITS = {"ros": "x, y (metres), theta (radians, CCW from +x)", "sim": "x, z (metres), yaw (degrees)",
           "pixel": "row, col (pixels), yaw (degrees)"}
+#: The largest magnitude a pose column may take, and its unit: positions within 1000 km of
+#: the origin, headings within a few thousand turns (unwrapped odometry), pixels within 1e8.
+#: A value beyond is a corrupt file, refused before any arithmetic can overflow.
+LIMITS = {"x": (1e6, "metres"), "y": (1e6, "metres"), "z": (1e6, "metres"), "theta": (1e4, "radians"),
+          "yaw": (1e6, "degrees"), "row": (1e8, "pixels"), "col": (1e8, "pixels")}
 
 
 def read_table(path: str | Path, what: str = "pose", as_text: bool = False) -> pd.DataFrame:
@@ -101,22 +106,53 @@ def read_poses(path: str | Path, frame: str, grid: GridMap | None = None) -> np.
     if missing:
         raise ValueError(f"{path}: pose file lacks column(s) {missing} for frame {frame!r}; expected "
                          f"{_UNITS[frame]}, found columns {list(df.columns)}")
+    return poses_from_table(df, path, frame, grid)
+
+
+def _number(v) -> float | None:
+    """A cell as a float, or None when it is not a number (text, a list, a bool, empty)."""
+    if isinstance(v, bool | np.bool_) or v is None:
+        return None
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return None
+
+
+def poses_from_table(df: pd.DataFrame, path: str | Path, frame: str, grid: GridMap | None = None) -> np.ndarray:
+    """The poses of a per-view table (lower-case column names, the frame's columns present)
+    -> (N, 3) float array of world ``x, z`` (metres), ``yaw`` (degrees); see :func:`read_poses`.
+
+    Every cell of the frame's columns is checked before any arithmetic: a number, finite and
+    within :data:`LIMITS` (so no NumPy warning can follow).
+
+    Raises:
+        ValueError: one line naming the file, the column, the pose (index from 0; for a CSV
+            also its line, the header being line 1) and the value.
+    """
+    path = Path(path)
     arr = np.empty((len(df), 3))
-    for j, c in enumerate(want):
-        col = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-        bad = ~np.isfinite(col)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(f"{path}: non-finite or non-numeric value {df[c].iloc[i]!r} in column {c!r} at pose "
-                             f"index {i}; expected {_UNITS[frame]}")
-        arr[:, j] = col
+    for j, c in enumerate(FRAME_COLUMNS[frame]):
+        limit, unit = LIMITS[c]
+        for i, raw in enumerate(df[c].tolist()):
+            v = _number(raw)
+            where = f"column {c!r} at pose index {i}" + (f" (line {i + 2})" if path.suffix.lower() == ".csv" else "")
+            if v is None or not np.isfinite(v):
+                what = "non-numeric" if v is None else "non-finite"
+                raise ValueError(f"{path}: {what} value {raw!r} in {where}; expected {_UNITS[frame]}")
+            if abs(v) > limit:
+                raise ValueError(f"{path}: value {v:g} in {where} is out of range; expected |{c}| <= {limit:g} "
+                                 f"{unit} ({_UNITS[frame]})")
+            arr[i, j] = v
     if frame == "ros":
         x, z, yaw = ros_to_world(arr[:, 0], arr[:, 1], arr[:, 2])
         return np.column_stack([x, z, yaw])
     if frame == "pixel":
+        if grid is None:
+            raise ValueError(f"pose frame 'pixel' for {path} needs the map (grid)")
         x, z = grid.pixel_to_world(arr[:, 0], arr[:, 1])
         return np.column_stack([x, z, arr[:, 2]])
     return arr
 
 
-__all__ = ["FRAME_COLUMNS", "read_poses"]
+__all__ = ["FRAME_COLUMNS", "LIMITS", "poses_from_table", "read_poses", "read_table"]

@@ -3,11 +3,12 @@ and ROS maps out.
 
 ROS ``map_server`` map (YAML + PGM/PNG/BMP), as the ROS ``map_server`` documentation defines it:
 
-* YAML fields, all required except ``mode``: ``image`` (path, absolute or relative to the
-  YAML file), ``resolution`` (metres/pixel), ``origin: [x, y, yaw]`` (pose of the
-  bottom-left corner of the bottom-left pixel; yaw radians CCW), ``negate`` (0/1 or
-  true/false), ``occupied_thresh``, ``free_thresh`` (probabilities in [0, 1]); ``mode``:
-  ``trinary`` (default), ``scale`` or ``raw``.
+* YAML fields: ``image`` (path, absolute or relative to the YAML file), ``resolution``
+  (metres/pixel), ``origin: [x, y, yaw]`` (pose of the bottom-left corner of the bottom-left
+  pixel; yaw radians CCW), ``negate`` (0/1 or true/false) are required; ``occupied_thresh``,
+  ``free_thresh`` (probabilities in [0, 1]) default to :data:`ROS_OCCUPIED_THRESH` 0.65 and
+  :data:`ROS_FREE_THRESH` 0.196 (the values ROS ``map_saver`` writes; ROS 1 ``map_server``
+  itself requires them); ``mode``: ``trinary`` (default), ``scale`` or ``raw``.
 * Each pixel's value ``v`` (0..255) is the mean of its colour channels (integer division,
   alpha not included). Occupancy probability ``p = (255 - v) / 255``, or ``p = v / 255``
   with ``negate``.
@@ -24,6 +25,26 @@ ROS ``map_server`` map (YAML + PGM/PNG/BMP), as the ROS ``map_server`` documenta
 Walkable = free cells (occupancy 0); unknown cells (-1) are obstacles, or walkable with
 ``unknown_as="free"``; in-between cells (1..99) are obstacles.
 
+**Plain images** (no YAML, :func:`occupancy_png`) are read as a trinary ``map_server`` map
+with a *preset* of thresholds (:data:`IMAGE_PRESETS`):
+
+* ``ros`` (default): exactly as a YAML that leaves out ``occupied_thresh`` and
+  ``free_thresh``: occupied above p = 0.65 (grey <= 89), free below p = 0.196 (grey >= 206),
+  unknown in between; so ROS ``map_saver``'s 205 reads as unknown.
+* ``white_only``: only white is free, anything else is an obstacle (free below p = 0.02:
+  grey >= 250; occupied above 0.02): the convention of the IPA room-segmentation test maps
+  and their ``rooms_white`` ground truth, and of many published maps that draw furniture in
+  grey.
+
+``free_thresh`` / ``occupied_thresh`` given explicitly override the preset's. When a plain
+image holds a large share (:data:`GREY_WARN_SHARE`, 2 %) of grey pixels (not white, p >=
+0.02, and not occupied: grey furniture, ``map_saver``'s 205 unknown) a ``UserWarning`` names
+the file, the commonest grey levels and the share read as free (:func:`grey_pixels_note`).
+
+Every image is opened through :func:`envs.maps.images.open_image`: a header declaring more
+than ``max_pixels`` (default :data:`envs.maps.scene.MAX_MAP_PIXELS`) is refused before
+decoding with one line naming the file, the size and the limit.
+
 The grid has the image's shape, row 0 = the image's top row; the frame conversion is in
 :mod:`envs.maps.frames`.
 """
@@ -32,6 +53,7 @@ from __future__ import annotations
 
 import io
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,12 +64,25 @@ from PIL import Image
 from envs.atomic import atomic_write_bytes, atomic_write_text
 from envs.maps.frames import grid_origin_to_ros_origin, ros_origin_to_grid_origin
 from envs.maps.gridmap import GridMap
+from envs.maps.images import open_image
+from envs.maps.scene import MAX_MAP_PIXELS, check_max_map_pixels
 
 MODES = ("trinary", "scale", "raw")
 UNKNOWN_AS = ("obstacle", "free")
 #: Pixel values written for free and occupied cells (ROS map_saver's trinary values).
 FREE_PIXEL, OCCUPIED_PIXEL = 254, 0
-_REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+#: Thresholds of a map YAML that leaves them out: the values ROS ``map_saver`` writes
+#: (occupancy probability; free below 0.196 = grey >= 206, occupied above 0.65 = grey <= 89).
+ROS_OCCUPIED_THRESH, ROS_FREE_THRESH = 0.65, 0.196
+#: Plain-image presets: name -> (free_thresh, occupied_thresh). ``white_only``: free below
+#: p = 0.02 (grey >= 250), everything else occupied (no 8-bit grey has p exactly 0.02).
+IMAGE_PRESETS = {"ros": (ROS_FREE_THRESH, ROS_OCCUPIED_THRESH), "white_only": (0.02, 0.02)}
+#: Occupancy probability below which a pixel counts as white (not grey) for the warning.
+WHITE_P = 0.02
+#: Share of an image's pixels that are grey (p >= WHITE_P, not occupied) from which a plain
+#: image draws the grey-pixel warning.
+GREY_WARN_SHARE = 0.02
+_REQUIRED = ("image", "resolution", "origin", "negate")
 
 
 @dataclass
@@ -135,17 +170,20 @@ def _grey_and_alpha(img: Image.Image, image_path: Path) -> tuple[np.ndarray, np.
     return grey, alpha
 
 
-def _read_grey(image_path: Path, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Open an occupancy image and return :func:`_grey_and_alpha` of it.
+def _read_grey(image_path: Path, what: str, max_pixels: int | None = MAX_MAP_PIXELS
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Open an occupancy image (size checked before decoding, :func:`open_image`) and
+    return :func:`_grey_and_alpha` of it.
 
     Raises:
-        ValueError: the file cannot be read as an image (``what`` says whose image it is)."""
-    try:
-        with Image.open(image_path) as img:
+        ValueError: the file cannot be read as an image, or declares more than
+            ``max_pixels`` (``what`` says whose image it is)."""
+    with open_image(image_path, what, max_pixels) as img:
+        try:
             img.load()
             return _grey_and_alpha(img, image_path)
-    except OSError as e:
-        raise ValueError(f"{image_path}: cannot read {what} ({e})") from None
+        except OSError as e:
+            raise ValueError(f"{image_path}: cannot read {what} ({e})") from None
 
 
 def image_to_occupancy(grey: np.ndarray, alpha: np.ndarray | None, negate: bool, occupied_thresh: float,
@@ -190,7 +228,8 @@ def walkable_from_occupancy(occupancy: np.ndarray, unknown_as: str = "obstacle")
     return walk
 
 
-def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str = "obstacle") -> RosMap:
+def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str = "obstacle",
+                 max_pixels: int | None = MAX_MAP_PIXELS) -> RosMap:
     """Read a ROS ``map_server`` map (YAML + image).
 
     Args:
@@ -198,6 +237,8 @@ def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str
         mode: ``trinary`` | ``scale`` | ``raw`` to override the YAML's ``mode`` (None: the
             YAML's, default ``trinary``).
         unknown_as: ``obstacle`` (default) or ``free``: whether unknown cells are walkable.
+        max_pixels: the largest image (width x height) read, checked on its header before
+            decoding; ``None``: no limit.
 
     Returns:
         A :class:`RosMap`; ``grid.origin`` is the top-left corner of pixel (0, 0) computed
@@ -218,14 +259,15 @@ def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str
         raise ValueError(f"{yaml_path}: expected a mapping with fields {list(_REQUIRED)}, got {type(meta).__name__}")
     missing = [f for f in _REQUIRED if f not in meta]
     if missing:
-        raise ValueError(f"{yaml_path}: missing field(s) {missing}; a map_server YAML needs {list(_REQUIRED)}")
+        raise ValueError(f"{yaml_path}: missing field(s) {missing}; a map_server YAML needs {list(_REQUIRED)} "
+                         f"(occupied_thresh, free_thresh, mode optional)")
     if not isinstance(meta["image"], str) or not meta["image"].strip():
         raise ValueError(f"{yaml_path}: field 'image' is {meta['image']!r}; expected an image file name")
     resolution = _number(yaml_path, "resolution", meta["resolution"], positive=True)
     origin = _origin(yaml_path, meta["origin"])
     negate = _negate(yaml_path, meta["negate"])
-    occ_th = _number(yaml_path, "occupied_thresh", meta["occupied_thresh"], 0.0, 1.0)
-    free_th = _number(yaml_path, "free_thresh", meta["free_thresh"], 0.0, 1.0)
+    occ_th = _number(yaml_path, "occupied_thresh", meta.get("occupied_thresh", ROS_OCCUPIED_THRESH), 0.0, 1.0)
+    free_th = _number(yaml_path, "free_thresh", meta.get("free_thresh", ROS_FREE_THRESH), 0.0, 1.0)
     if free_th > occ_th:
         raise ValueError(f"{yaml_path}: field 'free_thresh' is {free_th} > occupied_thresh {occ_th}; "
                          f"expected free_thresh <= occupied_thresh")
@@ -244,7 +286,7 @@ def read_ros_map(yaml_path: str | Path, mode: str | None = None, unknown_as: str
     if not image_path.is_file():
         raise FileNotFoundError(f"{yaml_path}: field 'image' names {meta['image']!r}, which does not exist "
                                 f"(looked for {image_path})")
-    grey, alpha = _read_grey(image_path, f"the image named by {yaml_path}")
+    grey, alpha = _read_grey(image_path, f"the image named by {yaml_path}", max_pixels)
     occupancy = image_to_occupancy(grey, alpha, negate, occ_th, free_th, mode)
     walkable = walkable_from_occupancy(occupancy, unknown_as)
     grid = GridMap(walkable, resolution, ros_origin_to_grid_origin(origin[:2], occupancy.shape[0], resolution))
@@ -264,7 +306,8 @@ def grid_to_ros_image(grid: GridMap) -> np.ndarray:
     return np.where(np.asarray(grid.walkable), np.uint8(FREE_PIXEL), np.uint8(OCCUPIED_PIXEL)).astype(np.uint8)
 
 
-def unknown_pixel(free_thresh: float = 0.25, occupied_thresh: float = 0.65, negate: bool = False) -> int:
+def unknown_pixel(free_thresh: float = ROS_FREE_THRESH, occupied_thresh: float = ROS_OCCUPIED_THRESH,
+                  negate: bool = False) -> int:
     """A pixel value that ``map_server`` reads as unknown (-1) in trinary mode under these
     thresholds: ROS ``map_saver``'s 205 when it qualifies (it does for free_thresh 0.196,
     not for 0.25), otherwise the value nearest the middle of the unknown band.
@@ -295,7 +338,8 @@ def _fmt(v: float) -> str:
 
 def write_ros_map(yaml_path: str | Path, values: np.ndarray, resolution: float,
                   origin: tuple[float, float, float] = (0.0, 0.0, 0.0), negate: bool = False,
-                  occupied_thresh: float = 0.65, free_thresh: float = 0.25, mode: str = "trinary",
+                  occupied_thresh: float = ROS_OCCUPIED_THRESH, free_thresh: float = ROS_FREE_THRESH,
+                  mode: str = "trinary",
                   image_name: str | None = None) -> Path:
     """Write a ROS ``map_server`` map: the image, then the YAML naming it (each atomically).
 
@@ -368,21 +412,96 @@ def _default_origin(origin, height_px: int, resolution: float) -> tuple[float, f
     return float(origin[0]), float(origin[1])
 
 
+def image_thresholds(preset: str = "ros", free_thresh: float | None = None, occupied_thresh: float | None = None,
+                     where: str = "") -> tuple[float, float]:
+    """The (free_thresh, occupied_thresh) a plain image is read with: the preset's
+    (:data:`IMAGE_PRESETS`), each overridden by an explicit value.
+
+    Args:
+        preset: ``ros`` | ``white_only``.
+        free_thresh, occupied_thresh: occupancy probabilities in [0, 1], or None (the preset's).
+        where: prefix of the error lines (e.g. ``"env."``), naming the settings as the user
+            writes them.
+
+    Raises:
+        ValueError: one line naming the setting, its value and what was expected.
+    """
+    if preset not in IMAGE_PRESETS:
+        raise ValueError(f"{where}image_preset is {preset!r}; expected one of {list(IMAGE_PRESETS)}")
+    free, occ = IMAGE_PRESETS[preset]
+    for name, v in (("free_thresh", free_thresh), ("occupied_thresh", occupied_thresh)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0):
+            raise ValueError(f"{where}{name} is {v!r}; expected an occupancy probability in [0, 1] or null "
+                             f"(the preset's)")
+    free = free if free_thresh is None else float(free_thresh)
+    occ = occ if occupied_thresh is None else float(occupied_thresh)
+    if free > occ:
+        raise ValueError(f"{where}free_thresh {free} > {where}occupied_thresh {occ} (preset {preset!r} and the "
+                         f"values given); expected free_thresh <= occupied_thresh")
+    return free, occ
+
+
+def grey_pixels_note(grey: np.ndarray, free_thresh: float, occupied_thresh: float, negate: bool = False,
+                     unknown_as: str = "obstacle", share: float = GREY_WARN_SHARE, top: int = 4) -> str | None:
+    """What a plain image's grey pixels become, when they are many; else None.
+
+    A pixel is *grey* when it is neither white (occupancy probability p < :data:`WHITE_P`
+    = 0.02, grey >= 250 without ``negate``) nor read as occupied (p > ``occupied_thresh``):
+    grey furniture, ``map_saver``'s 205 unknown, light anti-aliasing.
+
+    Args:
+        grey: (H, W) int pixel values 0..255.
+        free_thresh, occupied_thresh, negate, unknown_as: how the image is read (with
+            ``unknown_as="free"`` grey pixels between the thresholds are read as free too).
+        share: the share of all pixels from which grey pixels are "many".
+        top: how many of the commonest grey levels to name.
+
+    Returns:
+        None below ``share``; else one line: the share of grey pixels, the commonest grey
+        levels with their shares, and the share of the image that is grey *and read as free*
+        (``"... grey levels 178 (20.1 %), 211 (3.0 %); 3.0 % of the image is grey read as
+        free ..."``).
+    """
+    g = np.asarray(grey, dtype=np.int64)
+    p = g / 255.0 if negate else (255 - g) / 255.0
+    is_grey = (p >= WHITE_P) & ~(p > occupied_thresh)
+    n = g.size
+    if not n or is_grey.sum() < share * n:
+        return None
+    counts = np.bincount(g[is_grey], minlength=256)
+    levels = np.argsort(-counts, kind="stable")[:top]
+    levels = [int(v) for v in levels if counts[v]]
+    read_free = p < free_thresh if unknown_as != "free" else ~(p > occupied_thresh)
+    free_grey = int((is_grey & read_free).sum())
+    named = ", ".join(f"{v} ({100 * counts[v] / n:.1f} %)" for v in levels)
+    return (f"{100 * is_grey.sum() / n:.1f} % of the pixels are grey (neither white nor occupied; commonest "
+            f"levels {named}); {100 * free_grey / n:.1f} % of the image is grey read as free "
+            f"(free_thresh {free_thresh:g}, occupied_thresh {occupied_thresh:g}, unknown_as {unknown_as})")
+
+
 def occupancy_png(path: str | Path, resolution: float, origin: tuple[float, float] | None = None, *,
-                  free_thresh: float = 0.25, occupied_thresh: float = 0.65, negate: bool = False,
-                  unknown_as: str = "obstacle") -> GridMap:
+                  preset: str = "ros", free_thresh: float | None = None, occupied_thresh: float | None = None,
+                  negate: bool = False, unknown_as: str = "obstacle", max_pixels: int | None = MAX_MAP_PIXELS,
+                  warn: bool = True, where: str = "") -> GridMap:
     """A plain occupancy image (no YAML): free = light, occupied = dark.
 
-    Pixels are interpreted as a ROS trinary map with the given thresholds: with
-    ``p = (255 - v) / 255`` (``v / 255`` with ``negate``), free if ``p < free_thresh``,
-    occupied if ``p > occupied_thresh``, unknown otherwise (an obstacle unless
-    ``unknown_as="free"``).
+    Pixels are interpreted as a ROS trinary map: with ``p = (255 - v) / 255`` (``v / 255``
+    with ``negate``), free if ``p < free_thresh``, occupied if ``p > occupied_thresh``,
+    unknown otherwise (an obstacle unless ``unknown_as="free"``). The thresholds are the
+    ``preset``'s (:data:`IMAGE_PRESETS`: ``ros`` = a YAML without thresholds, 0.196 / 0.65;
+    ``white_only`` = only grey >= 250 is free), each replaced by an explicit value.
 
     Args:
         path: the image (PNG, PGM, BMP; grey or colour).
         resolution: metres per pixel.
         origin: world (x0, z0) in metres of the top-left corner of pixel (0, 0); None puts
             the bottom-left corner of the image at world (0, 0).
+        preset, free_thresh, occupied_thresh: see above (:func:`image_thresholds`).
+        max_pixels: the largest image (width x height), checked on the header before
+            decoding; ``None``: no limit.
+        warn: warn (``UserWarning``, one line naming the file) when many pixels are grey
+            (:func:`grey_pixels_note`).
+        where: prefix of the settings named in error lines (``"env."``).
 
     Returns:
         The GridMap, (H, W) like the image.
@@ -390,13 +509,51 @@ def occupancy_png(path: str | Path, resolution: float, origin: tuple[float, floa
     path = Path(path).expanduser()
     if not path.is_file():
         raise FileNotFoundError(f"occupancy image not found: {path}")
-    if not (0.0 <= free_thresh <= occupied_thresh <= 1.0):
-        raise ValueError(f"{path}: thresholds free={free_thresh}, occupied={occupied_thresh}; expected "
-                         f"0 <= free_thresh <= occupied_thresh <= 1")
-    grey, _ = _read_grey(path, "the image")
-    occ = image_to_occupancy(grey, None, negate, occupied_thresh, free_thresh, "trinary")
-    walk = walkable_from_occupancy(occ, unknown_as)
+    free, occ = image_thresholds(preset, free_thresh, occupied_thresh, where)
+    grey, _ = _read_grey(path, "the map image", max_pixels)
+    if warn:
+        note = grey_pixels_note(grey, free, occ, negate, unknown_as)
+        if note:
+            warnings.warn(f"{path}: {note}; if only white is free in this map, read it with "
+                          f"{where}image_preset=white_only", UserWarning, stacklevel=2)
+    occ_map = image_to_occupancy(grey, None, negate, occ, free, "trinary")
+    walk = walkable_from_occupancy(occ_map, unknown_as)
     return GridMap(walk, resolution, _default_origin(origin, walk.shape[0], resolution))
+
+
+def read_npy_map(path: str | Path, max_pixels: int | None = MAX_MAP_PIXELS) -> np.ndarray:
+    """A 2-D ``.npy`` map array, its declared shape checked against ``max_pixels`` before the
+    data is read.
+
+    Returns:
+        The (H, W) array as stored.
+
+    Raises:
+        FileNotFoundError / ValueError: one line naming the file (missing, not a ``.npy``
+        array, not 2-D, over the limit, truncated).
+    """
+    path = Path(path).expanduser()
+    limit = check_max_map_pixels(max_pixels)
+    if not path.is_file():
+        raise FileNotFoundError(f"map not found: {path}")
+    try:
+        with path.open("rb") as f:
+            fmt = np.lib.format
+            version = fmt.read_magic(f)
+            header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+            shape, _, _ = header(f)  # the header only: no data read
+    except (ValueError, OSError) as e:
+        raise ValueError(f"{path}: not a .npy array ({e})") from None
+    if len(shape) != 2:
+        raise ValueError(f"{path}: .npy map has shape {shape}; expected a 2-D (H, W) array")
+    if limit is not None and shape[0] * shape[1] > limit:
+        raise ValueError(f"{path}: the .npy map declares {shape[1]} x {shape[0]} = {shape[0] * shape[1]} pixels, "
+                         f"over the map-size limit of {limit} pixels (max_map_pixels); expected a smaller map, or "
+                         f"raise max_map_pixels")
+    try:
+        return np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as e:
+        raise ValueError(f"{path}: cannot read the .npy map ({e})") from None
 
 
 def grid_from_array(array: np.ndarray, resolution: float, origin: tuple[float, float] | None = None, *,
@@ -427,5 +584,7 @@ def grid_from_array(array: np.ndarray, resolution: float, origin: tuple[float, f
     return GridMap(walk, resolution, _default_origin(origin, a.shape[0], resolution))
 
 
-__all__ = ["MODES", "RosMap", "grid_from_array", "grid_to_ros_image", "image_to_occupancy", "occupancy_png",
-           "read_ros_map", "ros_origin_of", "unknown_pixel", "walkable_from_occupancy", "write_grid_ros", "write_ros_map"]
+__all__ = ["GREY_WARN_SHARE", "IMAGE_PRESETS", "MODES", "ROS_FREE_THRESH", "ROS_OCCUPIED_THRESH", "RosMap",
+           "grey_pixels_note", "grid_from_array", "grid_to_ros_image", "image_thresholds", "image_to_occupancy",
+           "occupancy_png", "read_npy_map", "read_ros_map", "ros_origin_of", "unknown_pixel",
+           "walkable_from_occupancy", "write_grid_ros", "write_ros_map"]

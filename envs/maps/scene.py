@@ -1,7 +1,8 @@
 """House -> :class:`Scene`: occupancy map plus room ground truth, by rasterising the house.
 
 Walkable = inside some room's floor polygon, minus walls (a band of ``wall_thickness``
-centred on each wall line, with door openings cut out), minus the footprints of floor
+centred on each wall line, with door openings cut out; walls ProcTHOR marks ``empty``, fully
+opened between two rooms of an open plan, are not drawn), minus the footprints of floor
 furniture (rotated boxes sized from ProcTHOR's asset database), optionally eroded by a
 robot ``clearance`` radius. A pixel belongs to the room whose floor polygon contains its
 centre (the first such room in the house's room order, for pixels on a shared edge).
@@ -99,6 +100,8 @@ class Scene:
         objects: the house's top-level objects.
         object_map: (H, W) int32 index into ``objects`` of the footprint covering the pixel
             (floor objects drawn over raised ones), -1 for none.
+        start: the robot's start pose (world x, z metres, yaw degrees) from the house's
+            ``metadata.agent``, or None when the house gives none.
     """
 
     house_id: str
@@ -111,6 +114,7 @@ class Scene:
     walls: np.ndarray | None = None
     objects: list[ObjectFootprint] = field(default_factory=list)
     object_map: np.ndarray | None = None
+    start: tuple[float, float, float] | None = None
 
     @property
     def semantic(self) -> np.ndarray:
@@ -262,6 +266,8 @@ def rasterise_house(
     for wall in data.get("walls", []) or []:
         p0, p1 = _wall_segment(wall)
         wall_seg[wall["id"]] = (p0, p1)
+        if wall.get("empty"):  # ProcTHOR's open plan: a wall fully opened between two rooms
+            continue
         if half > 0:
             sl, band = _segment_band(grid0, p0, p1, half)
             if sl is not None:
@@ -299,8 +305,19 @@ def rasterise_house(
     return Scene(
         house_id=hid, grid=grid, rooms=rooms, instances=instances, instance_classes=instance_classes,
         room_ids=[str(r["id"]) for r in data["rooms"]], classes=tuple(classes), walls=walls,
-        objects=objects, object_map=object_map,
+        objects=objects, object_map=object_map, start=_agent_start(data),
     )
+
+
+def _agent_start(data: dict) -> tuple[float, float, float] | None:
+    """The house's agent start pose (x, z metres, yaw degrees) from ``metadata.agent``, or None."""
+    agent = (data.get("metadata") or {}).get("agent") or {}
+    pos, rot = agent.get("position") or {}, agent.get("rotation") or {}
+    try:
+        start = (float(pos["x"]), float(pos["z"]), float(rot.get("y", 0.0)))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return start if all(np.isfinite(start)) else None
 
 
 def _object_footprints(data: dict) -> list[ObjectFootprint]:
@@ -337,7 +354,7 @@ def scene_on_grid(scene: Scene, grid: GridMap) -> Scene:
     if scene.object_map is not None:
         omap[ok] = scene.object_map[r[ok], c[ok]]
     return Scene(scene.house_id, grid, rooms, np.where(grid.walkable, rooms, -1).astype(np.int32),
-                 scene.instance_classes, scene.room_ids, scene.classes, walls, scene.objects, omap)
+                 scene.instance_classes, scene.room_ids, scene.classes, walls, scene.objects, omap, scene.start)
 
 
 def room_polygon_areas(house: House) -> np.ndarray:

@@ -35,7 +35,9 @@ from shapely.geometry.polygon import orient
 
 from envs.atomic import atomic_write_bytes, atomic_write_text
 from envs.maps.gridmap import GridMap
+from envs.maps.images import read_image
 from envs.maps.ros import ros_origin_of, write_ros_map
+from envs.maps.scene import MAX_MAP_PIXELS
 
 #: Index-PNG value of a pixel with no class / segment (8-bit images).
 NO_VALUE_8 = 255
@@ -88,8 +90,13 @@ def write_index_png(path: str | Path, values: np.ndarray) -> Path:
     return path
 
 
-def read_index_png(path: str | Path) -> np.ndarray:
+def read_index_png(path: str | Path, max_pixels: int | None = MAX_MAP_PIXELS) -> np.ndarray:
     """Read an index PNG written by :func:`write_index_png`.
+
+    Args:
+        path: the PNG.
+        max_pixels: the largest image read, checked on its header before decoding
+            (:func:`envs.maps.images.read_image`); ``None``: no limit.
 
     Returns:
         (H, W) int32: the value per pixel, -1 where the image holds its no-value marker (255
@@ -98,9 +105,10 @@ def read_index_png(path: str | Path) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"index PNG not found: {path}")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None or img.ndim != 2:
-        raise ValueError(f"{path}: expected a single-channel (grey) index PNG")
+    img = read_image(path, "the index PNG", None, max_pixels)
+    if img.ndim != 2 or img.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"{path}: expected a single-channel (grey) 8- or 16-bit index PNG, got shape {img.shape} "
+                         f"dtype {img.dtype}")
     marker = NO_VALUE_8 if img.dtype == np.uint8 else NO_VALUE_16
     out = img.astype(np.int32)
     out[img == marker] = -1

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from envs.atomic import ordinary_temp_dir
 from envs.render.observation import Observation
 
 MARKER = "COMPLETE"
@@ -58,7 +59,7 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
         raise ValueError(f"every one of {len(observations)} views was refused by the renderer (first: {first!r}); "
                          f"not cached in {folder}, the next run renders it again")
     folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix="." + folder.name + ".", dir=folder.parent))
+    tmp = ordinary_temp_dir(folder.parent, "." + folder.name + ".")  # the entry gets an ordinary folder's mode
     try:
         lines = ["index,x,z,yaw,refused,image"]
         with open(tmp / "observations.jsonl", "w", encoding="utf-8") as f:

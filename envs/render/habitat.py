@@ -1,7 +1,7 @@
 """Habitat-Sim renderer for the ArchitecTHOR houses of the ai2thor-hab scene dataset.
 
 Needs habitat-sim (no pip wheel for Linux: ``conda install habitat-sim headless -c
-conda-forge -c aihabitat-nightly``, README) and the ai2thor-hab scenes (Hugging Face ``hssd/ai2thor-hab``;
+conda-forge -c aihabitat-nightly``, docs/gpu.md) and the ai2thor-hab scenes (Hugging Face ``hssd/ai2thor-hab``;
 ``scene_dataset`` is its ``ai2thor-hab.scene_dataset_config.json``). Written against
 habitat-sim's documented Python API (``SimulatorConfiguration``, ``CameraSensorSpec``,
 ``agent.AgentConfiguration``, ``AgentState``, ``Agent.set_state``,

@@ -1,10 +1,12 @@
 """The one ray-casting routine: Bresenham rays over a blocking grid, compiled with numba.
 
-Used by the floorplan renderer (what a camera sees) and the vision-cone aggregator (which
-cells a view votes for). A ray starts at the camera's cell and walks the Bresenham line
-to the cell at ``max_range`` pixels along its heading; it stops *before* the first
-blocked cell (which it reports as its hit) or at the map edge. The camera's own cell is
-always visited. Headings are map angles in radians: ``theta`` with direction
+Used by the floorplan renderer (what a camera sees), the vision-cone aggregator (which
+cells a view votes for), scan maps (:mod:`envs.maps.scan`: where laser beams end) and view
+coverage (:func:`mark_visible`: which cells some view's cone reaches). A ray starts at the
+camera's cell and walks the Bresenham line (one step: :func:`line_step`) to the cell at
+``max_range`` pixels along its heading; it stops *before* the first blocked cell (which it
+reports as its hit) or at the map edge (:func:`walk_beam` also walks a few cells past the
+hit, for a laser's long readings). The camera's own cell is always visited. Headings are map angles in radians: ``theta`` with direction
 ``(d_row, d_col) = (-cos theta, sin theta)``, i.e. the simulator yaw converted to radians.
 """
 
@@ -12,6 +14,22 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+
+@njit(cache=True, nogil=True, inline="always")
+def line_step(r, c, err, dr, dc, sr, sc):
+    """One step of the Bresenham walk from (r, c) with error term ``err`` on a line of extents
+    ``dr = |r1 - r0|``, ``dc = |c1 - c0|`` and directions ``sr``, ``sc``; returns the next
+    (r, c, err). After ``i`` row steps and ``j`` column steps from the start the error term is
+    ``dc - dr + i * dc - j * dr``."""
+    e2 = 2 * err
+    if e2 > -dr:
+        err -= dr
+        c += sc
+    if e2 < dc:
+        err += dc
+        r += sr
+    return r, c, err
 
 
 @njit(cache=True, nogil=True)
@@ -43,13 +61,47 @@ def trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols):
         n += 1
         if r == r1 and c == c1:
             return n, -1, -1
-        e2 = 2 * err
-        if e2 > -dr:
-            err -= dr
-            c += sc
-        if e2 < dc:
-            err += dc
-            r += sr
+        r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+
+
+@njit(cache=True, nogil=True)
+def walk_beam(blocked, r0, c0, r1, c1, extra, out_rows, out_cols):
+    """A laser beam's walk: the same digital line as :func:`trace_ray`, through its first
+    blocked cell and ``extra`` cells beyond (where a long range reading may end).
+
+    Writes the line's cells in order to ``out_rows``/``out_cols`` (room for
+    ``max(|r1-r0|, |c1-c0|) + 1`` entries): every cell up to the first blocked one, that cell,
+    and at most ``extra`` further cells whatever they hold; it stops at the end cell or the
+    map edge. Returns ``(n_written, k_hit)``: ``k_hit`` is the index of the first blocked cell
+    (so ``trace_ray`` would visit ``k_hit`` cells and report ``out[k_hit]``), -1 if none.
+    Callable from other numba kernels.
+    """
+    n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols)
+    if hr < 0:
+        return n, -1
+    h, w = blocked.shape
+    dr = abs(r1 - r0)
+    dc = abs(c1 - c0)
+    sr = 1 if r1 > r0 else -1
+    sc = 1 if c1 > c0 else -1
+    # the same line continued from the hit: its error term there (see line_step)
+    err = dc - dr + abs(hr - r0) * dc - abs(hc - c0) * dr
+    r = hr
+    c = hc
+    k_hit = n
+    out_rows[n] = r
+    out_cols[n] = c
+    n += 1
+    for _ in range(extra):
+        if r == r1 and c == c1:
+            break
+        r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+        if r < 0 or r >= h or c < 0 or c >= w:
+            break
+        out_rows[n] = r
+        out_cols[n] = c
+        n += 1
+    return n, k_hit
 
 
 @njit(cache=True, nogil=True)
@@ -106,3 +158,40 @@ def cone_thetas(yaw_deg: float, fov_deg: float, max_range: float, oversample: fl
     fov = np.deg2rad(fov_deg)
     n = max(int(np.ceil(fov * max(max_range, 1.0) * oversample)) + 1, 2)
     return np.deg2rad(yaw_deg) + np.linspace(-fov / 2, fov / 2, n)
+
+
+@njit(cache=True, nogil=True)
+def _mark_cones(blocked, rows, cols, thetas, max_range, seen):
+    h, w = blocked.shape
+    cap = int(np.ceil(max_range)) + 2
+    buf_r = np.empty(cap, np.int32)
+    buf_c = np.empty(cap, np.int32)
+    for v in range(rows.shape[0]):
+        r0 = rows[v]
+        c0 = cols[v]
+        if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
+            continue
+        for t in range(thetas.shape[1]):
+            r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
+            n, _, _ = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
+            for j in range(n):
+                seen[buf_r[j], buf_c[j]] = True
+
+
+def mark_visible(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, thetas: np.ndarray,
+                 max_range: float) -> np.ndarray:
+    """(H, W) bool: the cells some ray of some view visits (the union of their cones).
+
+    Args:
+        blocked: (H, W) bool cells that stop a ray.
+        rows, cols: (N,) int cells of the views (views off the map see nothing).
+        thetas: (N, R) ray headings of each view, radians (e.g. :func:`cone_thetas`).
+        max_range: ray length, pixels.
+    """
+    if max_range < 0:
+        raise ValueError(f"max_range must be >= 0 pixels, got {max_range}")
+    seen = np.zeros(np.shape(blocked), np.bool_)
+    thetas = np.ascontiguousarray(thetas, np.float64).reshape(len(rows), -1)
+    _mark_cones(np.ascontiguousarray(blocked, np.bool_), np.asarray(rows, np.int64), np.asarray(cols, np.int64),
+                thetas, float(max_range), seen)
+    return seen

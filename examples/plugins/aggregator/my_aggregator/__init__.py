@@ -1,0 +1,1 @@
+"""An example aggregator plug-in for roomseg-bench (docs/plugins.md)."""

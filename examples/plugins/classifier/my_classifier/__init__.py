@@ -1,0 +1,1 @@
+"""An example classifier plug-in for roomseg-bench (docs/plugins.md)."""

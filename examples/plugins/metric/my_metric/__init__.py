@@ -1,0 +1,1 @@
+"""An example metric plug-in for roomseg-bench (docs/plugins.md)."""

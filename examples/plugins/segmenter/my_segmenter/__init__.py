@@ -1,0 +1,1 @@
+"""An example segmenter plug-in for roomseg-bench (docs/plugins.md)."""

@@ -1,0 +1,131 @@
+"""Robot conditions through the harness (issue 25): level 0 of every condition gives the clean
+run's rows byte for byte; cache keys follow every new setting and a change recomputes only
+what depends on it; bad settings are one line, exit 2, nothing cached; methods and segmenters
+see only the robot's map while the score stays on the ground truth's walkable area."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmark.config import compose_job
+from benchmark.harness.cache import load_npz
+from benchmark.harness.runner import build_pipeline, run
+
+ROOT = Path(__file__).resolve().parents[1]
+FAST = ["env=synthetic", "env.resolution=0.1", "env.n_houses=2", "viewpoints.spacing=1.5", "classifier=oracle",
+        "aggregator=vision_cone", "run.progress=false"]
+
+
+def _run(tmp_path: Path, name: str, *overrides: str, results: str = "R") -> pd.DataFrame:
+    cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / results}", *overrides])
+    return run(cfg, tmp_path / results / "jobs" / name, ch)
+
+
+def _metrics_bytes(df: pd.DataFrame) -> bytes:
+    """The job's metrics.csv, byte for byte except the timing columns (``t_*``: seconds measured)."""
+    lines = (Path(df.attrs["job_dir"]) / "metrics.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    keep = [i for i, c in enumerate(head) if not c.startswith("t_")]
+    import csv
+
+    rows = list(csv.reader(lines))
+    return "\n".join(",".join(r[i] for i in keep) for r in rows).encode()
+
+
+def _files(root: Path, stage: str) -> dict[str, int]:
+    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in (root / stage).rglob("*")
+            if p.is_file() and not p.name.endswith(".lock")}
+
+
+def test_level_zero_of_every_condition_is_the_clean_run_byte_for_byte(tmp_path):
+    clean = _run(tmp_path, "clean", results="a")
+    assert (clean["status"] == "ok").all() and set(clean["corruption"]) == {"clean"}
+    assert (clean["pose_error_mean_m"] == 0).all() and (clean["map_free_iou"] == 1).all()
+    assert clean["coverage_area"].between(0.9, 1.0).all()
+    want = _metrics_bytes(clean)
+    for i, extra in enumerate([["corruption=clean"], ["pose_error=slam"], ["label_noise=noisy"],
+                               ["pose_error=slam", "pose_error.loop_closure=5.0", "label_noise=noisy"]]):
+        got = _run(tmp_path, f"zero{i}", *extra, results=f"b{i}")  # fresh caches: computed, not served
+        assert _metrics_bytes(got) == want, extra
+
+
+def test_each_setting_recomputes_only_what_depends_on_it(tmp_path):
+    cache = tmp_path / "R" / "cache"
+    first = _run(tmp_path, "s1", "corruption=scan_1")
+    assert (first["status"] == "ok").all() and (first["map_free_iou"] < 1).all()
+    render, classify, maps = _files(cache, "render"), _files(cache, "classify"), _files(cache, "robot_maps")
+    assert len(maps) == 2
+    # another scanner: a new robot map and aggregation, the same render and classification
+    second = _run(tmp_path, "s2", "corruption=scan_1", "mapping.dropout=0.3")
+    assert _files(cache, "render") == render and _files(cache, "classify") == classify
+    assert len(_files(cache, "robot_maps")) == 4 and not (second["iou"].to_numpy() == first["iou"].to_numpy()).all()
+    # a pose error on top: the robot map is reused (it depends on the true poses only)
+    maps = _files(cache, "robot_maps")
+    third = _run(tmp_path, "s3", "corruption=scan_1", "mapping.dropout=0.3", "pose_error=slam",
+                 "pose_error.sigma_xy=0.3")
+    assert _files(cache, "robot_maps") == maps and _files(cache, "classify") == classify
+    assert (third["pose_error_mean_m"] > 0.1).all()
+    # and the same command again is served whole from the cache
+    aggregate = _files(cache, "aggregate")
+    again = _run(tmp_path, "s3", "corruption=scan_1", "mapping.dropout=0.3", "pose_error=slam",
+                 "pose_error.sigma_xy=0.3")
+    assert _files(cache, "aggregate") == aggregate
+    cols = ["house_id", "iou", "pose_error_mean_m", "map_free_iou"]
+    pd.testing.assert_frame_equal(again[cols], third[cols])
+
+
+def test_the_scan_map_is_what_methods_and_segmenters_see_and_the_score_stays_on_the_ground_truth(tmp_path):
+    df = _run(tmp_path, "m", "corruption=scan_5")
+    seg = _run(tmp_path, "g", "corruption=scan_5", "segmenter=distance")
+    cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", "corruption=scan_5"])
+    pipe = build_pipeline(cfg, ch)
+    for hid, row in zip(df["house_id"], df.itertuples()):
+        scene = pipe.scene(hid)
+        m = load_npz(Path(pipe.maps_path(hid)))
+        free = m["free"]
+        assert free.shape == scene.grid.shape and not free.all()
+        assert (m["post"][~free] == -1).all()  # nothing labelled where the robot's map is not free
+        missed = scene.grid.walkable & ~free
+        assert row.map_missed_share == pytest.approx(missed.sum() / scene.grid.walkable.sum())
+        # the walkable cells the map misses count as unlabelled: accuracy cannot exceed the rest
+        assert row.accuracy <= 1 - row.map_missed_share + 1e-9
+    cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", "corruption=scan_5", "segmenter=distance"])
+    spipe = build_pipeline(cfg, ch)
+    for hid in seg["house_id"]:
+        m = load_npz(spipe.maps_path(hid))
+        assert (m["instances"][~m["free"]] == -1).all() and (m["instances"][m["free"]] >= 0).mean() > 0.5
+    assert (seg["map_free_iou"] < 1).all() and set(seg["viewpoints"]) == {"autotrace"}
+
+
+@pytest.mark.parametrize("override,line", [
+    ("pose_error.sigma_xy=-0.1", "pose_error.sigma_xy=-0.1: expected a number >= 0"),
+    ("mapping.height=3.0", "mapping.height=3.0: expected metres, 0 < height < 2.6 (below the walls)"),
+    ("mapping.max_range=0", "mapping.max_range=0: expected metres > 0 (.inf: unlimited)"),
+    ("viewpoints.budget=0", "viewpoints.budget=0: expected a number > 0"),
+])
+def test_bad_settings_are_one_line_exit_2_and_cache_nothing(tmp_path, override, line):
+    group = override.split(".")[0]
+    base = {"pose_error": "pose_error=slam", "mapping": "mapping=scan", "viewpoints": "viewpoints=frontier"}[group]
+    r = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", *FAST, base, override,
+                        f"run.results_dir={tmp_path / 'R'}"], cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.strip() == f"roomseg-bench: error: {line}"
+    assert not (tmp_path / "R" / "cache").exists()
+
+
+def test_exploration_and_pose_error_rows_record_what_the_robot_had(tmp_path):
+    df = _run(tmp_path, "e", "corruption=explore_5")
+    assert (df["status"] == "ok").all() and (df["viewpoints"] == "frontier").all()
+    assert (df["coverage_area"] < 0.95).any() and df["coverage_rooms"].between(0, 1).all()
+    pose = _run(tmp_path, "p", "corruption=pose_5")
+    assert (pose["pose_error_max_m"] >= pose["pose_error_mean_m"]).all() and (pose["pose_error_mean_m"] > 0.5).all()
+    noisy = _run(tmp_path, "n", "corruption=classifier_5")
+    assert noisy["label_noise_share"].between(0.3, 0.7).all()
+    assert np.all(noisy["view_accuracy_seen"] < 0.8)
