@@ -5,10 +5,13 @@
 * the algorithms (every ``benchmark`` module outside ``harness``, ``reports`` and ``commands``:
   method, classifiers, aggregators, segmenters, metrics, ...) import neither the harness nor
   the reports, which sit on top of them;
-* no import cycle between the modules of the project.
+* no import cycle between the modules of the project;
+* ``hydra_plugins`` (imported by Hydra whenever any app starts) imports no project module but
+  the standard-library-only ones of :data:`PLUGIN_SAFE` (cores, workers that die with their parent).
 """
 
 import ast
+import importlib
 from pathlib import Path
 
 import pytest
@@ -128,13 +131,42 @@ def test_no_import_cycles(graph):
     assert not cycles, f"import cycles: {cycles[:5]}"
 
 
+#: project modules the Hydra plugins may import: each imports the standard library only.
+PLUGIN_SAFE = ("benchmark.harness.processes",)
+
+
+def stdlib_only(path: Path) -> list[str]:
+    """The top-level modules ``path`` imports that are not in the standard library."""
+    import sys
+
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            names.add((node.module or "").split(".")[0])
+    return sorted(n for n in names if n not in sys.stdlib_module_names and n != "__future__")
+
+
 def test_hydra_plugins_import_no_project_module():
     """Hydra imports every module under ``hydra_plugins`` when any app starts: the sweeper and
-    launcher stay light (Hydra and the standard library only)."""
+    launcher stay light (Hydra, the standard library and the modules of :data:`PLUGIN_SAFE`,
+    which import the standard library only)."""
     files = list((ROOT / "hydra_plugins").rglob("*.py"))
     assert files
-    bad = {module_name(p): imps for p in files if (imps := project_imports(p))}
+    allowed = set(PLUGIN_SAFE) | {f"{m}.{name}" for m in PLUGIN_SAFE for name in dir(importlib.import_module(m))}
+    bad = {module_name(p): imps - allowed for p in files if (imps := project_imports(p)) - allowed}
     assert not bad, f"hydra_plugins importing the project: {bad}"
+    heavy = {m: extra for m in PLUGIN_SAFE if (extra := stdlib_only(ROOT / (m.replace(".", "/") + ".py")))}
+    assert not heavy, f"modules the plugins import that import more than the standard library: {heavy}"
+
+
+def test_the_plugin_rule_catches_a_heavy_import(tmp_path):
+    """The standard-library check sees a third-party import, lazy or not."""
+    fake = tmp_path / "mod.py"
+    fake.write_text("import os\nfrom collections import deque\n\ndef f():\n    import numpy\n    return numpy\n")
+    assert stdlib_only(fake) == ["numpy"]
 
 
 def test_the_rules_catch_a_bad_import(tmp_path):

@@ -30,3 +30,12 @@ def test_bar_only_on_a_terminal_for_a_job_running_alone():
     out = tty.getvalue()
     assert "synthetic · objects" in out and "3/3" in out
     assert out.count("\n") == 1  # one line per job, left on screen
+
+
+def test_bar_over_a_stream_of_finished_houses_knows_its_total():
+    """A pool's houses arrive as they finish (a generator without a length): the bar is
+    given the job's house count and ends at n/n."""
+    tty = _Tty()
+    wrap = house_progress("synthetic · oracle", stream=tty, workers=1)
+    assert list(wrap((h for h in "abcd"), total=4)) == list("abcd")
+    assert "4/4" in tty.getvalue()

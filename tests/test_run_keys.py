@@ -53,10 +53,11 @@ def test_a_key_added_to_the_yaml_is_valid_at_once(tmp_path, monkeypatch):
     conf = tmp_path / "conf"
     shutil.copytree(benchmark.paths.CONF_DIR, conf)
     text = (conf / "config.yaml").read_text()
-    (conf / "config.yaml").write_text(text.replace("\nrun:\n", "\nrun:\n  workers: 1      # test\n", 1))
+    assert "shards" not in run_keys()  # (a key the config does not have yet)
+    (conf / "config.yaml").write_text(text.replace("\nrun:\n", "\nrun:\n  shards: 1      # test\n", 1))
     monkeypatch.setattr(benchmark.paths, "CONF_DIR", str(conf))
-    assert "workers" in run_keys()
-    check_run_overrides(["run.workers=4"])
+    assert "shards" in run_keys()
+    check_run_overrides(["run.shards=4"])
 
 
 def test_check_config_and_the_command_line_check_agree():

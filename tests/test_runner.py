@@ -203,6 +203,8 @@ def test_postprocessing_variants_share_one_aggregation(tmp_path, procthor_file):
     cfg, ch = _compose(tmp_path, houses, "postprocess=default")
     df = run(cfg, tmp_path / "default", ch)
     assert sorted((tmp_path / "results" / "cache" / "aggregate").rglob("*.npz")) == agg
-    assert agg[0].stat().st_mtime_ns == stamp and "t_aggregate" not in df  # loaded, not recomputed
+    timings = pd.read_csv(tmp_path / "default" / "timings.csv")
+    assert agg[0].stat().st_mtime_ns == stamp  # loaded, not recomputed
+    assert "t_aggregate" not in timings and "t_postprocess" in timings and not timings["cached"].any()
     raws = [load_npz(j.maps_path(df["house_id"][0]))["raw"] for j in find_jobs([tmp_path / "none", tmp_path / "default"])]
     assert np.array_equal(raws[0], raws[1])

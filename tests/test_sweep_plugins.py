@@ -14,7 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from hydra_plugins.roomseg_sweep.roomseg_sweep import GridsSweeper, one_per_grid
+from hydra_plugins.roomseg_sweep.roomseg_sweep import (
+    GridsSweeper,
+    LocalLauncher,
+    auto_jobs,
+    one_per_grid,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -80,6 +85,16 @@ def test_one_job_per_grid():
     assert one_per_grid([]) == []
 
 
+def test_auto_runs_jobs_side_by_side_only_with_enough_jobs():
+    """n_jobs=auto: as many workers as cores from 2 jobs per core on; else one after another."""
+    assert [auto_jobs(j, 2) for j in (1, 2, 3, 4, 30)] == [1, 1, 1, 2, 2]
+    assert [auto_jobs(j, 64) for j in (30, 127, 128)] == [1, 1, 64]
+    assert LocalLauncher(n_jobs="auto").n_jobs is None and LocalLauncher(n_jobs="3").n_jobs == 3
+    for bad in (0, "many"):
+        with pytest.raises(ValueError, match="n_jobs must be an integer >= 1 or auto"):
+            LocalLauncher(n_jobs=bad)
+
+
 def test_bad_validate_mode_is_refused():
     with pytest.raises(ValueError, match="hydra.sweeper.validate must be one of"):
         GridsSweeper(validate="some")
@@ -99,7 +114,8 @@ grids:
     n: 1
   - a: x
     n: 1""")
-    r = _run(app, "n=1,3", launcher)
+    workers = [] if launcher.endswith("n_jobs=1") else ["hydra.launcher.n_jobs=2"]
+    r = _run(app, "n=1,3", launcher, *workers)
     assert r.returncode == 0, r.stderr[-2000:]
     jobs = _jobs(tmp_path)
     # params x command line: a in {x,y}, n in {1,3}; grid 2: b in {u,v}, n in {1,3};
@@ -190,3 +206,25 @@ def test_a_killed_worker_ends_the_sweep_naming_it(tmp_path):
     _, err = p.communicate(timeout=15)
     assert p.returncode != 0 and f"a worker process of the sweep in {tmp_path / 'out'} died" in err
     assert subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True).returncode == 1
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads processes from /proc (Linux only)")
+@pytest.mark.parametrize("start_method", ["fork", "spawn"])
+def test_kill9_of_the_launching_process_leaves_no_worker(tmp_path, start_method):
+    """kill -9 of the sweep's launching process while its workers run jobs: no worker is alive
+    5 s later (they die with their parent instead of blocking on a pipe; issue #24)."""
+    import os
+    import signal
+
+    from procs import children, gone_within, wait_for
+
+    app = _app(tmp_path, "validate: quick")
+    env = dict(os.environ, JOB_SLEEP="60")
+    p = subprocess.Popen([sys.executable, str(app), "-m", "n=1,2,3,4", f"hydra.launcher.start_method={start_method}",
+                          "hydra.launcher.n_jobs=2"], cwd=app.parent, env=env, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    assert wait_for(lambda: len(children(p.pid)) >= 2, timeout=60), "the workers never appeared"
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=30)
+    assert gone_within(p.pid, 5.0) == []

@@ -6,7 +6,8 @@
     roomseg-bench experiment=table4                 # a paper table's sweep
 
 Exit status: 0 when every house of every job succeeded; 1 when any house failed (after
-every row is written; ``run.allow_failures=true`` exits 0) or a sweep worker was killed;
+every row is written; ``run.allow_failures=true`` exits 0) or a worker process was killed (a
+sweep worker, or one of the processes running a job's houses, ``run.workers``);
 2 when nothing ran: a bad setting, a config that does not compose, an unwritable folder, no
 house selected, or a stage that cannot be built; 130 when interrupted (Ctrl-C stops every
 worker at once). Errors are one line on stderr.
@@ -20,10 +21,12 @@ from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from benchmark.harness import sweep
 from benchmark.harness.checks import check_run_overrides
+from benchmark.harness.executor import WorkerDied
 from benchmark.harness.pipeline import StageError
 from benchmark.harness.runner import CONF_DIR, ConfigError, run
 
@@ -39,6 +42,11 @@ def app(cfg: DictConfig) -> float:
         df = run(cfg, out_dir)
     except (ConfigError, StageError) as e:  # nothing ran: one line, and exit status 2 at the end
         sweep.record_error(_one_line(e), out_dir)
+        return float("nan")
+    except WorkerDied as e:  # a house worker died: one line, exit status 1 (a multirun's launcher ends the sweep)
+        if HydraConfig.get().mode == RunMode.MULTIRUN:
+            raise
+        sweep.record_died(_one_line(e))
         return float("nan")
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
     ok = df[df["status"] == "ok"] if "status" in df else df
@@ -78,6 +86,9 @@ def main() -> int:
         print(f"{PROG}: error: cannot write {where} ({e.strerror or e})", file=sys.stderr)
         return 2
     out = sweep.OUTCOME
+    if out["died"]:
+        print(f"{PROG}: error: {out['died'][0]}", file=sys.stderr)
+        return 1
     if out["errors"]:
         for msg in dict.fromkeys(out["errors"]):
             print(f"{PROG}: error: {msg}", file=sys.stderr)

@@ -63,6 +63,15 @@ def angle(v: Any) -> bool:
     return _num(v) and 0 < v <= 360
 
 
+def ray_settings(v: Any) -> bool:
+    """a mapping with address: null, auto or host:port"""
+    if not isinstance(v, Mapping):
+        return False
+    a = v.get("address")
+    return a is None or (isinstance(a, str) and (a == "auto" or a.startswith("ray://")
+                                                 or (":" in a and a.rsplit(":", 1)[1].isdigit())))
+
+
 def one_of(*allowed: Any) -> Rule:
     def rule(v: Any) -> bool:
         return v in allowed
@@ -141,6 +150,8 @@ RULES: dict[tuple[str, str], Rule] = {
     ("run", "limit"): optional(pos_int), ("run", "progress"): one_of(True, False),
     ("run", "save_maps"): one_of(True, False), ("run", "allow_failures"): one_of(True, False),
     ("run", "cache_failures"): one_of(True, False),
+    ("run", "workers"): optional(pos_int), ("run", "executor"): one_of("local", "ray"),
+    ("run", "ray"): ray_settings,
 }
 _WHAT_EXTRA = {("viewpoints", "heading_spread"): "a number in [0, 360] degrees",
                ("mapping", "height"): "metres, 0 < height < 2.6 (below the walls)",

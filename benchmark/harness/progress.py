@@ -4,7 +4,9 @@ Several joblib workers share one stderr; their carriage-return bars overwrite ea
 a terminal and pile up into one long line in a log file. So a job draws a tqdm bar (one
 line, left on screen when done, named in words) only when stderr is a terminal and no
 other job runs beside it; otherwise it draws nothing while it runs, and the runner's one
-line per finished job (and the sweep's summary at the end) is what is printed.
+line per finished job (and the sweep's summary at the end) is what is printed. A job whose
+houses run on a pool of processes (``run.workers``) is still one job: the driver draws its
+bar, advanced as houses finish in any worker.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def parallel_jobs() -> int:
 
 
 def house_progress(label: str, enabled: bool = True, stream: IO[str] | None = None,
-                   workers: int | None = None) -> Callable[[Iterable[Any]], Iterable[Any]] | None:
+                   workers: int | None = None) -> Callable[..., Iterable[Any]] | None:
     """A wrapper that draws a bar over a job's houses, or None where a bar would garble output.
 
     Args:
@@ -63,8 +65,10 @@ def house_progress(label: str, enabled: bool = True, stream: IO[str] | None = No
         workers: jobs that may run at once (:func:`parallel_jobs` when None).
 
     Returns:
-        ``tqdm``-wrapping callable when enabled, ``stream`` is a terminal and ``workers`` is 1;
-        otherwise None (no bar: the finished-job line is the job's one line).
+        ``wrap(iterable, total=None)``, a ``tqdm`` bar over the iterable (the houses, or the
+        stream of finished houses of a pool: ``total`` gives its length), when enabled,
+        ``stream`` is a terminal and ``workers`` is 1; otherwise None (no bar: the
+        finished-job line is the job's one line).
     """
     stream = sys.stderr if stream is None else stream
     workers = parallel_jobs() if workers is None else workers
@@ -73,8 +77,8 @@ def house_progress(label: str, enabled: bool = True, stream: IO[str] | None = No
         return None
     from tqdm import tqdm
 
-    def wrap(it: Iterable[Any]) -> Iterable[Any]:
-        return tqdm(it, desc=label, unit="house", file=stream, leave=True, dynamic_ncols=True)
+    def wrap(it: Iterable[Any], total: int | None = None) -> Iterable[Any]:
+        return tqdm(it, desc=label, unit="house", file=stream, leave=True, dynamic_ncols=True, total=total)
 
     return wrap
 

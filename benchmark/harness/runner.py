@@ -4,8 +4,14 @@ Checks the config (:mod:`benchmark.harness.checks`), builds a
 :class:`benchmark.harness.pipeline.Pipeline` whose stages are instantiated from ``conf/`` with
 ``_target_`` only when a house needs them, claims the job's folder (a folder holding another
 run's results is never written into: :func:`benchmark.harness.store.claim_job_dir`), runs the
-selected houses and writes ``metrics.csv`` (one row per house), ``summary.json`` (counts,
-failures and why, wall time, keys, per-house content hashes) and ``resolved_config.yaml``.
+selected houses and writes ``metrics.csv`` (one row per house), ``timings.csv`` (per house: the
+stages' times, wall time, worker, and whether the row came from the cache), ``summary.json``
+(counts, failures and why, wall time, keys, per-house content hashes) and ``resolved_config.yaml``.
+
+The houses run on an executor (:mod:`benchmark.harness.executor`): in this process
+(``run.workers=1``), on a pool of ``run.workers`` local processes (default: the cores
+available) that every job of a multirun shares, or as Ray tasks (``run.executor=ray``). Rows
+come back in house order, so ``metrics.csv`` is the same bytes whatever the executor.
 Examples::
 
     roomseg-bench                                   # defaults from conf/config.yaml
@@ -17,9 +23,12 @@ Examples::
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections import Counter
+from collections.abc import Sequence
 from datetime import datetime, timezone
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -30,14 +39,25 @@ from omegaconf import DictConfig, OmegaConf
 
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
+from benchmark.harness.executor import (
+    Executor,
+    HouseResult,
+    JobSpec,
+    RayExecutor,
+    SerialExecutor,
+    close_pool,
+    local_pool,
+)
 from benchmark.harness.pipeline import (
     STAGES,
     MethodPipeline,
     Pipeline,
     SegmenterPipeline,
+    StageError,
     expand_force,
 )
-from benchmark.harness.progress import house_progress, job_label
+from benchmark.harness.processes import available_cores
+from benchmark.harness.progress import house_progress, job_label, parallel_jobs
 from benchmark.harness.store import NON_ROW_KEYS, SELECTION_KEYS, Job, claim_job_dir, flat_settings
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
@@ -209,6 +229,53 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     return MethodPipeline(**common, classes=_env_classes(env, cfg) or None)
 
 
+def pipeline_from_plain(plain: dict[str, Any], choices: dict[str, str], eval_ids: Sequence[str],
+                        keys: dict[str, str] | None = None) -> Pipeline:
+    """A job's pipeline built in a worker process from the job's resolved plain config (no
+    ``hydra`` node) and chosen options, as the driver built its own.
+
+    Args:
+        plain: ``OmegaConf.to_container(cfg without hydra, resolve=True)``.
+        choices: {group: chosen option} (the stage names in every row).
+        eval_ids: the job's houses (a classifier's ``setup`` refuses training houses).
+        keys: the driver's cache keys: the worker's must be equal.
+
+    Raises:
+        StageError: the worker's cache keys differ from the driver's.
+    """
+    pipe = build_pipeline(OmegaConf.create(plain), choices)
+    pipe.eval_ids = tuple(eval_ids)
+    if keys is not None and pipe.keys != keys:
+        raise StageError(f"a worker built other cache keys than the driver ({pipe.keys} vs {keys}): "
+                         f"the resolved config does not rebuild the same job")
+    return pipe
+
+
+def choose_executor(cfg: DictConfig, pipe: Pipeline, n_houses: int) -> Executor:
+    """The executor of a job's ``n_houses`` houses (see the module docstring): Ray for
+    ``run.executor=ray``; else this process when one worker would do (``run.workers=1``, one
+    house, or a launcher that already runs several jobs side by side, each in its own
+    process); else this process's pool of ``run.workers`` processes (default: the cores
+    available)."""
+    workers = cfg.run.get("workers") or available_cores()
+    if cfg.run.get("executor", "local") == "ray":
+        ray_cfg = cfg.run.get("ray") or {}
+        return RayExecutor(ray_cfg.get("address"), workers)
+    if parallel_jobs() > 1:  # the launcher's n_jobs workers are the sweep's processes already
+        workers = 1
+    workers = min(int(workers), n_houses)
+    return SerialExecutor(pipe) if workers <= 1 else local_pool(workers)
+
+
+def _in_multirun() -> bool:
+    try:
+        from hydra.types import RunMode
+
+        return HydraConfig.get().mode == RunMode.MULTIRUN
+    except (ImportError, ValueError):
+        return False
+
+
 def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
     """A job's identity: a key over every setting that changes its rows (the resolved config
     without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
@@ -225,16 +292,19 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
 
 
 def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -> pd.DataFrame:
-    """Run one configuration over its houses; write metrics.csv, summary.json, resolved_config.yaml.
+    """Run one configuration over its houses; write metrics.csv, timings.csv, summary.json and
+    resolved_config.yaml.
 
     Returns:
-        The rows (one per house); ``df.attrs["job_dir"]`` is the folder written (``out_dir``,
-        or its ``~<key>`` sibling when ``out_dir`` holds another run's results) and
+        The rows (one per house, as in ``metrics.csv``: no ``t_*`` timings, which go to
+        ``timings.csv``); ``df.attrs["job_dir"]`` is the folder written (``out_dir``, or its
+        ``~<key>`` sibling when ``out_dir`` holds another run's results) and
         ``df.attrs["n_failed"]`` the failed houses.
 
     Raises:
         ConfigError: a bad setting, an unwritable folder, or no house selected (before any work).
         StageError: a stage that cannot be built or does not fit the environment.
+        WorkerDied: a worker process died (the houses scored before are cached).
     """
     t0 = time.perf_counter()
     body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
@@ -242,6 +312,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     check_config(plain, STAGES)
     check_writable(cfg.run.results_dir, "run.results_dir")
     check_writable(cfg.run.cache_dir, "run.cache_dir")
+    choices = choices if choices is not None else _choices()
     pipe = build_pipeline(cfg, choices)
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     pipe.eval_ids = tuple(ids)
@@ -260,27 +331,29 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     # a bar only on a terminal with no other job beside it; else the finished-job line below
     progress = house_progress(job_label(pipe.names, None if acc is None else float(acc)),
                               bool(cfg.run.get("progress", True)))
-    rows = pipe.run(ids, progress)
-    df = pd.DataFrame(rows)
-    if "traceback" in df:
-        df = df.drop(columns=["traceback"])
-    lead = [c for c in LEADING_COLUMNS if c in df]
-    df = df[lead + sorted(c for c in df.columns if c not in lead)]
+    executor = choose_executor(cfg, pipe, len(ids))
+    spec = JobSpec(key=config_key("worker", plain, choices, ids),
+                   build=partial(pipeline_from_plain, plain, choices, tuple(ids), pipe.keys), cwd=os.getcwd())
+    try:
+        results = executor.map(spec, ids, progress, where=str(out_dir))
+    finally:
+        if not _in_multirun():  # a multirun's jobs share the pool; a single run ends with it
+            close_pool()
+    rows = [r.row for r in results]
+    df, timings = split_timings(rows, results)
+    atomic_write_text(job.timings_path, timings.to_csv(index=False))
     atomic_write_text(job.metrics_path, df.to_csv(index=False))
     failed = [r for r in rows if r.get("status") != "ok"]
     reasons = Counter(r.get("error", "").split(":")[0] for r in failed)
-    contents = {}
-    for h in ids:
-        try:
-            contents[h] = pipe.contents(h)["score"]
-        except Exception:  # noqa: BLE001 - an unreadable house has no cache entries
-            contents[h] = ""
+    built = list(dict.fromkeys(stage for r in results for stage in r.built))
     summary = {
         "n_houses": len(rows), "n_ok": len(rows) - len(failed), "n_failed": len(failed),
         "failure_reasons": dict(reasons),
         "failed": [{"house_id": r["house_id"], "error": r.get("error", "")} for r in failed],
         "wall_time_s": round(time.perf_counter() - t0, 3), "keys": pipe.keys, "names": pipe.names,
-        "job_key": key, "stages_built": pipe.built(), "contents": contents,
+        "job_key": key, "stages_built": built, "contents": {h: r.content for h, r in zip(ids, results)},
+        "executor": executor.name, "workers": int(getattr(executor, "workers", 1) or 1),
+        "n_cached": sum(r.cached for r in results),
         # newest job wins where two jobs hold the same configuration and house (reports/tables.py)
         "finished_at": datetime.now(timezone.utc).isoformat(),
     }
@@ -297,4 +370,23 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     return df
 
 
-__all__ = ["run", "build_pipeline", "stage_keys", "select_houses", "job_identity", "CONF_DIR", "ConfigError"]
+def split_timings(rows: list[dict[str, Any]], results: Sequence[HouseResult]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The rows as ``metrics.csv`` holds them (leading columns first, the rest alphabetical;
+    no traceback and no ``t_*`` timings, which differ from run to run) and ``timings.csv``:
+    per house (same order) ``house_id``, ``cached`` (row served from the cache: its ``t_*``
+    are those of the run that computed it), ``house_s`` (wall seconds in its worker, this
+    run), ``worker`` (``host:pid``) and each ``t_*`` stage time in seconds."""
+    df = pd.DataFrame(rows)
+    timing_cols = sorted(c for c in df.columns if c.startswith("t_"))
+    timings = pd.DataFrame({"house_id": [r.get("house_id") for r in rows],
+                            "cached": [bool(r.cached) for r in results],
+                            "house_s": [round(r.seconds, 6) for r in results],
+                            "worker": [r.worker for r in results]})
+    for c in timing_cols:
+        timings[c] = df[c].to_numpy()
+    df = df.drop(columns=[c for c in ("traceback", *timing_cols) if c in df])
+    lead = [c for c in LEADING_COLUMNS if c in df]
+    return df[lead + sorted(c for c in df.columns if c not in lead)], timings
+
+
+__all__ = ["run", "build_pipeline", "pipeline_from_plain", "choose_executor", "split_timings", "stage_keys", "select_houses", "job_identity", "CONF_DIR", "ConfigError"]

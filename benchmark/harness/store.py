@@ -10,6 +10,8 @@ the cache may live anywhere)::
                                rows (config, house selection, input content); a folder
                                holding another identity is never written into
         metrics.csv            one row per house
+        timings.csv            per house: stage times (t_*, seconds), wall time, worker, and
+                               whether the row was served from the cache
         summary.json           counts, failures, wall time, cache keys, stage names, and
                                per house the content hash of its cache entries
         resolved_config.yaml   the full config, every interpolation resolved
@@ -40,6 +42,8 @@ from typing import Any
 
 #: the files every finished job folder holds.
 METRICS, SUMMARY, CONFIG = "metrics.csv", "summary.json", "resolved_config.yaml"
+#: per-house timings beside metrics.csv (they differ from run to run; the rows do not).
+TIMINGS = "timings.csv"
 #: the job's identity (written first, when the runner claims the folder).
 IDENTITY = "job.json"
 #: what a multirun's summary callback writes into the sweep folder.
@@ -121,7 +125,8 @@ SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
 #: run settings that change nothing in the rows (left out of a job's identity, see
 #: :func:`benchmark.harness.runner.job_identity`, and of the configuration tables compare).
 NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
-                "run.allow_failures", "run.cache_failures", "run.name")
+                "run.allow_failures", "run.cache_failures", "run.name", "run.workers", "run.executor",
+                "run.ray.address")
 
 
 def flat_settings(plain: dict[str, Any]) -> dict[str, Any]:
@@ -152,6 +157,10 @@ class Job:
     @property
     def summary_path(self) -> Path:
         return self.dir / SUMMARY
+
+    @property
+    def timings_path(self) -> Path:
+        return self.dir / TIMINGS
 
     @property
     def config_path(self) -> Path:
@@ -479,4 +488,4 @@ def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
 
 __all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "flat_settings", "fraction_columns",
            "iter_metric_files", "job_dir_for", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS",
-           "SELECTION_KEYS", "SUMMARY", "CONFIG", "IDENTITY", "SWEEP_SUMMARY"]
+           "SELECTION_KEYS", "SUMMARY", "CONFIG", "TIMINGS", "IDENTITY", "SWEEP_SUMMARY"]

@@ -26,7 +26,7 @@ from benchmark.harness.store import SWEEP_SUMMARY, Job, find_jobs
 log = logging.getLogger("roomseg-bench")
 
 #: the process's outcome: jobs run, houses failed, failures allowed (``run.allow_failures``).
-OUTCOME: dict[str, Any] = {"jobs": 0, "n_failed": 0, "allow_failures": False, "errors": []}
+OUTCOME: dict[str, Any] = {"jobs": 0, "n_failed": 0, "allow_failures": False, "errors": [], "died": []}
 
 #: a job that could not run (bad setting, unwritable folder, stage not built) leaves this
 #: one-line file in its Hydra output folder, so that the launching process can report it.
@@ -50,6 +50,12 @@ def record_error(message: str, out_dir: Path) -> None:
         atomic_write_text(Path(out_dir) / JOB_ERROR, message + "\n")
     except OSError:
         pass  # the folder itself is unwritable: the message is in OUTCOME (and the job's log)
+
+
+def record_died(message: str) -> None:
+    """A single run whose worker process died (:class:`benchmark.harness.executor.WorkerDied`):
+    its one-line reason, for an exit status of 1 (in a multirun the launcher ends the sweep)."""
+    OUTCOME["died"].append(message)
 
 
 def clear_error(out_dir: Path) -> None:
@@ -122,5 +128,5 @@ class SweepSummary(Callback):
         print((sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8"), flush=True)
 
 
-__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "clear_error", "record", "record_error", "sweep_table",
+__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "clear_error", "record", "record_died", "record_error", "sweep_table",
            "write_summary"]

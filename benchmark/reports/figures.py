@@ -548,8 +548,12 @@ def _draw(tasks: list[Callable[[], list[Path]]], workers: int | None) -> list[li
     n = max(1, min(n, len(tasks)))
     if n == 1 or sys.platform != "linux":
         return [t() for t in tasks]
+    from benchmark.harness.processes import die_with_parent
+
     _TASKS = tasks
-    pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"))
+    # each drawing process dies with this one (kill -9 here leaves no worker blocked on a pipe)
+    pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"), initializer=die_with_parent,
+                               initargs=(os.getpid(),))
     try:
         return list(pool.map(_draw_one, range(len(tasks))))
     except BaseException:  # Ctrl-C or a failed figure: the figures not started are not drawn

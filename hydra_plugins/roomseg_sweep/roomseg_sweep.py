@@ -1,7 +1,8 @@
 """roomseg-bench's Hydra sweeper and launcher (``hydra/sweeper: grids``, ``hydra/launcher: local``).
 
 Hydra finds plugins only under the ``hydra_plugins`` namespace, so these two classes live
-here; the module imports Hydra and the standard library only (Hydra imports it at start-up).
+here; the module imports Hydra, the standard library and one standard-library-only module of
+the project, :mod:`benchmark.harness.processes` (Hydra imports it at start-up).
 
 ``GridsSweeper`` is Hydra's basic sweeper plus two things:
 
@@ -19,7 +20,18 @@ here; the module imports Hydra and the standard library only (Hydra imports it a
 ``hydra-joblib-launcher``, but its workers are forked from the launching process on Linux, so
 they start with Python, NumPy and the app already imported, and keep their per-process caches
 from job to job. Elsewhere (or with ``start_method: spawn``) they are spawned. Each worker
-composes its own jobs' configs. ``n_jobs: 1`` runs the jobs in the launching process.
+composes its own jobs' configs, and dies with the launching process (``kill -9`` of it leaves
+no worker behind: :mod:`benchmark.harness.processes`, a standard-library-only module).
+
+``n_jobs: 1`` runs the jobs one after another in the launching process, where the app may
+spread each job's houses over one pool of processes shared by every job of the sweep
+(roomseg-bench's ``run.workers``). A job that fails because such a pool lost a process
+(:class:`BrokenProcessPool`) ends the sweep, as a killed launcher worker does. ``n_jobs:
+auto`` chooses between the two by the number of jobs: side by side on as many workers as
+the cores available when the sweep has at least :data:`AUTO_JOBS_PER_CORE` jobs per core
+(every core stays busy, and the few tenths of a second each job spends being composed and
+set up overlap other jobs' work), else one after another (only the houses can use the cores).
+Every job's ``hydra.launcher.n_jobs`` is the number of jobs that really run at once.
 """
 
 from __future__ import annotations
@@ -27,7 +39,7 @@ from __future__ import annotations
 import importlib
 import logging
 import multiprocessing
-import signal
+import os
 import sys
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -52,9 +64,20 @@ from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
+from benchmark.harness.processes import available_cores, worker_init
+
 log = logging.getLogger(__name__)
 
 VALIDATE = ("quick", "all", "none")
+
+#: ``n_jobs: auto`` runs jobs side by side when the sweep has at least this many jobs per core.
+AUTO_JOBS_PER_CORE = 2
+
+
+def auto_jobs(n_jobs_total: int, cores: int) -> int:
+    """``n_jobs: auto``: ``cores`` workers when the sweep has at least
+    :data:`AUTO_JOBS_PER_CORE` jobs per core, else 1 (jobs one after another)."""
+    return cores if n_jobs_total >= AUTO_JOBS_PER_CORE * cores else 1
 
 
 class GridsSweeper(BasicSweeper):
@@ -155,9 +178,9 @@ def check_options(batch: Sequence[Sequence[str]], loader: Any) -> None:
 _SWEEP: tuple[HydraContext, DictConfig, TaskFunction, dict[Any, Any]] | None = None
 
 
-def _init_worker(sweep: tuple | bytes) -> None:
+def _init_worker(sweep: tuple | bytes, parent_pid: int) -> None:
     global _SWEEP
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the launching process's: it stops us
+    worker_init(parent_pid)  # dies with the launching process; Ctrl-C is the launching process's: it stops us
     if isinstance(sweep, bytes):  # spawned: the state comes cloudpickled (the task function is
         import cloudpickle  # the app's undecorated main, which pickle cannot name; as in joblib)
 
@@ -167,8 +190,10 @@ def _init_worker(sweep: tuple | bytes) -> None:
     _SWEEP = sweep  # forked: the parent's objects as they are
 
 
-def _run(idx: int, overrides: Sequence[str]) -> JobReturn:
-    """Compose and run one job in this worker (a config that does not compose fails alone)."""
+def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
+    """Compose and run one job in this worker (a config that does not compose fails alone).
+    ``n_jobs``: the jobs that really run at once (the job's ``hydra.launcher.n_jobs`` says so:
+    fewer jobs than ``n_jobs`` run in this process)."""
     assert _SWEEP is not None
     hydra_context, config, task_function, _ = _SWEEP
     try:
@@ -180,11 +205,21 @@ def _run(idx: int, overrides: Sequence[str]) -> JobReturn:
     with open_dict(cfg):
         cfg.hydra.job.id = f"{cfg.hydra.job.name}_{idx}"
         cfg.hydra.job.num = idx
+        if cfg.hydra.get("launcher") is not None and "n_jobs" in cfg.hydra.launcher:
+            cfg.hydra.launcher.n_jobs = n_jobs
     HydraConfig.instance().set_config(cfg)
     ret = run_job(hydra_context=hydra_context, task_function=task_function, config=cfg,
                   job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
     if ret.status == JobStatus.FAILED:
         ret.return_value = _picklable(ret._return_value)
+    return ret
+
+
+def _raise_if_pool_broken(ret: JobReturn) -> JobReturn:
+    """A job run in this process whose pool of house workers lost a process ends the sweep
+    (as a killed launcher worker does); any other failure is the job's own."""
+    if ret.status == JobStatus.FAILED and isinstance(ret._return_value, BrokenProcessPool):
+        raise ret._return_value
     return ret
 
 
@@ -202,14 +237,18 @@ class LocalLauncher(Launcher):
     """Runs a sweep's jobs on ``n_jobs`` local worker processes (forked on Linux).
 
     Args:
-        n_jobs: worker processes (1: run the jobs in the launching process).
+        n_jobs: worker processes (1: run the jobs in the launching process; ``auto``: see the
+            module docstring).
         start_method: ``fork`` | ``spawn`` | ``forkserver``; None: ``fork`` on Linux, else ``spawn``.
     """
 
-    def __init__(self, n_jobs: int = 2, start_method: str | None = None) -> None:
-        self.n_jobs = int(n_jobs)
-        if self.n_jobs < 1:
-            raise ValueError(f"hydra.launcher.n_jobs must be >= 1, got {n_jobs}")
+    def __init__(self, n_jobs: int | str = "auto", start_method: str | None = None) -> None:
+        try:
+            self.n_jobs: int | None = None if n_jobs == "auto" else int(n_jobs)
+        except (TypeError, ValueError):
+            self.n_jobs = 0
+        if self.n_jobs is not None and self.n_jobs < 1:
+            raise ValueError(f"hydra.launcher.n_jobs must be an integer >= 1 or auto, got {n_jobs!r}")
         methods = multiprocessing.get_all_start_methods()
         if start_method is not None and start_method not in methods:
             raise ValueError(f"hydra.launcher.start_method must be one of {methods}, got {start_method!r}")
@@ -228,16 +267,21 @@ class LocalLauncher(Launcher):
         configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
         sweep_dir.mkdir(parents=True, exist_ok=True)
-        n = min(self.n_jobs, len(job_overrides))
-        log.info(f"Launching {len(job_overrides)} jobs on {n} {self.start_method} worker(s), "
-                 f"sweep output dir: {sweep_dir}")
+        wanted = self.n_jobs if self.n_jobs is not None else auto_jobs(len(job_overrides), available_cores())
+        n = min(wanted, len(job_overrides))
+        if n <= 1:
+            log.info(f"Launching {len(job_overrides)} jobs one after another in this process, "
+                     f"sweep output dir: {sweep_dir}")
+        else:
+            log.info(f"Launching {len(job_overrides)} jobs on {n} {self.start_method} worker(s), "
+                     f"sweep output dir: {sweep_dir}")
         for i, overrides in enumerate(job_overrides):
             log.info(f"\t#{initial_job_idx + i} : {' '.join(filter_overrides(overrides))}")
         _SWEEP = (self.hydra_context, self.config, self.task_function, Singleton.get_state())
         jobs = [(initial_job_idx + i, list(o)) for i, o in enumerate(job_overrides)]
         if n <= 1:
             try:
-                return [_run(i, o) for i, o in jobs]
+                return [_raise_if_pool_broken(_run(i, o, 1)) for i, o in jobs]
             finally:
                 configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         ctx = multiprocessing.get_context(self.start_method)
@@ -249,9 +293,9 @@ class LocalLauncher(Launcher):
             import cloudpickle
 
             state = cloudpickle.dumps(_SWEEP)
-        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state,))
+        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state, os.getpid()))
         try:
-            futures = [pool.submit(mod._run, i, o) for i, o in jobs]
+            futures = [pool.submit(mod._run, i, o, n) for i, o in jobs]
             return [f.result() for f in futures]
         except BrokenProcessPool:
             _stop(pool)

@@ -1,0 +1,69 @@
+"""The scaling benchmark command: its memory probe against processes of known size, and a
+tiny run that prints the table (rows identical across worker counts). No timed assertions."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from procs import NEEDS_PROC, wait_for
+
+from benchmark.commands.scaling import descendants, main, tree_memory
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@NEEDS_PROC
+def test_tree_memory_sums_a_process_tree_of_known_size(tmp_path):
+    """A parent and its forked child, each touching 150 MB of its own: the tree's PSS is at
+    least 300 MB and counts both processes; a shared 150 MB block (touched before the fork)
+    is counted once in PSS and twice in RSS."""
+    code = textwrap.dedent(f"""\
+        import os, time
+        shared = bytearray(150 * 2**20)          # touched (zeroed) by the parent, shared after fork
+        if os.fork() == 0:
+            own = bytearray(150 * 2**20)
+            open({str(tmp_path / 'child')!r}, 'w').write('ready')
+            time.sleep(60)
+            os._exit(0)
+        own = bytearray(150 * 2**20)
+        open({str(tmp_path / 'parent')!r}, 'w').write('ready')
+        time.sleep(60)
+        """)
+    p = subprocess.Popen([sys.executable, "-c", code])
+    try:
+        assert wait_for(lambda: (tmp_path / "child").exists() and (tmp_path / "parent").exists(), timeout=60)
+        pss, rss, n = tree_memory(p.pid)
+        assert n == 2 and len(descendants(p.pid)) == 2
+        mb = 2**20
+        assert 450 * mb <= pss < 600 * mb, pss / mb  # own 150 x 2 + shared 150 once (+ two interpreters)
+        assert rss - pss > 120 * mb, (rss / mb, pss / mb)  # the shared block counted in both RSS
+    finally:
+        for pid in descendants(p.pid)[::-1]:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        p.wait()
+
+
+@pytest.mark.slow
+def test_a_tiny_scaling_run_prints_the_table(tmp_path, capsys):
+    out = tmp_path / "scaling.md"
+    code = main(["--houses", "3", "--workers", "1", "2", "--work", str(tmp_path / "w"), "--out", str(out),
+                 "env.resolution=0.1", "viewpoints.spacing=1.0"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    table = pd.read_csv(out.with_suffix(".csv"))
+    assert table["workers"].tolist() == [1, 2] and (table["houses"] == 3).all()
+    assert (table["rows identical"] == "yes").all() and (table["computed"] == 3).all()
+    assert (table["wall s"] > 0).all() and (table["render ms"] > 0).all() and (table["score ms"] > 0).all()
+    if sys.platform.startswith("linux"):
+        assert table["processes"].tolist() == [1, 3]  # the driver; the driver and its 2 workers
+        assert (table["peak PSS MB"] > 50).all()
+    assert "rows identical" in printed and "peak PSS MB" in out.read_text()

@@ -1,0 +1,269 @@
+"""Houses in parallel within a run (``run.workers``): rows byte-identical to one worker, one
+pool per sweep, and worker processes that never outlive their parent (kill -9), stop at
+once on Ctrl-C, and end the run with one line when one of them is killed."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from procs import NEEDS_PROC, children, gone_within, wait_for
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+#: a run long enough to be caught with its workers busy: generated houses, one configuration
+SLOW_RUN = ["env=synthetic", "env.n_houses=60", "classifier=oracle", "aggregator=vision_cone", "postprocess=default",
+            "run.progress=false"]
+
+
+def _bench(tmp_path: Path, *args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "benchmark.commands.bench", *args,
+                             f"run.results_dir={tmp_path / 'results'}"], cwd=ROOT, env=ENV,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _kill_parent_when_busy(p: subprocess.Popen, n_children: int) -> None:
+    """Wait until ``p`` has its worker processes (and they have scored a house), then kill -9 it."""
+    got = wait_for(lambda: len(children(p.pid)) >= n_children, timeout=120)
+    if not got:
+        p.kill()
+        _, err = p.communicate(timeout=30)
+        pytest.fail(f"the workers never appeared (exit {p.returncode}): {err[-1500:]}")
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=30)
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["run", "multirun"])
+def test_kill9_of_the_parent_leaves_no_worker(tmp_path, mode):
+    """kill -9 of a run (or a multirun: its shared pool) with 2 house workers: no process of
+    it is alive 5 s later (the workers die with their parent; issue #24)."""
+    args = ["-m", "classifier.accuracy=0.8,0.9", "hydra.launcher.n_jobs=1"] if mode == "multirun" else []
+    p = _bench(tmp_path, *args, *SLOW_RUN, "run.workers=2")
+    _kill_parent_when_busy(p, 2)
+    assert gone_within(p.pid, 5.0) == []
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+def test_kill9_of_figures_leaves_no_drawing_process(tmp_path):
+    """The drawing processes of ``figures from-run`` (its pool, busy with long tasks) die with it."""
+    code = ("import functools, time\nfrom benchmark.reports.figures import _draw\n"
+            "_draw([functools.partial(time.sleep, 60)] * 4, 2)\n")
+    p = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    _kill_parent_when_busy(p, 2)
+    assert gone_within(p.pid, 5.0) == []
+
+
+def _houses(tmp_path: Path, procthor_file: Path, n: int) -> Path:
+    """The first ``n`` shared ProcTHOR houses as a small house file."""
+    import gzip
+
+    with gzip.open(procthor_file, "rt") as f:
+        lines = [next(f).strip() for _ in range(n)]
+    path = tmp_path / "houses.jsonl"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _job(tmp_path: Path, name: str, *overrides: str):
+    from benchmark.config import compose_job
+    from benchmark.harness.runner import run
+
+    cfg, ch = compose_job(["classifier=oracle", "aggregator=vision_cone", "viewpoints.spacing=1.0",
+                           "env.resolution=0.1", f"run.results_dir={tmp_path / name}", "run.progress=false",
+                           *overrides])
+    df = run(cfg, tmp_path / name / "job", ch)
+    return Path(df.attrs["job_dir"])
+
+
+@pytest.mark.slow
+def test_one_and_two_workers_write_the_same_metrics(tmp_path, procthor_file):
+    """metrics.csv is the same bytes with 1 and 2 workers from an empty cache (shared houses),
+    and again when the 2-worker rerun serves every row from the cache; the timings, which
+    differ, are in timings.csv beside it."""
+    houses = _houses(tmp_path, procthor_file, 4)
+    env = ["env=procthor_shared", f"env.path={houses}", "env.start=0"]
+    one = _job(tmp_path, "one", *env, "run.workers=1")
+    two = _job(tmp_path, "two", *env, "run.workers=2")
+    assert (one / "metrics.csv").read_bytes() == (two / "metrics.csv").read_bytes()
+    metrics = pd.read_csv(two / "metrics.csv")
+    assert len(metrics) == 4 and (metrics["status"] == "ok").all()
+    assert not [c for c in metrics if c.startswith("t_")]
+    timings = pd.read_csv(two / "timings.csv")
+    assert timings["house_id"].tolist() == metrics["house_id"].tolist()
+    assert {"cached", "house_s", "worker", "t_render", "t_classify", "t_aggregate", "t_score"} <= set(timings)
+    assert not timings["cached"].any() and (timings["house_s"] > 0).all()
+    assert timings["worker"].nunique() == 2 and str(os.getpid()) not in " ".join(timings["worker"])
+    summary = json.loads((two / "summary.json").read_text())
+    assert summary["executor"] == "local" and summary["workers"] == 2 and summary["n_cached"] == 0
+    assert summary["contents"] == json.loads((one / "summary.json").read_text())["contents"]
+    assert json.loads((one / "summary.json").read_text())["executor"] == "serial"
+    again = _job(tmp_path, "two", *env, "run.workers=2")
+    assert again == two and (again / "metrics.csv").read_bytes() == (one / "metrics.csv").read_bytes()
+    assert pd.read_csv(again / "timings.csv")["cached"].all()
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+def test_a_sweep_shares_one_pool_of_workers(tmp_path):
+    """A multirun whose jobs run in the launching process (n_jobs=1) sends every job's houses to
+    one pool of run.workers processes (the same pids in both jobs); with the launcher's own
+    workers (n_jobs=2) each job runs its houses in its worker: never n_jobs x run.workers."""
+    def sweep(name: str, n_jobs: int) -> list[tuple[dict, pd.DataFrame]]:
+        r = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "-m", "aggregator=graph_knn,vision_cone",
+                            "env=synthetic", "env.n_houses=4", "env.resolution=0.1", "viewpoints.spacing=1.0",
+                            "classifier=oracle", "run.workers=2", f"hydra.launcher.n_jobs={n_jobs}", f"run.name={name}",
+                            f"run.results_dir={tmp_path}", "run.progress=false"],
+                           cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
+        jobs = sorted((tmp_path / "runs" / name).glob("*/summary.json"))
+        assert len(jobs) == 2
+        return [(json.loads(j.read_text()), pd.read_csv(j.parent / "timings.csv")) for j in jobs]
+
+    shared = sweep("shared", 1)
+    assert [s["executor"] for s, _ in shared] == ["local", "local"]
+    pids = [set(t["worker"]) for _, t in shared]
+    assert len(pids[0]) == 2 and pids[0] == pids[1]
+    side_by_side = sweep("side", 2)
+    assert [s["executor"] for s, _ in side_by_side] == ["serial", "serial"]
+    assert all(t["worker"].nunique() == 1 for _, t in side_by_side)
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["run", "multirun"])
+def test_ctrl_c_stops_every_worker_at_once(tmp_path, mode):
+    """Ctrl-C (SIGINT to the process group) of a run (or a multirun's shared pool) with 2
+    workers: exit 130 within seconds, one line, no process left; the houses scored so far are
+    cached."""
+    args = ["-m", "classifier.accuracy=0.8,0.9", "hydra.launcher.n_jobs=1"] if mode == "multirun" else []
+    p = _bench(tmp_path, *args, *SLOW_RUN, "run.workers=2")
+    scores = tmp_path / "results" / "cache" / "scores"
+    assert wait_for(lambda: len(children(p.pid)) >= 2 and list(scores.rglob("*.json")), timeout=180), \
+        "no house was scored"
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=15)
+    assert p.returncode == 130, err[-2000:]
+    lines = [ln for ln in err.splitlines() if ln.startswith("roomseg-bench:")]
+    assert len(lines) == 1 and "interrupted" in lines[0] and "Traceback" not in err, err[-2000:]
+    assert gone_within(p.pid, 5.0) == []
+    assert list(scores.rglob("*.json"))
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["run", "multirun"])
+def test_a_killed_worker_ends_the_run_naming_it_and_the_rerun_goes_on(tmp_path, mode):
+    """kill -9 of one house worker: the run (or the whole multirun) ends, exit 1, with one line
+    naming the worker and the job, and no process is left; the same command then finishes,
+    serving the houses already scored."""
+    args = ["-m", "classifier.accuracy=0.8,0.9", "hydra.launcher.n_jobs=1"] if mode == "multirun" else []
+    p = _bench(tmp_path, *args, *SLOW_RUN, "run.workers=2")
+    scores = tmp_path / "results" / "cache" / "scores"
+    got = wait_for(lambda: len(children(p.pid)) >= 2 and list(scores.rglob("*.json")) and children(p.pid), timeout=180)
+    assert got, "no house was scored"
+    victim = children(p.pid)[0]
+    os.kill(victim, signal.SIGKILL)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 1, err[-2000:]
+    lines = [ln for ln in err.splitlines() if ln.startswith("roomseg-bench:")]
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1, err[-2000:]
+    assert len(lines) == 1 and f"pid {victim}, killed by SIGKILL" in lines[0], err[-2000:]
+    assert str(tmp_path / "results" / "runs" / "default") in lines[0] and "goes on" in lines[0]
+    assert gone_within(p.pid, 5.0) == []
+    if mode == "multirun":
+        assert not list((tmp_path / "results" / "runs" / "default").rglob("summary.json"))  # the sweep ended
+        return
+    n_scored = len(list(scores.rglob("*.json")))
+    again = _bench(tmp_path, *SLOW_RUN, "run.workers=2")
+    _, err = again.communicate(timeout=600)
+    assert again.returncode == 0, err[-2000:]
+    summary = json.loads((tmp_path / "results" / "runs" / "default" / "summary.json").read_text())
+    assert summary["n_ok"] == 60 and summary["n_cached"] >= n_scored > 0
+
+
+@pytest.mark.slow
+def test_a_stage_error_in_a_worker_is_one_line_exit_2(tmp_path):
+    """A classifier that refuses the houses (training houses evaluated) fails in the workers:
+    one line, exit status 2, as in one process."""
+    p = _bench(tmp_path, "env=synthetic", "env.n_houses=4", "env.resolution=0.1", "viewpoints.spacing=1.0",
+               "classifier=objects", "classifier.train_synthetic=[0,3]", "run.workers=2", "run.progress=false")
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 2, err[-2000:]
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "training house(s) are also evaluated" in lines[0], err[-2000:]
+
+
+def test_worker_settings_are_checked_and_change_no_job_identity():
+    from benchmark.config import compose_job
+    from benchmark.harness.checks import ConfigError, check_config
+    from benchmark.harness.runner import job_identity
+
+    for bad, what in (("run.workers=0", "run.workers=0: expected an integer >= 1, or null"),
+                      ("run.executor=threads", "run.executor='threads': expected one of 'local', 'ray'"),
+                      ("run.ray.address=nowhere", "run.ray={'address': 'nowhere'}: expected a mapping with address")):
+        cfg, _ = compose_job([bad])
+        with pytest.raises(ConfigError, match=re.escape(what)):
+            check_config(cfg)
+    base, _ = compose_job([])
+    other, _ = compose_job(["run.workers=3", "run.executor=ray", "run.ray.address=auto"])
+    check_config(other)
+    assert job_identity(base, ["a"])[0] == job_identity(other, ["a"])[0]
+
+
+@NEEDS_PROC
+@pytest.mark.parametrize("use_prctl", [True, False])
+def test_die_with_parent(tmp_path, use_prctl):
+    """A process that called die_with_parent ends when its parent is killed: by the kernel
+    (prctl) or by its watching thread (the fallback where prctl is unavailable)."""
+    code = textwrap.dedent(f"""\
+        import os, time
+        parent = os.getpid()
+        if os.fork() == 0:
+            from benchmark.harness.processes import die_with_parent
+            how = die_with_parent(parent, use_prctl={use_prctl}, poll_s=0.1)
+            open({str(tmp_path / 'how')!r}, 'w').write(how)
+            time.sleep(120)
+            os._exit(0)
+        time.sleep(120)
+        """)
+    p = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=ENV, start_new_session=True)
+    assert wait_for(lambda: (tmp_path / "how").exists() and (tmp_path / "how").read_text(), timeout=60)
+    assert (tmp_path / "how").read_text() == ("prctl" if use_prctl and sys.platform.startswith("linux") else "watch")
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=30)
+    assert gone_within(p.pid, 5.0) == []
+
+
+def test_a_killed_pools_spec_folder_is_removed_by_the_next_pool(tmp_path, monkeypatch):
+    """A pool killed with its process leaves its folder of job specs; the next pool removes
+    the folders of pools whose process is gone, and keeps those of living ones."""
+    import tempfile
+
+    from benchmark.harness.executor import LocalPool
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    gone = tmp_path / f".roomseg-pool.tmp-{int(dead.stdout)}-abc"
+    living = tmp_path / f".roomseg-pool.tmp-{os.getppid()}-def"
+    for d in (gone, living):
+        d.mkdir()
+        (d / "x.pkl").write_bytes(b"spec")
+    pool = LocalPool(1)
+    try:
+        assert not gone.exists() and living.exists()
+        assert pool._dir.parent == tmp_path and pool._dir.name.startswith(f".roomseg-pool.tmp-{os.getpid()}-")
+    finally:
+        pool.close()
+    assert not pool._dir.exists()
