@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env clean
+.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env scaling clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -89,6 +89,9 @@ rose2-env:  ## ROSE²'s isolated environment in .venv-rose2 (then: segmenter=ros
 
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
 	$(PY) -m benchmark.commands.readme_tables write
+
+scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000 generated houses on 1 and 2 workers
+	$(PY) -m benchmark.commands.scaling --houses 100 1000 --workers 1 2
 
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf
