@@ -61,12 +61,12 @@ def test_rank_notes_say_who_leads_and_whether_geometry_overtakes():
     t = summary_table(cell_means(_rows(), "iou"), reference="A")
     cells = cell_means(_rows(), "iou")
     notes = rank_notes(t, geometric=["A"], cells=cells)
-    assert notes[0] == "clean: B first (95.0); best view-based 95.0 vs best geometric 90.0 (view-based ahead)"
+    assert notes[0] == "clean: B first (95.0); best view-based 95.0, best geometric 90.0 (view-based ahead)"
     # pose: B (60) below A (85) at every severity, but above it clean: the ranking flips at severity 1
-    assert notes[2] == ("pose error: A first (85.0, mean over severities); best view-based 60.0 vs best geometric "
-                        "85.0 (geometric ahead); by severity: view-based at severity 0, geometric at severities 1-5")
-    assert notes[1] == ("scan map: B first (80.0, mean over severities); best view-based 80.0 vs best geometric "
-                        "60.0 (view-based ahead)")  # ahead at every severity: no flip to report
+    assert notes[2] == ("pose error: A first (85.0); best view-based 60.0, best geometric 85.0 (view-based ahead "
+                        "at severity 0, geometric ahead at severities 1-5)")
+    assert notes[1] == ("scan map: B first (80.0); best view-based 80.0, best geometric 60.0 "
+                        "(view-based ahead)")  # ahead at every severity: no flip to report
 
 
 def test_cells_never_mix_house_sets_or_hide_failures():

@@ -5,12 +5,18 @@
     roomseg-bench -m aggregator=graph_knn,vision_cone postprocess=none,default
     roomseg-bench experiment=table4                 # a paper table's sweep
 
-Exit status: 0 when every house of every job succeeded; 1 when any house failed (after
-every row is written; ``run.allow_failures=true`` exits 0) or a worker process was killed (a
-sweep worker, or one of the processes running a job's houses, ``run.workers``);
-2 when nothing ran: a bad setting, a config that does not compose, an unwritable folder, no
-house selected, or a stage that cannot be built; 130 when interrupted (Ctrl-C stops every
-worker at once). Errors are one line on stderr.
+Exit status (one line on stderr for every error):
+
+* 0: every house of every job succeeded;
+* 1: some house failed (after every row is written; ``run.allow_failures=true`` exits 0), or a
+  worker process was killed (a sweep worker, or one of the processes running a job's houses,
+  ``run.workers``);
+* 2: nothing ran: a bad setting, a config that does not compose, an unwritable folder, no house
+  selected, a stage that cannot be built, or a job that could not write its results (a full
+  disk: the line names the file) when no job finished;
+* 3: some jobs finished and their results are complete, but others could not write theirs (a
+  full disk): the line names the file and counts both;
+* 130: interrupted (Ctrl-C stops every worker at once).
 """
 
 from __future__ import annotations
@@ -41,6 +47,8 @@ def app(cfg: DictConfig) -> float:
     try:
         df = run(cfg, out_dir)
     except (ConfigError, StageError) as e:  # nothing ran: one line, and exit status 2 at the end
+        if HydraConfig.get().mode == RunMode.MULTIRUN:
+            raise  # the job fails; the launching process reports it with the others (main)
         sweep.record_error(_one_line(e), out_dir)
         return float("nan")
     except WorkerDied as e:  # a house worker died: one line, exit status 1 (a multirun's launcher ends the sweep)
@@ -51,6 +59,20 @@ def app(cfg: DictConfig) -> float:
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
     ok = df[df["status"] == "ok"] if "status" in df else df
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
+
+
+def _finished_jobs() -> tuple[int, int]:
+    """(jobs of this process's multirun that completed, jobs launched), from the local
+    launcher's record of its job returns ((0, 0) for a single run, or another launcher)."""
+    import importlib
+
+    from hydra.core.utils import JobStatus
+
+    try:
+        launched = importlib.import_module("hydra_plugins.roomseg_sweep.roomseg_sweep").LAUNCHED
+    except (ImportError, AttributeError):
+        return 0, 0
+    return sum(r.status == JobStatus.COMPLETED for r in launched), len(launched)
 
 
 def _one_line(e: BaseException) -> str:
@@ -68,12 +90,10 @@ def main() -> int:
     try:
         check_run_overrides(sys.argv[1:])  # run.<typo> or +run.<typo>: refused before Hydra writes anything
         app()
-    except (ConfigError, StageError) as e:
-        print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
-        return 2
-    except (HydraException, OmegaConfBaseException) as e:
-        print(f"{PROG}: config error: {_one_line(e).split(' full_key:')[0]}", file=sys.stderr)
-        return 2
+    except (ConfigError, StageError, HydraException, OmegaConfBaseException, OSError) as e:
+        if _finished_jobs()[1]:  # a multirun whose jobs ran: report every failed job, count the finished
+            return _report_sweep(e)
+        return _report_error(e)
     except BrokenProcessPool as e:  # a sweep worker was killed (the local launcher says which sweep)
         print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
         return 1
@@ -81,10 +101,55 @@ def main() -> int:
         print(f"{PROG}: interrupted; the houses already scored are cached, so the same command "
               f"goes on from there", file=sys.stderr)
         return 130
-    except OSError as e:
-        where = e.filename or ""
-        print(f"{PROG}: error: cannot write {where} ({e.strerror or e})", file=sys.stderr)
+    return _outcome()
+
+
+def _report_error(e: BaseException) -> int:
+    """One line for an error of a single run (or before any job ran); the exit status."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    if isinstance(e, (ConfigError, StageError)):
+        print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
         return 2
+    if isinstance(e, (HydraException, OmegaConfBaseException)):
+        print(f"{PROG}: config error: {_one_line(e).split(' full_key:')[0]}", file=sys.stderr)
+        return 2
+    print(f"{PROG}: error: {_write_error(e)}", file=sys.stderr)
+    return 2
+
+
+def _write_error(e: BaseException) -> str:
+    from benchmark.harness.write_errors import failed_path
+
+    where = failed_path(e)
+    return f"cannot write{' ' + where if where else ''} ({getattr(e, 'strerror', None) or e})"
+
+
+def _report_sweep(first: BaseException) -> int:
+    """A multirun some of whose jobs failed (a job's config, a stage, a file it could not
+    write): one line per distinct failure, then whether any job finished. Exit status 3 when
+    some jobs finished (their results are complete), 2 when none did."""
+    import importlib
+
+    from hydra.core.utils import JobStatus
+
+    launched = importlib.import_module("hydra_plugins.roomseg_sweep.roomseg_sweep").LAUNCHED
+    failed = [r._return_value for r in launched if r.status != JobStatus.COMPLETED]
+    lines = [(_write_error(f) if isinstance(f, OSError) else _one_line(f)) for f in (failed or [first])]
+    for msg in dict.fromkeys(lines):
+        print(f"{PROG}: error: {msg}", file=sys.stderr)
+    done, total = _finished_jobs()
+    sweep.write_summary_after_failure()
+    if done:
+        print(f"{PROG}: {done} of {total} job(s) finished and their results are complete; {total - done} could "
+              f"not run or write theirs (above)", file=sys.stderr)
+        return 3
+    return 2
+
+
+def _outcome() -> int:
+    """The exit status of a run or multirun that ended normally, from :data:`sweep.OUTCOME`."""
     out = sweep.OUTCOME
     if out["died"]:
         print(f"{PROG}: error: {out['died'][0]}", file=sys.stderr)

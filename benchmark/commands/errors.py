@@ -18,3 +18,4 @@ def cli_errors() -> tuple[type[BaseException], ...]:
     from hydra.errors import HydraException  # noqa: PLC0415
 
     return (ImportError, RuntimeError, OSError, ValueError, KeyError, HydraException)
+

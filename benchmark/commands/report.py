@@ -24,6 +24,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:  # a full disk, a read-only folder: one line naming the file
+        from benchmark.harness.write_errors import failed_path
+
+        print(f"error: cannot write {failed_path(e) or a.out} ({e.strerror or e})", file=sys.stderr)
+        return 2
     print(out)
     return 0
 

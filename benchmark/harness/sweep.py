@@ -108,6 +108,21 @@ def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
     return table
 
 
+#: the multirun of this process (its folder and start time), for a summary after a failure.
+_STARTED: dict[str, Any] = {}
+
+
+def write_summary_after_failure() -> None:
+    """Write the sweep summary of this process's multirun when a failed job stopped Hydra's
+    sweeper before its end callback (best effort: a full disk may refuse it too)."""
+    if "dir" not in _STARTED:
+        return
+    try:
+        write_summary(_STARTED["dir"], since=_STARTED["t0"])
+    except OSError:
+        pass
+
+
 class SweepSummary(Callback):
     """Hydra callback: at the end of a multirun, print and write the sweep's job table."""
 
@@ -116,6 +131,7 @@ class SweepSummary(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         self.t0 = time.time() - 1.0  # file times may be coarse
+        _STARTED.update(dir=Path(str(config.hydra.sweep.dir)), t0=self.t0)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))

@@ -229,7 +229,7 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str])
         tables = {m: rb.summary_table(c, rb.REFERENCE) for m, c in cells.items()}
         t = tables["matched_iou"]
         fams = [f for f in rb.FAMILIES if f in t.columns]
-        show = t[["clean", *fams, "mCE"]].copy()
+        show = t.loc[[m for m in t.index if m not in rb.SANITY], ["clean", *fams, "mCE"]].copy()  # sanity rows: docs
         show["mCE (paper IoU)"] = tables["iou"]["mCE"]
         show = show.rename(columns={f: rb.FAMILY_WORDS[f] for f in fams})
         n = int(cells["matched_iou"]["n"].iloc[0])
@@ -238,8 +238,7 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str])
         notes = rb.rank_notes(t.loc[ranked], rb.GEOMETRIC, sane)
         out += [f"**{formatting.value_label('dataset', dataset)}** ({n} houses per cell; matched IoU in percent, "
                 f"conditions averaged over their severities 1-5; mCE relative to {rb.REFERENCE}, lower is better):",
-                "", rb.to_markdown(show).rstrip(), "", "What it shows (matched IoU):", "",
-                *[f"- {x}" for x in notes], ""]
+                "", rb.to_markdown(show).rstrip(), "", *[f"- {x}" for x in notes], ""]
     return "\n".join(out) + _source_line(root, sources) + "\n"
 
 

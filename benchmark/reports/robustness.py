@@ -141,21 +141,19 @@ def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFram
     for col in ("clean", *fams):
         first = table[col].idxmax()
         words = FAMILY_WORDS.get(col, col)
-        line = (f"{words}: {first} first ({table.loc[first, col]:.1f}"
-                + (")" if col == "clean" else ", mean over severities)"))
+        line = f"{words}: {first} first ({table.loc[first, col]:.1f})"
         if geo and view:
             g, w = table.loc[geo, col].max(), table.loc[view, col].max()
-            line += (f"; best view-based {w:.1f} vs best geometric {g:.1f}"
-                     f" ({'view-based ahead' if w > g else 'geometric ahead' if g > w else 'tied'})")
-            if cells is not None and col != "clean":
-                line += _flip(cells, col, geo, view)
+            line += f"; best view-based {w:.1f}, best geometric {g:.1f}"
+            flip = _flip(cells, col, geo, view) if cells is not None and col != "clean" else ""
+            line += flip or f" ({'view-based ahead' if w > g else 'geometric ahead' if g > w else 'tied'})"
         notes.append(line)
     return notes
 
 
 def _flip(cells: pd.DataFrame, family: str, geo: Sequence[str], view: Sequence[str]) -> str:
-    """", view-based ahead at severities 0-2, geometric at 3-5" (or "" when one side leads at
-    every severity)."""
+    """" (view-based ahead at severities 0-2, geometric ahead at severities 3-5)" (or "" when
+    one side leads at every severity)."""
     v = cells.set_index(["method", "corruption", "severity"])["value"]
     sev = [0, *sorted(cells.loc[cells["corruption"] == family, "severity"].unique())]
     ahead = []
@@ -170,9 +168,9 @@ def _flip(cells: pd.DataFrame, family: str, geo: Sequence[str], view: Sequence[s
     for i in range(1, len(sev) + 1):
         if i == len(sev) or ahead[i] != ahead[start]:
             span = f"{sev[start]}" if i - 1 == start else f"{sev[start]}-{sev[i - 1]}"
-            runs.append(f"{ahead[start]} at severit{'y' if i - 1 == start else 'ies'} {span}")
+            runs.append(f"{ahead[start]} ahead at severit{'y' if i - 1 == start else 'ies'} {span}")
             start = i
-    return "; by severity: " + ", ".join(runs)
+    return " (" + ", ".join(runs) + ")"
 
 
 def to_markdown(table: pd.DataFrame, decimals: int = 1) -> str:

@@ -65,6 +65,7 @@ from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
 from benchmark.harness.processes import available_cores, worker_init
+from benchmark.harness.write_errors import naming_the_file
 
 log = logging.getLogger(__name__)
 
@@ -190,6 +191,10 @@ def _init_worker(sweep: tuple | bytes, parent_pid: int) -> None:
     _SWEEP = sweep  # forked: the parent's objects as they are
 
 
+#: every job this process's launchers ran, in order (status and return value or error).
+LAUNCHED: list[JobReturn] = []
+
+
 def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
     """Compose and run one job in this worker (a config that does not compose fails alone).
     ``n_jobs``: the jobs that really run at once (the job's ``hydra.launcher.n_jobs`` says so:
@@ -208,10 +213,14 @@ def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
         if cfg.hydra.get("launcher") is not None and "n_jobs" in cfg.hydra.launcher:
             cfg.hydra.launcher.n_jobs = n_jobs
     HydraConfig.instance().set_config(cfg)
-    ret = run_job(hydra_context=hydra_context, task_function=task_function, config=cfg,
-                  job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
-    if ret.status == JobStatus.FAILED:
-        ret.return_value = _picklable(ret._return_value)
+    try:
+        ret = run_job(hydra_context=hydra_context, task_function=task_function, config=cfg,
+                      job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
+    except Exception as e:  # noqa: BLE001 - Hydra's own job set-up failed (e.g. a full disk): this job only
+        ret = JobReturn(overrides=list(overrides), status=JobStatus.FAILED)
+        ret.return_value = naming_the_file(e)
+    if ret.status == JobStatus.FAILED:  # sent to the launching process: no traceback goes with it
+        ret.return_value = _picklable(naming_the_file(ret._return_value))
     return ret
 
 
@@ -261,6 +270,14 @@ class LocalLauncher(Launcher):
         self.config, self.hydra_context, self.task_function = config, hydra_context, task_function
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
+        """Run the jobs; their returns are also kept in :data:`LAUNCHED` (the launching process
+        reads them to tell "some jobs finished" from "nothing ran" when a job failed)."""
+        returns = self._launch(job_overrides, initial_job_idx)
+        # the module object in sys.modules (Hydra's plugin scan may have loaded this file as another)
+        importlib.import_module(__name__).LAUNCHED.extend(returns)
+        return returns
+
+    def _launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
         global _SWEEP
         setup_globals()
         assert self.config is not None and self.hydra_context is not None and self.task_function is not None
