@@ -26,6 +26,7 @@ NOT_INSTANTIATED = {
     ("classifier", "dinov2"): "needs DINOv2 weights from the hub and a trained head",
     ("classifier", "vlm"): "needs Qwen2.5-VL weights from the hub",
     ("classifier", "labels"): "needs the user's per-view label file",
+    ("segmenter", "rose2"): "needs a ROSE2 checkout (tests/test_rose2.py builds it on a stand-in package)",
     ("renderer", "images"): "needs the user's image folder",
     ("viewpoints", "file"): "needs the user's pose file",
 }

@@ -52,7 +52,8 @@ def geometric_rows(gt_paths: dict[str, Path], occupancy_paths: dict[str, Path], 
         params: metric and colour rules.
         resolution: metres per pixel of both images.
         dataset: value of the ``dataset`` column.
-        segmenters: name -> segmenter (default: morphological, distance, voronoi).
+        segmenters: name -> segmenter (default: morphological, distance, voronoi; ROSE² is added by
+            the command when a checkout is given).
     Returns: DataFrame, one row per (map, segmenter), columns as external scoring.
     """
     from benchmark.baselines.external import read_gt
@@ -84,6 +85,7 @@ def geometric_rows(gt_paths: dict[str, Path], occupancy_paths: dict[str, Path], 
                 if err:
                     raise RuntimeError(err)
                 row.update(score_instances(seg(grid), gt, params, resolution=resolution))
+                row.update(getattr(seg, "last_info", None) or {})  # e.g. ROSE²'s seconds (t_rose2)
             except Exception as e:  # one map fails alone
                 row.update(status="failed", error=err or f"{type(e).__name__}: {e}")
             rows.append(row)

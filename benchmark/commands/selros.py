@@ -15,6 +15,7 @@ Map ids come from the ground-truth file names by the rule ``--gt-pattern`` (defa
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -54,6 +55,9 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"occupancy maps for the geometric baselines (default: DATA/{OCCUPANCY_FOLDER})")
     ap.add_argument("--occupancy-pattern", default=None, help=f"their file rule (default {OCCUPANCY_PATTERN})")
     ap.add_argument("--no-geometric", action="store_true", help="leave out the geometric baselines")
+    ap.add_argument("--rose2", default=os.environ.get("ROOMSEG_ROSE2"),
+                    help="a ROSE2 checkout: add its row, run here (make rose2-env; default $ROOMSEG_ROSE2)")
+    ap.add_argument("--rose2-python", default=None, help="the ROSE2 environment's python (default .venv-rose2)")
     ap.add_argument("--no-sanity", action="store_true", help="leave out one_room, gt_geometry and grid")
     ap.add_argument("--out", type=Path, default=None, help="folder for metrics.csv and table5.md")
     a, rest = ap.parse_known_args(argv)
@@ -78,7 +82,16 @@ def main(argv: list[str] | None = None) -> int:
             gts = _glob_ids(data / GT_FOLDER, a.gt_pattern)
             occ_dir = a.occupancy_dir or data / OCCUPANCY_FOLDER
             occ = _glob_ids(occ_dir, a.occupancy_pattern or OCCUPANCY_PATTERN)
-            frames.append(geometric_rows(gts, occ, params, res))
+            segs = None
+            if a.rose2:
+                from benchmark.segmenters.distance import DistanceTransform
+                from benchmark.segmenters.morphological import Morphological
+                from benchmark.segmenters.rose2 import Rose2
+                from benchmark.segmenters.voronoi import Voronoi
+
+                segs = {"morphological": Morphological(), "distance": DistanceTransform(), "voronoi": Voronoi(),
+                        "rose2": Rose2(checkout=a.rose2, python=a.rose2_python)}
+            frames.append(geometric_rows(gts, occ, params, res, segmenters=segs))
     except Exception as e:
         cause = e.__cause__ if type(e).__name__ == "InstantiationException" and e.__cause__ else e
         if isinstance(cause, (FileNotFoundError, ValueError)):
