@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env scaling clean
+.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -73,6 +73,15 @@ robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	/usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
 	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --command "make robustness" --columns robustness
+
+# make leaderboard: every method on the same maps (shared ProcTHOR houses from 75, after the
+# objects_procthor classifier's training houses): view-based methods, geometric segmenters,
+# sanity rows, and ROSE² with ROSE2=<checkout>; the Table V-style table -> results/leaderboard.
+LEADER_HOUSES ?= 20
+leaderboard: setup  ## Table V-style leaderboard on the shared ProcTHOR maps (ROSE2=<checkout> adds ROSE²) -> results/leaderboard
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=leaderboard run.limit=$(LEADER_HOUSES) run.results_dir=$(RESULTS)
+	$(if $(ROSE2),ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench env=procthor_shared env.start=75 segmenter=rose2 segmenter.checkout=$(ROSE2) run.name=leaderboard run.limit=$(LEADER_HOUSES) run.results_dir=$(RESULTS) hydra.run.dir=$(RESULTS)/runs/leaderboard/rose2 run.allow_failures=true,@echo "ROSE2 not set: no ROSE² row (make rose2-env, then make leaderboard ROSE2=<checkout>)")
+	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/leaderboard --table table5 --out results/leaderboard
 
 # ROSE² (segmenter=rose2) runs from your own checkout in an isolated environment with the
 # versions it needs: its requirements.txt as they install today on Python 3.11 (shapely < 2 for

@@ -51,6 +51,26 @@ def compose_job(overrides: Sequence[str] = (), config_name: str = "config"):
 
 
 
+def quote_braces(overrides: Sequence[str]) -> list[str]:
+    """Overrides as users type them, made readable by Hydra's parser: an unquoted value holding
+    a ``{name}`` placeholder (``external.pred_pattern={id}_rooms.png``,
+    ``viewpoints.path=poses/{house_id}.csv``), which Hydra would parse as a dictionary, is
+    quoted; everything else passes unchanged.
+
+    Returns:
+        The overrides, in order."""
+    import re  # noqa: PLC0415
+
+    out = []
+    for o in overrides:
+        key, eq, value = o.partition("=")
+        if (eq and not key.startswith("-") and re.search(r"\{[A-Za-z_][A-Za-z0-9_]*\}", value)
+                and value[:1] not in ("'", '"') and not re.match(r"^\{\s*[A-Za-z_]\w*\s*:", value)):
+            value = "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
+        out.append(f"{key}{eq}{value}")
+    return out
+
+
 def valid_keys_hint(error: BaseException, overrides: Sequence[str], config_name: str = "config") -> str:
     """A hint for an override Hydra refused: the valid keys of the node a misspelt key sits in
     (``aggregator.kk=3`` -> the aggregator's keys), or the options of a group that has no such
@@ -99,4 +119,4 @@ def valid_keys_hint(error: BaseException, overrides: Sequence[str], config_name:
     return f"; valid keys{' of ' + parent if parent else ''}: {', '.join(map(str, keys))}"
 
 
-__all__ = ["compose", "compose_job", "valid_keys_hint", "CONF_DIR"]
+__all__ = ["compose", "compose_job", "quote_braces", "valid_keys_hint", "CONF_DIR"]

@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 
 from benchmark.commands.tables import main as tables_main
-from benchmark.harness.cache import atomic_folder, atomic_write_json, write_entry
-from envs.atomic import atomic_write_bytes, atomic_write_text
+from benchmark.harness.cache import atomic_write_json, write_entry
+from envs.atomic import atomic_folder, atomic_write_bytes, atomic_write_text
 from envs.maps.label_png import write_label_png
 from envs.npz import save_npz
 from envs.render.cache import write_observations

@@ -378,13 +378,15 @@ def failures(df: pd.DataFrame) -> pd.DataFrame:
 
 def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note: str = "",
            resolution: float | None = None) -> str:
-    """Write ``df`` as ``out/metrics.csv`` and ``out/table5.md`` (when given) and print its
-    Table V-style summary, the metric parameters, then every failed/missing map.
+    """Write ``df`` as ``out/metrics.csv`` (per map) and its Table V-style summary as
+    ``out/table5.md``, ``table5.csv`` and ``table5.tex`` (when ``out`` is given; the set written
+    as a whole), and print the summary, the metric parameters, then every failed/missing map.
 
     Returns: the printed text."""
     from envs.atomic import atomic_write_text  # noqa: PLC0415
 
-    text = summary_table(df).to_markdown(index=False)
+    summary = summary_table(df)
+    text = summary.to_markdown(index=False)
     text += (f"\n\nMean ± std over maps, percent; segments, count error (segments - rooms) and unassigned "
              f"pixels (prediction pixels of not-a-room colours) are means. Metrics: "
              f"{describe(params, resolution, colours=True)}{note}\n")
@@ -395,7 +397,14 @@ def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note
     if unpaired:
         text += f"\nPredictions with no ground-truth map ({len(unpaired)}): " + ", ".join(unpaired) + "\n"
     if out:
-        atomic_write_text(Path(out) / "metrics.csv", df.to_csv(index=False))
-        atomic_write_text(Path(out) / "table5.md", text)
+        from envs.atomic import atomic_folder  # noqa: PLC0415
+
+        with atomic_folder(out) as tmp:
+            atomic_write_text(tmp / "metrics.csv", df.to_csv(index=False))
+            atomic_write_text(tmp / "table5.md", text)
+            atomic_write_text(tmp / "table5.csv", summary.to_csv(index=False))
+            atomic_write_text(tmp / "table5.tex", summary.to_latex(index=False, escape=True, caption=(
+                f"Comparison on the same maps (mean and std over maps, percent). {describe(params, resolution)}"),
+                label="tab:table5"))
     print(text, end="")
     return text

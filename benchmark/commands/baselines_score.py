@@ -55,6 +55,25 @@ def main(cfg: DictConfig) -> int:
     return rc
 
 
+def cli() -> int:
+    """The command: overrides with ``{id}`` placeholders quoted for Hydra's parser, errors in one
+    line with exit status 2, the jobs' worst exit status otherwise."""
+    import os
+
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from benchmark.config import quote_braces
+
+    sys.argv[1:] = quote_braces(sys.argv[1:])
+    os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach this function instead of Hydra's printer
+    try:
+        main()
+    except (HydraException, OmegaConfBaseException) as e:
+        print(f"error: {' '.join(str(e).split()).split(' full_key:')[0]}", file=sys.stderr)
+        return 2
+    return max(_STATUS, default=0)
+
+
 if __name__ == "__main__":
-    main()
-    raise SystemExit(max(_STATUS, default=0))
+    raise SystemExit(cli())

@@ -88,6 +88,9 @@ def main() -> int:
 
     os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach this function instead of Hydra's printer
     try:
+        from benchmark.config import quote_braces
+
+        sys.argv[1:] = quote_braces(sys.argv[1:])  # viewpoints.path=poses/{house_id}.csv as typed
         check_run_overrides(sys.argv[1:])  # run.<typo> or +run.<typo>: refused before Hydra writes anything
         app()
     except (ConfigError, StageError, HydraException, OmegaConfBaseException, OSError) as e:

@@ -24,11 +24,11 @@ from pathlib import Path
 import pandas as pd
 
 from benchmark.commands.errors import one_line
-from benchmark.harness.cache import atomic_folder
 from benchmark.paths import CONF_DIR
 from benchmark.reports import robustness as rb
 from benchmark.reports.formatting import metric_words
 from benchmark.reports.tables import load_rows
+from envs.atomic import atomic_folder
 
 GEOMETRIC, SANITY, DEFAULT_REFERENCE = rb.GEOMETRIC, rb.SANITY, rb.REFERENCE
 

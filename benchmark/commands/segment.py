@@ -382,7 +382,7 @@ def _readable(folder: Path) -> None:
 def _publish(tmp: Path, out: Path) -> None:
     """Move the finished ``tmp`` folder to ``out`` (replacing an old ``out`` only after
     the new set is complete)."""
-    from benchmark.harness.cache import leftover_prefix  # noqa: PLC0415
+    from envs.atomic import leftover_prefix  # noqa: PLC0415
 
     old = None
     if out.exists():
@@ -402,8 +402,8 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     from omegaconf import OmegaConf  # noqa: PLC0415
 
     from benchmark import method  # noqa: PLC0415
-    from benchmark.harness.cache import clean_leftovers, leftover_prefix  # noqa: PLC0415
     from benchmark.metrics import segments  # noqa: PLC0415
+    from envs.atomic import clean_leftovers, leftover_prefix  # noqa: PLC0415
 
     t_all = time.perf_counter()
     timings: dict[str, float] = {}

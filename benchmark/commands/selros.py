@@ -5,6 +5,11 @@ all scored against the release's ground truth.
 
     python -m benchmark.commands.selros [--data DIR] [--resolution 0.02] [--out DIR] [--no-geometric]
         [--occupancy-dir DIR --occupancy-pattern '{id}_map.png'] [metrics.key=value ...]
+        [--rose2 CHECKOUT] [--method NAME=DIR ... --method-pattern '{id}.png']
+
+``--rose2`` adds a ROSE² row run here (``make rose2-env``); ``--method`` puts your own method's
+maps (a folder of instance-coloured PNGs, one per map) in the same table: one command, one
+Table V (``table5.md``, ``.csv``, ``.tex`` with ``--out``).
 
 Map ids come from the ground-truth file names by the rule ``--gt-pattern`` (default
 ``{id}_ground_truth.png``: ``office_a_ground_truth.png`` is ``office_a``). Trailing
@@ -55,6 +60,10 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"occupancy maps for the geometric baselines (default: DATA/{OCCUPANCY_FOLDER})")
     ap.add_argument("--occupancy-pattern", default=None, help=f"their file rule (default {OCCUPANCY_PATTERN})")
     ap.add_argument("--no-geometric", action="store_true", help="leave out the geometric baselines")
+    ap.add_argument("--method", action="append", default=[], metavar="NAME=DIR",
+                    help="another method's maps to score beside them (instance-coloured PNGs named by "
+                         "--method-pattern; repeatable), e.g. --method mine=results/my_maps")
+    ap.add_argument("--method-pattern", default="{id}.png", help="file rule of --method maps (default {id}.png)")
     ap.add_argument("--rose2", default=os.environ.get("ROOMSEG_ROSE2"),
                     help="a ROSE2 checkout: add its row, run here (make rose2-env; default $ROOMSEG_ROSE2)")
     ap.add_argument("--rose2-python", default=None, help="the ROSE2 environment's python (default .venv-rose2)")
@@ -72,11 +81,18 @@ def main(argv: list[str] | None = None) -> int:
         if a.resolution is not None:
             common.append(f"external.resolution={a.resolution}")
         frames, params, res = [], None, None
-        for preset, folder in (("selros", "selros"), ("vrf", "vrf")):
-            cfg = compose_score([f"external={preset}", f"external.pred_dir={_quote(data / folder)}", *common])
+        others = []
+        for spec in a.method:
+            name, eq, folder = spec.partition("=")
+            if not (eq and name and folder):
+                raise ValueError(f"--method {spec!r}: expected NAME=DIR (a folder of the method's maps)")
+            others.append(("rose2", Path(folder), [f"external.method={_quote(name)}",
+                                                   f"external.pred_pattern={_quote(a.method_pattern)}"]))
+        for preset, folder, extra in (("selros", data / "selros", []), ("vrf", data / "vrf", []), *others):
+            cfg = compose_score([f"external={preset}", f"external.pred_dir={_quote(folder)}", *common, *extra])
             method, params = instantiate(cfg.external), instantiate(cfg.metrics)
             res = method.resolution
-            frames.append(method.score(params, sanity=not a.no_sanity and preset == "selros",
+            frames.append(method.score(params, sanity=not a.no_sanity and preset == "selros" and not extra,
                                        grid_size=float(cfg.grid_size)))
         if not a.no_geometric:
             gts = _glob_ids(data / GT_FOLDER, a.gt_pattern)

@@ -18,9 +18,9 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from benchmark.harness.cache import atomic_folder
 from benchmark.harness.store import METRICS, Job, iter_metric_files, safe_name
 from benchmark.reports.tables import TABLES, load_rows, render
+from envs.atomic import atomic_folder
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from filelock import FileLock
 
-from envs.atomic import atomic_write_text, ordinary_temp_dir
+from envs.atomic import atomic_write_text
 from envs.npz import ChecksumError, load_npz, save_npz  # noqa: F401 - the cache's readers and writers of .npz entries
 
 
@@ -139,83 +139,6 @@ def locked(path: Path, timeout: float = 3600.0) -> Iterator[None]:
     path.parent.mkdir(parents=True, exist_ok=True)
     with FileLock(str(path) + ".lock", timeout=timeout):
         yield
-
-
-def leftover_prefix(out: Path, kind: str) -> str:
-    """Name prefix of a temporary sibling of ``out`` (``kind``: ``tmp`` for a set being
-    written, ``old`` for the set being replaced), holding this process's id so that a later
-    run can tell a killed writer's leftovers from a running writer's folders."""
-    return f".{out.name}.{kind}-{os.getpid()}-"
-
-
-def clean_leftovers(out: str | Path) -> list[Path]:
-    """Remove the temporary siblings of ``out`` left by writers that were killed (their
-    process is gone); folders of a writer still running are kept.
-
-    Returns:
-        The folders removed."""
-    import re
-    import shutil
-
-    out = Path(out)
-    removed = []
-    pattern = re.compile(rf"^\.{re.escape(out.name)}\.(?:tmp|old)-(\d+)-")
-    if not out.parent.is_dir():
-        return removed
-    for p in out.parent.iterdir():
-        m = pattern.match(p.name)
-        if not m or _alive(int(m.group(1))):
-            continue
-        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
-        removed.append(p)
-    return removed
-
-
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-@contextlib.contextmanager
-def atomic_folder(out: str | Path) -> Iterator[Path]:
-    """Write a set of files as a whole: yield a temporary sibling folder to fill; on success it
-    replaces ``out`` (entries of the old ``out`` that the new set does not have, e.g. a
-    ``figures/`` folder, are carried over); on an exception it is removed and ``out`` is
-    untouched. A process killed at any moment leaves ``out`` as it was, or whole and new
-    (or, killed between the two renames, absent with the old set kept beside it as
-    ``.<name>.old-<pid>-0``), never a part of the new set. Leftovers of a writer that was
-    killed (its process is gone) are removed first (:func:`clean_leftovers`).
-
-    Yields:
-        The temporary folder (same parent as ``out``, so the final rename is atomic)."""
-    import shutil
-
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    clean_leftovers(out)
-    tmp = ordinary_temp_dir(out.parent, leftover_prefix(out, "tmp"))  # not private: the set is an ordinary folder
-    try:
-        yield tmp
-        if out.exists():
-            for entry in out.iterdir():
-                if not (tmp / entry.name).exists():
-                    os.replace(entry, tmp / entry.name)
-            old = out.parent / f"{leftover_prefix(out, 'old')}0"
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
 
 
 def atomic_write_json(path: Path, obj: Any) -> None:

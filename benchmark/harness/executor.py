@@ -225,7 +225,7 @@ def _exit_reason(code: int | None) -> str:
 def _spec_dir() -> Path:
     """A private folder for a pool's job specs: ``<tmp>/.roomseg-pool.tmp-<pid>-*``. The
     folders of pools whose process is gone (killed: no chance to remove its own) go first."""
-    from benchmark.harness.cache import clean_leftovers, leftover_prefix
+    from envs.atomic import clean_leftovers, leftover_prefix
 
     base = Path(tempfile.gettempdir()) / "roomseg-pool"
     clean_leftovers(base)
