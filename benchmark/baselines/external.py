@@ -48,6 +48,7 @@ from benchmark.metrics import (
     describe,
     resample_nearest,
     score_instances,
+    score_semantic,
     segments,
 )
 from envs.maps.label_png import read_instance_png, read_label_png
@@ -142,7 +143,8 @@ def read_map(path: str | Path, fmt: str, params: MetricParams, resolution: float
                                        not_room=params.not_room_colours, return_info=True)
         return inst, info
     if fmt == "label":
-        return read_label_png(path)[0], {}
+        labels, classes = read_label_png(path)
+        return labels, {"classes": list(classes)}
     raise ValueError(f"map format must be one of {FORMATS}, got {fmt!r}")
 
 
@@ -194,6 +196,24 @@ def read_gt(path: str | Path, fmt: str, params: MetricParams, resolution: float)
     return gt, info
 
 
+def _score(pred: np.ndarray, pi: dict, gt: np.ndarray, gi: dict, pair: Pair, gt_format: str, pred_format: str,
+           params: MetricParams, resolution: float) -> dict:
+    """A prediction against its ground truth. A label map (classes, no ids) is split into
+    connected segments as the method's own label maps are (``metrics.connectivity``); when both
+    maps carry classes it is scored semantically (accuracy and class IoU by class name)."""
+    if pred_format != "label":
+        return score_instances(pred, gt, params, resolution=resolution)
+    if gt_format != "label":  # no classes to compare: the label map's connected segments
+        return score_instances(segments(pred, params.connectivity), gt, params, resolution=resolution)
+    labels, gt_classes = read_label_png(pair.gt)  # the ground truth's classes, by name
+    names = list(pi["classes"]) + [c for c in gt_classes if c not in pi["classes"]]
+    remap = np.array([names.index(c) for c in gt_classes] + [-1], np.int64)
+    sem = remap[labels]  # -1 -> the trailing -1
+    inst_cls = np.array([int(np.bincount(sem[gt == k][sem[gt == k] >= 0]).argmax()) if (sem[gt == k] >= 0).any()
+                         else -1 for k in range(int(gt.max()) + 1)], np.int64)
+    return score_semantic(pred, gt, inst_cls, params, classes=names, resolution=resolution)
+
+
 def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricParams(), dataset: str = "external",
                 gt_format: str = "instance", pred_format: str = "instance", *, resolution: float,
                 pred_resolution: float | None = None) -> pd.DataFrame:
@@ -227,7 +247,8 @@ def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricPar
             gt, gi = read_gt(pair.gt, gt_format, params, resolution)
             pred, pi = read_map(pair.pred, pred_format, params, pred_resolution or resolution)
             pred = onto_grid(pred, gt.shape, resolution, pred_resolution)
-            row.update(score_instances(pred, gt, params, resolution=resolution))
+            row.update(_score(pred, pi, gt, gi, pair, gt_format, pred_format, params, resolution))
+            gi, pi = ({k: v for k, v in i.items() if k != "classes"} for i in (gi, pi))
             row.update({f"gt_{k}": v for k, v in gi.items()} | {f"pred_{k}": v for k, v in pi.items()})
         except Exception as e:  # one missing or bad map fails alone, with its reason
             row["status"] = "failed"
