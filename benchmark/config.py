@@ -9,6 +9,7 @@ figure commands, ``gpu_check``) and the tests build their configuration here, fr
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 from benchmark.paths import CONF_DIR
 
@@ -30,8 +31,24 @@ def compose(config_name: str = "config", overrides: Sequence[str] = (), *, hydra
     from hydra import compose as hydra_compose  # noqa: PLC0415
     from hydra import initialize_config_dir  # noqa: PLC0415
 
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        return hydra_compose(config_name=config_name, overrides=list(overrides), return_hydra_config=hydra)
+    config_dir, extra = config_location(config_name)
+    with initialize_config_dir(config_dir=config_dir, version_base="1.3"):
+        return hydra_compose(config_name=config_name, overrides=[*extra, *overrides], return_hydra_config=hydra)
+
+
+#: primary configs that live in a folder of their own, with the groups only they use (so that
+#: ``roomseg-bench --help`` lists only the groups the bench app accepts): name -> subfolder.
+OWN_FOLDER = {"score": "scoring"}
+
+
+def config_location(config_name: str) -> tuple[str, list[str]]:
+    """(config folder, overrides it needs) of a primary config: ``conf/`` for the bench app and
+    ``roomseg-segment``; ``conf/scoring/`` for the scoring app, which finds the shared groups
+    (``paths``, ``metrics``) in ``conf/`` through Hydra's search path."""
+    sub = OWN_FOLDER.get(config_name)
+    if sub is None:
+        return CONF_DIR, []
+    return str(Path(CONF_DIR) / sub), [f"hydra.searchpath=[file://{CONF_DIR}]"]
 
 
 def compose_job(overrides: Sequence[str] = (), config_name: str = "config"):

@@ -15,7 +15,7 @@ from benchmark.paths import CONF_DIR, procthor_houses
 
 CONF = Path(CONF_DIR)
 #: groups of the bench app (conf/config.yaml's defaults list); other folders are groups of other apps.
-GROUPS = sorted(p.name for p in CONF.iterdir() if p.is_dir() and p.name not in ("hydra",))
+GROUPS = sorted(p.name for p in CONF.iterdir() if p.is_dir() and p.name not in ("hydra", "scoring"))
 OPTIONS = [(g, p.stem) for g in GROUPS for p in sorted((CONF / g).glob("*.yaml"))]
 
 #: options that cannot be built here, and why (their ``_target_`` is still imported).
@@ -136,3 +136,35 @@ def test_every_corruption_level_composes_names_itself_and_builds(option):
     if option != "clean":
         assert any(cfg.get(g) is not None for g in ("mapping", "pose_error", "label_noise")) or \
             cfg.viewpoints._target_.endswith("Frontier")
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_help_lists_only_the_groups_the_app_accepts():
+    """``roomseg-bench --help`` lists the bench app's groups with their options, not the scoring
+    app's ``external`` group (conf/scoring/), which the bench app refuses."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "--help"], cwd=ROOT, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0
+    groups = {line.split(":")[0] for line in r.stdout.splitlines() if ": " in line and not line.startswith(" ")}
+    assert {"aggregator", "classifier", "corruption", "mapping", "segmenter", "viewpoints"} <= groups
+    assert not any("external" in g or g.startswith("scoring") for g in groups)
+    assert "segmenter: distance, grid, gt_geometry, morphological, one_room, rose2, voronoi" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "external=selros"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2  # the group it does not list is one it refuses
+
+
+@pytest.mark.parametrize("option", sorted(p.stem for p in (CONF / "scoring" / "external").glob("*.yaml")))
+def test_every_scoring_preset_composes_with_the_shared_groups(option):
+    """The scoring app's own folder (conf/scoring) finds the shared groups (paths, metrics) in
+    conf/ through the search path; each external preset composes and names its target."""
+    from benchmark.config import compose
+
+    cfg = compose("score", [f"external={option}"])
+    assert cfg.external._target_ == "benchmark.baselines.external.ExternalMethod"
+    assert cfg.metrics._target_ == "benchmark.metrics.MetricParams" and "selros" in str(cfg.paths.selros_dir)

@@ -297,7 +297,7 @@ def sanity_rows(gt_paths: dict[str, Path], params: MetricParams = MetricParams()
 
 @dataclass
 class ExternalMethod:
-    """Another method's output maps and how to pair and read them (``conf/external/*.yaml``).
+    """Another method's output maps and how to pair and read them (``conf/scoring/external/*.yaml``).
 
     Args:
         method: name in the ``method`` column.

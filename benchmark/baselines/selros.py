@@ -2,7 +2,7 @@
 baselines on maps given as files.
 
 The SeLRoS and VRF outputs are scored by :class:`benchmark.baselines.external.ExternalMethod`
-from the presets ``conf/external/selros.yaml`` and ``vrf.yaml``. The geometric segmenters
+from the presets ``conf/scoring/external/selros.yaml`` and ``vrf.yaml``. The geometric segmenters
 need an occupancy map: they take it from files (:func:`geometric_rows`), never from the
 ground truth's rooms. For the SeLRoS release the map is the free space the other methods were
 given: the non-black pixels of the VRF outputs. They equal the SeLRoS outputs' on all 30 maps

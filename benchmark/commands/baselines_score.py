@@ -1,5 +1,5 @@
 """``python -m benchmark.commands.baselines_score``: score another method's output maps against
-ground truth, a Hydra app over the ``external`` group (conf/score.yaml).
+ground truth, a Hydra app over the ``external`` group (conf/scoring/score.yaml).
 
     python -m benchmark.commands.baselines_score external=selros
     python -m benchmark.commands.baselines_score -m external=selros,vrf metrics.connectivity=8
@@ -48,7 +48,7 @@ def run(cfg: DictConfig, out: Path | None) -> int:
 _STATUS: list[int] = []
 
 
-@hydra.main(config_path=CONF_DIR, config_name="score", version_base=None)
+@hydra.main(config_path=str(Path(CONF_DIR) / "scoring"), config_name="score", version_base=None)
 def main(cfg: DictConfig) -> int:
     rc = run(cfg, Path(HydraConfig.get().runtime.output_dir))
     _STATUS.append(rc)
@@ -65,7 +65,10 @@ def cli() -> int:
 
     from benchmark.config import quote_braces
 
-    sys.argv[1:] = quote_braces(sys.argv[1:])
+    from benchmark.config import config_location
+
+    # the shared groups (paths, metrics) are found in conf/ through the search path
+    sys.argv[1:] = [*quote_braces(sys.argv[1:]), *config_location("score")[1]]
     os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach this function instead of Hydra's printer
     try:
         main()

@@ -79,6 +79,30 @@ def _one_line(e: BaseException) -> str:
     return " ".join(str(e).split()) or type(e).__name__
 
 
+def app_help() -> str:
+    """``roomseg-bench --help``: the groups this app accepts (``conf/``, without the scoring
+    app's own folder) with their options, and the default config."""
+    from omegaconf import OmegaConf
+
+    from benchmark.config import OWN_FOLDER, compose_job
+
+    conf = Path(CONF_DIR)
+    skip = {conf / d for d in OWN_FOLDER.values()}
+    groups = sorted(p for p in conf.rglob("*") if p.is_dir() and any(p.glob("*.yaml"))
+                    and not any(p == s or s in p.parents for s in skip))
+    lines = [f"{PROG}: the benchmark's Hydra app (python -m benchmark.commands.bench); exit statuses: docs/reliability.md",
+             "", "    roomseg-bench [group=option ...] [key=value ...]      # one configuration",
+             "    roomseg-bench -m group=a,b key=1,2                   # a sweep (multirun)", "",
+             "== Configuration groups ==", "Compose your configuration from those groups (group=option)", ""]
+    lines += [f"{g.relative_to(conf).as_posix()}: {', '.join(sorted(p.stem for p in g.glob('*.yaml')))}"
+              for g in groups if not g.relative_to(conf).as_posix().startswith("hydra")]
+    cfg, _ = compose_job()
+    lines += ["", "== Config ==", "Override anything in the config (foo.bar=value)", "",
+              OmegaConf.to_yaml(cfg).rstrip(), "",
+              "Hydra's own options: --hydra-help. Every command and group: docs/reference/."]
+    return "\n".join(lines)
+
+
 def main() -> int:
     """Run the app; turn known errors into one line and the outcome into the exit status."""
     from concurrent.futures.process import BrokenProcessPool
@@ -87,6 +111,9 @@ def main() -> int:
     from omegaconf.errors import OmegaConfBaseException
 
     os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach this function instead of Hydra's printer
+    if any(a in ("--help", "-h") for a in sys.argv[1:]):
+        print(app_help())  # only the groups this app accepts (Hydra's own lists every folder of conf/)
+        return 0
     try:
         from benchmark.config import quote_braces
 

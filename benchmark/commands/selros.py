@@ -1,5 +1,5 @@
 """``python -m benchmark.commands.selros`` (also ``python -m benchmark.commands.baselines table5``):
-Table V on the SeLRoS release: the SeLRoS and VRF outputs (presets conf/external/selros.yaml,
+Table V on the SeLRoS release: the SeLRoS and VRF outputs (presets conf/scoring/external/selros.yaml,
 vrf.yaml), the geometric baselines run on each map's occupancy image, and the sanity rows,
 all scored against the release's ground truth.
 
@@ -28,7 +28,7 @@ import pandas as pd
 
 
 def compose_score(overrides: list[str]):
-    """conf/score.yaml composed with Hydra ``overrides`` (no app run)."""
+    """conf/scoring/score.yaml composed with Hydra ``overrides`` (no app run)."""
     from benchmark.config import compose
 
     return compose("score", overrides)
