@@ -63,9 +63,7 @@ def cli() -> int:
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from benchmark.config import quote_braces
-
-    from benchmark.config import config_location
+    from benchmark.config import config_location, quote_braces
 
     # the shared groups (paths, metrics) are found in conf/ through the search path
     sys.argv[1:] = [*quote_braces(sys.argv[1:]), *config_location("score")[1]]
