@@ -13,6 +13,40 @@ from pathlib import Path
 
 from benchmark.paths import CONF_DIR
 
+#: the longest sweep job folder name kept as Hydra writes it (longer names are shortened).
+MAX_JOB_DIRNAME = 120
+
+
+def job_dirname(name: str) -> str:
+    """A sweep job's folder name from Hydra's ``override_dirname`` (the ``hydra.sweep.subdir``
+    resolver ``job_dir``): unchanged when it is a plain name (no ``/``, quotes, braces, spaces or
+    backslashes, at most :data:`MAX_JOB_DIRNAME` characters), so ordinary sweeps keep names such
+    as ``aggregator=graph_knn,classifier=objects``; otherwise a readable part (a path value
+    replaced by its last two parts, other characters by ``_``, at most 80 characters) then
+    ``~`` and 10 hex digits of the name's SHA-1, so that overrides holding paths never nest
+    folders and two different overrides never share a folder."""
+    import hashlib
+    import re
+
+    if len(name) <= MAX_JOB_DIRNAME and not re.search(r"[/\\'\"{}\[\] ]", name) and not name.startswith("."):
+        return name
+    items = []
+    for item in name.split(","):
+        key, eq, value = item.partition("=")
+        if "/" in value:  # a path: its last two parts
+            value = "_".join(value.strip("'\"").rstrip("/").split("/")[-2:])
+        items.append(f"{key}{eq}{value}")
+    readable = re.sub(r"[^A-Za-z0-9_.,=@+-]+", "_", ",".join(items)).strip("._")[:80].rstrip(",_")
+    return f"{readable}~{hashlib.sha1(name.encode('utf-8')).hexdigest()[:10]}"
+
+
+def register_resolvers() -> None:
+    """The ``job_dir`` resolver of ``conf/config.yaml``'s ``hydra.sweep.subdir`` (idempotent)."""
+    from omegaconf import OmegaConf
+
+    if not OmegaConf.has_resolver("job_dir"):
+        OmegaConf.register_new_resolver("job_dir", job_dirname)
+
 
 def compose(config_name: str = "config", overrides: Sequence[str] = (), *, hydra: bool = False):
     """``conf/<config_name>.yaml`` composed with Hydra ``overrides`` (``key=value`` strings).
@@ -31,6 +65,7 @@ def compose(config_name: str = "config", overrides: Sequence[str] = (), *, hydra
     from hydra import compose as hydra_compose  # noqa: PLC0415
     from hydra import initialize_config_dir  # noqa: PLC0415
 
+    register_resolvers()
     config_dir, extra = config_location(config_name)
     with initialize_config_dir(config_dir=config_dir, version_base="1.3"):
         return hydra_compose(config_name=config_name, overrides=[*extra, *overrides], return_hydra_config=hydra)
@@ -136,4 +171,4 @@ def valid_keys_hint(error: BaseException, overrides: Sequence[str], config_name:
     return f"; valid keys{' of ' + parent if parent else ''}: {', '.join(map(str, keys))}"
 
 
-__all__ = ["compose", "compose_job", "quote_braces", "valid_keys_hint", "CONF_DIR"]
+__all__ = ["compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]

@@ -7,6 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from benchmark.config import register_resolvers
+
+register_resolvers()  # conf/config.yaml's job_dir resolver, for the tests that compose with Hydra directly
+
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("ROOMSEG_SHARED_DATA", ROOT.parent / "shared" / "data"))
 PROCTHOR_FILE = SHARED_DATA / "procthor" / "procthor-10k-uniform-hard-val.jsonl.gz"

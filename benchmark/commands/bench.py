@@ -30,6 +30,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
+from benchmark.config import register_resolvers
 from benchmark.harness import sweep
 from benchmark.harness.checks import check_run_overrides
 from benchmark.harness.executor import WorkerDied
@@ -37,6 +38,7 @@ from benchmark.harness.pipeline import StageError
 from benchmark.harness.runner import CONF_DIR, ConfigError, run
 
 PROG = "roomseg-bench"
+register_resolvers()  # hydra.sweep.subdir's job_dir, before Hydra composes anything
 
 
 @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
