@@ -48,3 +48,14 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
     md = (out / "robustness.md").read_text()
     assert "relative to **voronoi**" in md and "| scan | 2 | mapping.max_range 8.0 metres" in md
     assert "2 houses per cell." in md
+    # the sweep report has a robustness section: the IoU table (the same numbers) and a figure per family
+    from benchmark.reports.html_report import build_report
+
+    page = build_report([results / "runs" / "robustness"])
+    section = page[page.index('id="robustness"'):page.index("<h2>Maps</h2>")]
+    assert section.count("<img ") == 5 and "IoU vs severity: scan map" in section
+    row = section[section.index("<td>voronoi</td>"):]
+    assert f'<td class="num">{t.loc["voronoi", "clean"]:.1f}</td>' in row[:row.index("</tr>")]
+    assert section.count("<tr><td>") == 4  # one row per method
+    # its maps are the clean condition's: one group per method, not one per condition
+    assert page.count("<figcaption>ground truth</figcaption>") == 2 * 4  # 2 houses x 4 methods

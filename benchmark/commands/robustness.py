@@ -21,8 +21,6 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import pandas as pd
-
 from benchmark.commands.errors import one_line
 from benchmark.paths import CONF_DIR
 from benchmark.reports import robustness as rb
@@ -53,27 +51,6 @@ def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], 
     return out
 
 
-def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
-    """Leave out every house that failed in any (method, condition): (rows, the houses left out)."""
-    bad = sorted(set(rows.loc[rows["status"] != "ok", "house_id"].astype(str)))
-    return rows[~rows["house_id"].astype(str).isin(bad)], bad
-
-
-def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str) -> dict:
-    """Per dataset and metric: the summary table, its cells, and notes. Raises RobustnessError."""
-    out = {}
-    for dataset, d in rows.groupby("dataset"):
-        d, dropped = drop_failed_houses(d)
-        for metric in metrics:
-            cells = rb.cell_means(d, metric)
-            table = rb.summary_table(cells, reference)
-            out[(dataset, metric)] = {"table": table, "cells": cells, "dropped": dropped,
-                                      "houses": int(cells["n"].iloc[0]) if len(cells) else 0,
-                                      "notes": rb.rank_notes(table.drop(index=[m for m in SANITY if m in table.index]),
-                                                             GEOMETRIC, cells)}
-    return out
-
-
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str) -> str:
     """The Markdown of every table (and, with ``out``, the files). Raises RobustnessError."""
     rows = load_rows(paths)
@@ -85,7 +62,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
                                  f"run `roomseg-bench experiment=robustness` (conf/corruption) first")
     rows = rows.copy()
     rows["severity"] = rows["severity"].astype(int)
-    parts = summarise(rows, metrics, reference)
+    parts = rb.summarise(rows, metrics, reference)
     settings = severity_settings()
     md = ["# Robustness to robot conditions", "",
           f"Corruption error (CE) and mCE relative to **{reference}** (100 = as robust as it; lower is better); "

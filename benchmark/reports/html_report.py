@@ -2,7 +2,14 @@
 failures with their errors, and per house the ground truth beside the raw and
 post-processed maps of every configuration.
 
-``python -m benchmark.commands.report RUN_DIR --out report.html [--house ID ...]``
+``python -m benchmark.commands.report RUN_DIR --out report.html [--house ID ...] [--houses-per-dataset N]``
+
+Maps are drawn for ``N`` houses of every dataset of the run (default 2), so generated houses
+and ProcTHOR houses both show. Label maps are drawn in the class colours; instance maps (the
+geometric segmenters and the sanity rows) in a colour per segment; both with their segment
+borders in white (black is "not walkable"). A robustness run (rows with ``corruption``) adds a
+section with the summary table and a figure per robot condition; its maps are those of the
+clean condition.
 
 The page needs no server and no network: maps are PNGs embedded as data URIs (drawn at the
 map's own resolution, scaled by the browser without smoothing), the sorting is a few lines
@@ -30,13 +37,23 @@ METRICS = ("iou", "precision", "recall", "accuracy", "matched_iou", "room_iou", 
 COUNTS = ("count_error",)
 #: longest side of a map image on the page, CSS pixels.
 MAP_CSS_PX = 260
+#: houses drawn per dataset when no house is named.
+HOUSES_PER_DATASET = 2
+#: colours (RGB) of an instance map's rooms, cycled by room id: Paul Tol's colour-blind safe "muted"
+#: scheme, none of them a class colour (Okabe-Ito), so rooms are never read as classes.
+INSTANCE_COLORS = ((204, 102, 119), (51, 34, 136), (221, 204, 119), (17, 119, 51), (136, 204, 238),
+                   (136, 34, 85), (68, 170, 153), (153, 153, 51), (170, 68, 153))
+#: colour (RGB) of the lines between segments on the page: white, so that it differs from the
+#: black of pixels that are not walkable (the figures, on a white page, draw them dark).
+PAGE_BORDER_COLOR: tuple[int, int, int] = (255, 255, 255)
 
 _CSS = """
 body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:24px;color:#222;background:#fff}
 h1{font-size:22px;margin:0 0 4px}h2{font-size:18px;margin:28px 0 8px;border-bottom:1px solid #ddd}
 h3{font-size:15px;margin:18px 0 6px}.muted{color:#666;font-size:13px}
-table{border-collapse:collapse;font-size:13px}th,td{padding:3px 8px;border-bottom:1px solid #e4e4e4;white-space:nowrap}
-th{background:#f3f3f3;text-align:left;white-space:nowrap}td.num,th.num{text-align:right;font-variant-numeric:tabular-nums}
+table{border-collapse:collapse;font-size:13px}th,td{padding:3px 6px;border-bottom:1px solid #e4e4e4}
+th{background:#f3f3f3;text-align:left;vertical-align:bottom}td.num{white-space:nowrap}
+#configs td:not(.num){max-width:22ch}.robust img{max-width:640px;width:100%}td.num,th.num{text-align:right;font-variant-numeric:tabular-nums}
 table.sortable th{cursor:pointer;user-select:none}table.sortable th[data-dir=asc]::after{content:' \\25B2'}
 table.sortable th[data-dir=desc]::after{content:' \\25BC'}
 .maps{display:grid;gap:6px 10px;align-items:start}.maps figure{margin:0}
@@ -80,6 +97,10 @@ _JS = r"""
       table.setAttribute('data-sortable', 'ready');
     })(tables[t]);
   }
+  // the page's width need (a test opens it at 1400 px and reads this back)
+  var wrap = document.getElementById('configs-wrap');
+  document.body.setAttribute('data-scroll-width', String(Math.max(document.documentElement.scrollWidth,
+    wrap ? wrap.scrollWidth + wrap.getBoundingClientRect().left : 0)));
   // report.html#sort=COLUMN[,desc] opens the configurations sorted (a link to a ranking)
   var m = /^#sort=(\d+)(,desc)?$/.exec(window.location.hash);
   var configs = document.getElementById('configs');
@@ -105,25 +126,25 @@ def map_rgb(labels: np.ndarray, classes: Sequence[str], walkable: np.ndarray | N
             segments: np.ndarray | None = None) -> np.ndarray:
     """(H, W) class labels -> (H, W, 3) uint8 in the class colours with segment borders (as
     in the figures)."""
-    from benchmark.reports.plotting import BORDER_COLOR, colorize, label_segments, segment_borders
+    from benchmark.reports.plotting import colorize, label_segments, segment_borders
 
     rgb = colorize(labels, classes, walkable).copy()
     seg = label_segments(labels) if segments is None else segments
-    rgb[segment_borders(seg)] = BORDER_COLOR
+    rgb[segment_borders(seg)] = PAGE_BORDER_COLOR
     return rgb
 
 
 def instances_rgb(instances: np.ndarray) -> np.ndarray:
     """(H, W) segment ids (a geometric segmenter's output; -1 none) -> RGB, a colour per
-    segment from a fixed cycle, with borders; black where -1."""
-    from benchmark.reports.plotting import BORDER_COLOR, segment_borders
+    segment from a fixed cycle (neighbours may share a colour: the white borders tell them
+    apart), with borders; black where -1."""
+    from benchmark.reports.plotting import segment_borders
 
-    cycle = np.array([(86, 180, 233), (230, 159, 0), (0, 158, 115), (240, 228, 66), (0, 114, 178),
-                      (213, 94, 0), (204, 121, 167), (153, 153, 153)], np.uint8)
+    cycle = np.array(INSTANCE_COLORS, np.uint8)
     inst = np.asarray(instances)
     rgb = np.zeros((*inst.shape, 3), np.uint8)
     rgb[inst >= 0] = cycle[inst[inst >= 0] % len(cycle)]
-    rgb[segment_borders(inst)] = BORDER_COLOR
+    rgb[segment_borders(inst)] = PAGE_BORDER_COLOR
     return rgb
 
 
@@ -173,7 +194,7 @@ def _config_rows(jobs) -> tuple[list[str], list[dict]]:
 def _configs_table(cols: list[str], rows: list[dict]) -> str:
     heads = [("dataset", False), ("classifier", False), ("aggregator", False), ("post-processing", False)]
     heads += [(formatting.METRIC_LABELS.get(m, m.replace("_", " ")) + ("" if m in COUNTS else " %"), True) for m in cols]
-    heads += [("houses ok", True), ("failed", True), ("wall s", True), ("job folder", False)]
+    heads += [("houses ok", True), ("failed", True), ("wall s", True)]
     out = ['<table class="sortable" id="configs"><thead><tr>']
     out += [f'<th class="{"num" if n else ""}">{_esc(h)}</th>' for h, n in heads]
     out.append("</tr></thead><tbody>")
@@ -185,7 +206,9 @@ def _configs_table(cols: list[str], rows: list[dict]) -> str:
         cells = [formatting.value_label("dataset", r["dataset"]), clf,
                  formatting.value_label("aggregator", nm.get("aggregator", "")) or "–",
                  formatting.value_label("postprocess", nm.get("postprocess", "")) if not nm.get("segmenter") else "–"]
-        line = "".join(f"<td>{_esc(c)}</td>" for c in cells)
+        # the job folder (often longer than the rest of the row) is the first cell's tooltip
+        line = f'<td title="{_esc(r["job"].dir.name)}">{_esc(cells[0])}</td>'
+        line += "".join(f"<td>{_esc(c)}</td>" for c in cells[1:])
         for m in cols:
             v = r.get(m)
             if v is None:
@@ -198,7 +221,6 @@ def _configs_table(cols: list[str], rows: list[dict]) -> str:
         line += f'<td class="num" data-v="{r["n_failed"]}">{r["n_failed"]}</td>'
         wall = r["wall"]
         line += f'<td class="num" data-v="{"" if wall is None else wall}">{"–" if wall is None else f"{wall:.1f}"}</td>'
-        line += f"<td>{_esc(r['job'].dir.name)}</td>"
         out.append(f"<tr>{line}</tr>")
     out.append("</tbody></table>")
     return "".join(out)
@@ -221,35 +243,46 @@ def _failures(jobs) -> str:
 
 
 def _legend(classes: Sequence[str]) -> str:
-    from benchmark.reports.plotting import BORDER_COLOR, UNLABELLED_LABEL
+    from benchmark.reports.plotting import UNLABELLED_LABEL
     from envs.world.classes import UNLABELLED_COLOR, class_colors
 
     items = [(c.replace("_", " "), rgb) for c, rgb in zip(classes, class_colors(classes))]
-    items += [(UNLABELLED_LABEL, UNLABELLED_COLOR), ("not walkable", (0, 0, 0)), ("border between segments", BORDER_COLOR)]
+    items += [(UNLABELLED_LABEL, UNLABELLED_COLOR), ("not walkable", (0, 0, 0)),
+              ("border between segments", PAGE_BORDER_COLOR)]
+    seen: set[tuple] = set()  # one swatch per colour (a class coloured like another entry is named once)
+    items = [(n, rgb) for n, rgb in items if not (tuple(rgb) in seen or seen.add(tuple(rgb)))]
     return '<div class="legend">' + "".join(
         f'<span><i style="background:rgb{tuple(int(v) for v in rgb)}"></i>{_esc(n)}</span>' for n, rgb in items) + "</div>"
 
 
-def pick_houses(jobs, houses: Sequence[str] | None, max_houses: int) -> list[str]:
-    """The houses to draw: ``houses`` (each scored by some job), else the first
-    ``max_houses`` that every job without failure on them scored.
+def pick_houses(jobs, houses: Sequence[str] | None, per_dataset: int = HOUSES_PER_DATASET) -> list[str]:
+    """The houses to draw: ``houses`` (each scored by some job), else per dataset of the run
+    the first ``per_dataset`` houses scored by the most jobs of that dataset (every dataset
+    shows, in the order the run first scored it).
 
     Raises:
         ValueError: a requested house that no job scored."""
-    scored: dict[str, int] = {}
-    order: list[str] = []
+    scored: dict[tuple[str, str], int] = {}
+    order: list[tuple[str, str]] = []
     for _, _, df in jobs:
-        for h in df.loc[df["status"] == "ok", "house_id"].astype(str):
-            if h not in scored:
-                order.append(h)
-            scored[h] = scored.get(h, 0) + 1
+        ok = df[df["status"] == "ok"]
+        datasets = ok["dataset"].astype(str) if "dataset" in ok else [""] * len(ok)
+        for key in zip(datasets, ok["house_id"].astype(str)):
+            if key not in scored:
+                order.append(key)
+            scored[key] = scored.get(key, 0) + 1
     if houses:
-        missing = [h for h in houses if h not in scored]
+        known = {h for _, h in order}
+        missing = [h for h in houses if h not in known]
         if missing:
-            raise ValueError(f"--house {missing[0]!r}: no job of the run scored it; scored houses are e.g. {order[:3]}")
+            raise ValueError(f"--house {missing[0]!r}: no job of the run scored it; scored houses are e.g. "
+                             f"{[h for _, h in order[:3]]}")
         return list(dict.fromkeys(houses))
-    best = max(scored.values(), default=0)
-    return [h for h in order if scored[h] == best][:max_houses]
+    out: list[str] = []
+    for dataset in dict.fromkeys(d for d, _ in order):
+        best = max(n for (d, _), n in scored.items() if d == dataset)
+        out += [h for (d, h) in order if d == dataset and scored[(d, h)] == best][:per_dataset]
+    return list(dict.fromkeys(out))
 
 
 def _house_section(hid: str, jobs) -> str:
@@ -263,6 +296,8 @@ def _house_section(hid: str, jobs) -> str:
     scene = None
     for job, summary, df in jobs:
         rows = df[(df["house_id"].astype(str) == hid) & (df["status"] == "ok")]
+        if "corruption" in rows:  # a robustness run: the maps of the clean condition (the others: its section)
+            rows = rows[rows["corruption"].astype(str) == "clean"]
         if rows.empty:
             continue
         try:
@@ -285,13 +320,13 @@ def _house_section(hid: str, jobs) -> str:
         g = groups.setdefault(key, {"label": job_label(names, acc), "cells": {}})
         if names.get("segmenter"):
             inst = maps.get("instances", maps.get("post"))
-            if inst is not None:
-                g["cells"]["segments"] = instances_rgb(inst)
+            if inst is not None:  # its rooms, in the first map column
+                g["cells"]["raw"] = ("rooms (a colour per room)", instances_rgb(inst))
             continue
-        g["cells"].setdefault("raw", map_rgb(maps["raw"], scene.classes, scene.grid.walkable))
+        g["cells"].setdefault("raw", ("raw", map_rgb(maps["raw"], scene.classes, scene.grid.walkable)))
         if names.get("postprocess") not in ("none", ""):
-            g["cells"][f"post-processed ({names['postprocess']})"] = map_rgb(maps["post"], scene.classes,
-                                                                             scene.grid.walkable)
+            kind = f"post-processed ({names['postprocess']})"
+            g["cells"][kind] = (kind, map_rgb(maps["post"], scene.classes, scene.grid.walkable))
     if scene is None:
         return f'<section class="house"><h3>House {_esc(hid)}</h3><p class="muted">No saved maps for this house ' \
                f"(run with run.save_maps=true).</p></section>"
@@ -307,9 +342,10 @@ def _house_section(hid: str, jobs) -> str:
         out.append(f"<figure><figcaption>ground truth</figcaption>{gt_img}</figure>")
         for k in kinds:
             if k in g["cells"]:
-                alt = f"{hid} {g['label']} {k}"
-                out.append(f"<figure><figcaption>{_esc(k)}</figcaption>"
-                           f"{_img(png_data_uri(g['cells'][k]), shape, alt)}</figure>")
+                caption, rgb = g["cells"][k]
+                alt = f"{hid} {g['label']} {caption}"
+                out.append(f"<figure><figcaption>{_esc(caption)}</figcaption>"
+                           f"{_img(png_data_uri(rgb), shape, alt)}</figure>")
             else:
                 out.append("<div></div>")
     out.append("</div>")
@@ -320,14 +356,68 @@ def _house_section(hid: str, jobs) -> str:
     return "".join(out)
 
 
-def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = None, max_houses: int = 2,
-                 title: str | None = None) -> str:
+def _robustness_section(run_dirs: Sequence[str | Path]) -> str:
+    """A robustness run's summary (``experiment=robustness``; rows with ``corruption``): per
+    dataset, IoU under each robot condition (mean over its severities), mCE and mean drop
+    against the Voronoi reference, and a figure per condition (IoU vs severity, one line per
+    method). Empty for a run without robot conditions."""
+    import tempfile
+
+    from benchmark.reports import robustness as rb
+    from benchmark.reports.formatting import metric_words
+    from benchmark.reports.tables import load_rows
+
+    rows = load_rows(list(run_dirs))
+    if "corruption" not in rows or "severity" not in rows:
+        return ""
+    rows = rows[rows["corruption"].notna()].copy()
+    if not (rows["corruption"].astype(str) != "clean").any():  # every run is clean: nothing to compare
+        return ""
+    rows["severity"] = pd.to_numeric(rows["severity"]).astype(int)
+    methods = set(rows["method"])
+    reference = rb.REFERENCE if rb.REFERENCE in methods else sorted(methods)[0]
+    out = ['<h2 id="robustness">Robustness to robot conditions</h2>',
+           f'<p class="muted">IoU in percent under each robot condition (mean over its severities 1-5), mCE '
+           f"(corruption error relative to {_esc(reference)}; 100 = as robust, lower is better) and the mean drop "
+           "from the clean score; the full tables (matched IoU, PQ, CE and drop per condition) are written by "
+           "<code>python -m benchmark.commands.robustness</code>.</p>"]
+    try:
+        parts = rb.summarise(rows, ("iou",), reference)
+    except rb.RobustnessError as e:
+        return "".join(out) + f'<p class="muted">No robustness table for this run: {_esc(e)}</p>'
+    for (dataset, _), part in parts.items():
+        table = part["table"]
+        cols = ["clean", *[f for f in rb.FAMILIES if f in table], "mCE", "mean drop"]
+        words = {f: rb.FAMILY_WORDS[f] for f in rb.FAMILIES}
+        head = "".join(f'<th class="num">{_esc(words.get(c, c))}</th>' for c in cols)
+        body = "".join(f"<tr><td>{_esc(m)}</td>" + "".join(
+            f'<td class="num">{"–" if pd.isna(v) else f"{v:.1f}"}</td>' for v in table.loc[m, cols]) + "</tr>"
+            for m in table.index)
+        dropped = f"; left out (failed under some condition): {', '.join(part['dropped'])}" if part["dropped"] else ""
+        out += [f"<h3>{_esc(formatting.value_label('dataset', dataset))}</h3>",
+                f'<p class="muted">{part["houses"]} houses per cell{_esc(dropped)}.</p>',
+                f'<table class="robust-table"><thead><tr><th>method</th>{head}</tr></thead><tbody>{body}</tbody></table>',
+                "".join(f'<p class="muted">{_esc(n)}</p>' for n in part["notes"]), '<div class="robust">']
+        with tempfile.TemporaryDirectory() as tmp:
+            for family in rb.FAMILIES:
+                if family not in set(part["cells"]["corruption"]):
+                    continue
+                png = rb.family_figure(part["cells"], family, Path(tmp) / family, metric_words("iou"),
+                                       f"{dataset}: {rb.FAMILY_WORDS[family]}")[0]
+                uri = "data:image/png;base64," + base64.b64encode(png.read_bytes()).decode("ascii")
+                out.append(f'<img src="{uri}" alt="{_esc(dataset)} IoU vs severity: {_esc(rb.FAMILY_WORDS[family])}">')
+        out.append("</div>")
+    return "".join(out)
+
+
+def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = None,
+                 per_dataset: int = HOUSES_PER_DATASET, title: str | None = None) -> str:
     """The report page's HTML for the jobs under ``run_dirs``.
 
     Args:
         run_dirs: sweep or job folders (every finished job under them).
-        houses: house ids to draw; default the first ``max_houses`` scored by every job.
-        max_houses: how many houses by default.
+        houses: house ids to draw; default ``per_dataset`` houses of every dataset in the run.
+        per_dataset: how many houses of each dataset by default.
         title: page title (default: the run folder names).
 
     Returns:
@@ -345,7 +435,7 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         df["house_id"] = df["house_id"].astype(str)
         jobs.append((job, job.summary(), df))
     cols, rows = _config_rows(jobs)
-    chosen = pick_houses(jobs, houses, max_houses)
+    chosen = pick_houses(jobs, houses, per_dataset)
     n_rows = sum(len(df) for _, _, df in jobs)
     n_failed = sum(int((df["status"] != "ok").sum()) for _, _, df in jobs)
     classes = ()
@@ -363,13 +453,15 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         f"<h1>Sweep report: {_esc(name)}</h1>",
         f'<p class="muted">{len(jobs)} configurations, {n_rows} (house, configuration) rows, {n_failed} failed. '
         "Metrics are means over each configuration's successful houses, in percent. "
-        + (_esc("Metrics: " + "; ".join(notes) + ".") if notes else "") + " Click a column header to sort.</p>",
+        + (_esc("Metrics: " + "; ".join(notes) + ".") if notes else "")
+        + " Click a column header to sort; hover over a dataset for the job folder.</p>",
         "<h2>Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows), "</div>",
         "<h2>Failures</h2>", _failures(jobs),
+        _robustness_section(run_dirs),
         "<h2>Maps</h2>",
         f'<p class="muted">Per house and configuration: the ground truth, the raw label map and the '
-        f"post-processed map(s), side by side at the map's resolution. Houses shown: "
-        f"{_esc(', '.join(chosen)) or 'none'}.</p>",
+        f"post-processed map(s) in class colours, or a geometric segmenter's rooms in a colour per room, side by "
+        f"side at the map's resolution. Houses shown: {_esc(', '.join(chosen)) or 'none'}.</p>",
         _legend(classes) if classes else "",
         *(_house_section(h, jobs) for h in chosen),
         f"<script>{_JS}</script>", "</body></html>", ""]
@@ -377,16 +469,16 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
 
 
 def write_report(run_dirs: Sequence[str | Path], out: str | Path, houses: Sequence[str] | None = None,
-                 max_houses: int = 2) -> Path:
+                 per_dataset: int = HOUSES_PER_DATASET) -> Path:
     """Write :func:`build_report`'s page to ``out`` atomically; returns ``out``."""
     from benchmark.harness.cache import atomic_write_text
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out, build_report(run_dirs, houses, max_houses))
+    atomic_write_text(out, build_report(run_dirs, houses, per_dataset))
     out.chmod(0o644)
     return out
 
 
 __all__ = ["build_report", "write_report", "pick_houses", "map_rgb", "instances_rgb", "png_data_uri", "job_label",
-           "METRICS"]
+           "METRICS", "HOUSES_PER_DATASET", "INSTANCE_COLORS", "PAGE_BORDER_COLOR"]

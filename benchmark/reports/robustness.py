@@ -197,6 +197,27 @@ def to_latex(table: pd.DataFrame, caption: str, label: str, decimals: int = 1) -
                       rf"\caption{{{tex_escape(caption)}}}", rf"\label{{{label}}}", r"\end{table}", ""])
 
 
+def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """Leave out every house that failed in any (method, condition): (rows, the houses left out)."""
+    bad = sorted(set(rows.loc[rows["status"] != "ok", "house_id"].astype(str)))
+    return rows[~rows["house_id"].astype(str).isin(bad)], bad
+
+
+def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str) -> dict:
+    """Per dataset and metric: the summary table, its cells, and notes. Raises RobustnessError."""
+    out = {}
+    for dataset, d in rows.groupby("dataset"):
+        d, dropped = drop_failed_houses(d)
+        for metric in metrics:
+            cells = cell_means(d, metric)
+            table = summary_table(cells, reference)
+            out[(dataset, metric)] = {"table": table, "cells": cells, "dropped": dropped,
+                                      "houses": int(cells["n"].iloc[0]) if len(cells) else 0,
+                                      "notes": rank_notes(table.drop(index=[m for m in SANITY if m in table.index]),
+                                                          GEOMETRIC, cells)}
+    return out
+
+
 #: colour-blind safe colours (Okabe and Ito, 2008) and line styles, cycled per method.
 OKABE_ITO = ("#000000", "#E69F00", "#56B4E9", "#009E73", "#0072B2", "#D55E00", "#CC79A7", "#F0E442")  # yellow last
 STYLES = ("-", "--", ":", "-.")
@@ -232,5 +253,6 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
     return save(fig, path.with_suffix(".png"), formats=("png", "pdf"))
 
 
-__all__ = ["FAMILIES", "METRICS", "RobustnessError", "cell_means", "summary_table", "rank_notes", "to_markdown",
+__all__ = ["FAMILIES", "METRICS", "RobustnessError", "cell_means", "drop_failed_houses", "summarise", "summary_table",
+           "rank_notes", "to_markdown",
            "to_latex", "family_figure"]
