@@ -216,6 +216,33 @@ def test_table5_cli_on_a_partial_copy(selros_dir, tmp_path):
     assert geo["accuracy"].isna().all() and geo["iou"].between(0, 1).all()
     assert "office_b_segmented.png" in (tmp_path / "out" / "table5.md").read_text()
     assert "8-connected" in df["metric_params"].iloc[0]
+    # table5.html, written with the set: the same table, and per map (all 3: fewer than --page-maps) the
+    # ground truth and every method that scored it, drawn as segments
+    import base64
+    import io
+    import re
+
+    from PIL import Image
+
+    from benchmark.baselines.external import read_gt
+    from benchmark.metrics import MetricParams
+    from benchmark.reports.html_report import INSTANCE_COLORS, PAGE_BORDER_COLOR
+
+    page = (tmp_path / "out" / "table5.html").read_text()
+    assert page.count("<tr>") == 1 + 8 + 1 + 4  # the table (header + methods) and the failures (header + 4)
+    assert '<td class="num" data-v="100.00">100.00 ± 0.00</td>' in page  # gt_geometry
+    sections = re.findall(r'<section class="house" id="map-([^"]+)">(.*?)</section>', page, re.S)
+    assert [m for m, _ in sections] == ["office_a", "office_b", "office_c"]
+    captions = dict((m, re.findall(r"<figcaption>([^<]+)</figcaption>", body)) for m, body in sections)
+    assert len(captions["office_a"]) == 1 + 8 and captions["office_b"] == ["ground truth", "SeLRoS", "one_room",
+                                                                            "gt_geometry", "grid"]
+    img = re.search(r'src="data:image/png;base64,([^"]+)"', sections[0][1]).group(1)
+    gt_rgb = np.asarray(Image.open(io.BytesIO(base64.b64decode(img))))[..., :3]
+    gt, _ = read_gt(tmp_path / "data" / "ground_truth" / "office_a_ground_truth.png", "instance",
+                    MetricParams(connectivity=8), 0.02)
+    assert ((gt_rgb == 0).all(-1) == (gt < 0)).all()  # black exactly where no room
+    colours = {tuple(c) for c in gt_rgb.reshape(-1, 3)} - {(0, 0, 0), PAGE_BORDER_COLOR}
+    assert colours <= set(INSTANCE_COLORS) and len(colours) >= 3
     assert main(["table5", "--data", str(tmp_path / "data"), "--bogus"]) == 2
 
 

@@ -73,6 +73,22 @@ class Pair:
     pred: Path | None
 
 
+@dataclass
+class MapSample:
+    """The maps of a few ids kept while scoring, to be drawn (``baselines table5``'s page):
+    ``gt[id]`` the ground truth's room ids and ``pred[(method, id)]`` each method's segments,
+    both (H, W) int, -1 none, on the ground truth's grid."""
+
+    ids: frozenset
+    gt: dict = field(default_factory=dict)
+    pred: dict = field(default_factory=dict)
+
+    def add(self, method: str, map_id: str, pred: np.ndarray, gt: np.ndarray) -> None:
+        if map_id in self.ids:
+            self.gt.setdefault(map_id, gt)
+            self.pred[(method, map_id)] = pred
+
+
 def _glob_ids(folder: Path, pattern: str) -> dict[str, Path]:
     if "{id}" not in pattern:
         raise ValueError(f"file pattern {pattern!r} must contain '{{id}}'")
@@ -216,7 +232,7 @@ def _score(pred: np.ndarray, pi: dict, gt: np.ndarray, gi: dict, pair: Pair, gt_
 
 def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricParams(), dataset: str = "external",
                 gt_format: str = "instance", pred_format: str = "instance", *, resolution: float,
-                pred_resolution: float | None = None) -> pd.DataFrame:
+                pred_resolution: float | None = None, keep: MapSample | None = None) -> pd.DataFrame:
     """One row per pair: ``method``'s map scored against the ground truth (see module doc).
 
     Args:
@@ -227,6 +243,7 @@ def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricPar
         gt_format, pred_format: ``"instance"`` or ``"label"``.
         resolution: metres per pixel of the ground truth.
         pred_resolution: metres per pixel of the predictions (None: same extent).
+        keep: where to keep the maps of a few ids (label maps as their connected segments).
     Returns: DataFrame with columns house_id, dataset, method, resolution, metric_params,
         prediction, status ("ok" / "failed"), error, every metric of
         :data:`benchmark.metrics.METRIC_COLUMNS` (NaN on a failed row) and :data:`READ_COLUMNS`.
@@ -248,6 +265,9 @@ def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricPar
             pred, pi = read_map(pair.pred, pred_format, params, pred_resolution or resolution)
             pred = onto_grid(pred, gt.shape, resolution, pred_resolution)
             row.update(_score(pred, pi, gt, gi, pair, gt_format, pred_format, params, resolution))
+            if keep is not None:
+                keep.add(method, pair.map_id, segments(pred, params.connectivity) if pred_format == "label" else pred,
+                         gt)
             gi, pi = ({k: v for k, v in i.items() if k != "classes"} for i in (gi, pi))
             row.update({f"gt_{k}": v for k, v in gi.items()} | {f"pred_{k}": v for k, v in pi.items()})
         except Exception as e:  # one missing or bad map fails alone, with its reason
@@ -258,7 +278,8 @@ def score_pairs(pairs: list[Pair], method: str, params: MetricParams = MetricPar
 
 
 def sanity_rows(gt_paths: dict[str, Path], params: MetricParams = MetricParams(), dataset: str = "external",
-                gt_format: str = "instance", *, resolution: float, grid_size: float = 3.0) -> pd.DataFrame:
+                gt_format: str = "instance", *, resolution: float, grid_size: float = 3.0,
+                keep: MapSample | None = None) -> pd.DataFrame:
     """The sanity rows on each ground-truth map: ``one_room`` (the walkable map as one segment),
     ``gt_geometry`` (the ground truth's own rooms) and ``grid`` (``grid_size`` m squares).
 
@@ -291,6 +312,8 @@ def sanity_rows(gt_paths: dict[str, Path], params: MetricParams = MetricParams()
                 inst = seg(grid, scene=SimpleNamespace(instances=gt)) if name == "gt_geometry" else seg(grid)
                 row.update(score_instances(inst, gt, params, resolution=resolution))
                 row.update({f"gt_{k}": v for k, v in gi.items()})
+                if keep is not None:
+                    keep.add(name, mid, inst, gt)
             rows.append(row)
     return pd.DataFrame(rows)
 
@@ -342,16 +365,16 @@ class ExternalMethod:
         return pairs
 
     def score(self, params: MetricParams = MetricParams(), sanity: bool = False,
-              grid_size: float = 3.0) -> pd.DataFrame:
+              grid_size: float = 3.0, keep: MapSample | None = None) -> pd.DataFrame:
         """Rows of :func:`score_pairs` (+ :func:`sanity_rows` when ``sanity``); predictions with
-        no ground truth are listed in ``df.attrs["unpaired"]``."""
+        no ground truth are listed in ``df.attrs["unpaired"]``; ``keep``: see :class:`MapSample`."""
         pairs = self.pairs()
         df = score_pairs(pairs, self.method, params, self.dataset, self.gt_format, self.pred_format,
-                         resolution=self.resolution, pred_resolution=self.pred_resolution)
+                         resolution=self.resolution, pred_resolution=self.pred_resolution, keep=keep)
         if sanity:
             gts = {p.map_id: p.gt for p in pairs}
             df = pd.concat([df, sanity_rows(gts, params, self.dataset, self.gt_format, resolution=self.resolution,
-                                            grid_size=grid_size)], ignore_index=True)
+                                            grid_size=grid_size, keep=keep)], ignore_index=True)
         df.attrs["unpaired"] = list(self.unpaired)
         return df
 
@@ -398,7 +421,7 @@ def failures(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note: str = "",
-           resolution: float | None = None) -> str:
+           resolution: float | None = None, extra: dict[str, str] | None = None) -> str:
     """Write ``df`` as ``out/metrics.csv`` (per map) and its Table V-style summary as
     ``out/table5.md``, ``table5.csv`` and ``table5.tex`` (when ``out`` is given; the set written
     as a whole), and print the summary, the metric parameters, then every failed/missing map.
@@ -427,5 +450,7 @@ def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note
             atomic_write_text(tmp / "table5.tex", summary.to_latex(index=False, escape=True, caption=(
                 f"Comparison on the same maps (mean and std over maps, percent). {describe(params, resolution)}"),
                 label="tab:table5"))
+            for name, body in (extra or {}).items():
+                atomic_write_text(tmp / name, body)
     print(text, end="")
     return text

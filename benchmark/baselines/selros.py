@@ -42,7 +42,8 @@ def read_free_space(path: str | Path) -> np.ndarray:
 
 
 def geometric_rows(gt_paths: dict[str, Path], occupancy_paths: dict[str, Path], params: MetricParams,
-                   resolution: float, dataset: str = "selros", segmenters: dict | None = None) -> pd.DataFrame:
+                   resolution: float, dataset: str = "selros", segmenters: dict | None = None,
+                   keep=None) -> pd.DataFrame:
     """Per-map rows of the geometric segmenters, each run on the map's occupancy image.
 
     Args:
@@ -54,6 +55,7 @@ def geometric_rows(gt_paths: dict[str, Path], occupancy_paths: dict[str, Path], 
         dataset: value of the ``dataset`` column.
         segmenters: name -> segmenter (default: morphological, distance, voronoi; ROSE² is added by
             the command when a checkout is given).
+        keep: a :class:`benchmark.baselines.external.MapSample` keeping the maps of a few ids.
     Returns: DataFrame, one row per (map, segmenter), columns as external scoring.
     """
     from benchmark.baselines.external import read_gt
@@ -84,7 +86,10 @@ def geometric_rows(gt_paths: dict[str, Path], occupancy_paths: dict[str, Path], 
             try:
                 if err:
                     raise RuntimeError(err)
-                row.update(score_instances(seg(grid), gt, params, resolution=resolution))
+                inst = seg(grid)
+                row.update(score_instances(inst, gt, params, resolution=resolution))
+                if keep is not None:
+                    keep.add(name, mid, inst, gt)
                 row.update(getattr(seg, "last_info", None) or {})  # e.g. ROSE²'s seconds (t_rose2)
             except Exception as e:  # one map fails alone
                 row.update(status="failed", error=err or f"{type(e).__name__}: {e}")

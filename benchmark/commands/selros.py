@@ -42,7 +42,7 @@ def _quote(v) -> str:
 def main(argv: list[str] | None = None) -> int:
     from hydra.utils import instantiate
 
-    from benchmark.baselines.external import _glob_ids, report
+    from benchmark.baselines.external import MapSample, _glob_ids, failures, report, summary_table
     from benchmark.baselines.selros import (
         GT_FOLDER,
         GT_PATTERN,
@@ -68,7 +68,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="a ROSE2 checkout: add its row, run here (make rose2-env; default $ROOMSEG_ROSE2)")
     ap.add_argument("--rose2-python", default=None, help="the ROSE2 environment's python (default .venv-rose2)")
     ap.add_argument("--no-sanity", action="store_true", help="leave out one_room, gt_geometry and grid")
-    ap.add_argument("--out", type=Path, default=None, help="folder for metrics.csv and table5.md")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="folder for metrics.csv, table5.md/.csv/.tex and table5.html (written as a set)")
+    ap.add_argument("--page-maps", type=int, default=3, help="maps drawn on table5.html (default 3)")
     a, rest = ap.parse_known_args(argv)
     bad = [r for r in rest if not r.startswith("metrics.")]
     if bad:
@@ -76,11 +78,17 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     data = a.data or default_selros_dir()
+    if not data.is_dir():
+        print(f"error: the SeLRoS release is not at {data}: get it with `python -m benchmark.commands.data fetch "
+              f"selros` (or give --data DIR)", file=sys.stderr)
+        return 2
     try:
         common = [f"external.gt_dir={_quote(data / GT_FOLDER)}", f"external.gt_pattern={_quote(a.gt_pattern)}", *rest]
         if a.resolution is not None:
             common.append(f"external.resolution={a.resolution}")
         frames, params, res = [], None, None
+        gts = _glob_ids(data / GT_FOLDER, a.gt_pattern)
+        keep = MapSample(frozenset(sorted(gts)[:max(a.page_maps, 0)])) if a.out else None
         others = []
         for spec in a.method:
             name, eq, folder = spec.partition("=")
@@ -93,9 +101,8 @@ def main(argv: list[str] | None = None) -> int:
             method, params = instantiate(cfg.external), instantiate(cfg.metrics)
             res = method.resolution
             frames.append(method.score(params, sanity=not a.no_sanity and preset == "selros" and not extra,
-                                       grid_size=float(cfg.grid_size)))
+                                       grid_size=float(cfg.grid_size), keep=keep))
         if not a.no_geometric:
-            gts = _glob_ids(data / GT_FOLDER, a.gt_pattern)
             occ_dir = a.occupancy_dir or data / OCCUPANCY_FOLDER
             occ = _glob_ids(occ_dir, a.occupancy_pattern or OCCUPANCY_PATTERN)
             segs = None
@@ -107,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
 
                 segs = {"morphological": Morphological(), "distance": DistanceTransform(), "voronoi": Voronoi(),
                         "rose2": Rose2(checkout=a.rose2, python=a.rose2_python)}
-            frames.append(geometric_rows(gts, occ, params, res, segmenters=segs))
+            frames.append(geometric_rows(gts, occ, params, res, segmenters=segs, keep=keep))
     except Exception as e:
         cause = e.__cause__ if type(e).__name__ == "InstantiationException" and e.__cause__ else e
         if isinstance(cause, (FileNotFoundError, ValueError)):
@@ -116,8 +123,17 @@ def main(argv: list[str] | None = None) -> int:
         raise
     df = pd.concat(frames, ignore_index=True)
     df.attrs["unpaired"] = []
-    report(df, params, a.out, note=f"; geometric baselines on {a.occupancy_dir or 'the VRF outputs'}' free space.",
-           resolution=res)
+    note = f"; geometric baselines on {a.occupancy_dir or 'the VRF outputs'}' free space."
+    extra = None
+    if a.out:
+        from benchmark.metrics import describe
+        from benchmark.reports.scores_page import build_scores_page
+
+        methods = list(dict.fromkeys(df["method"]))
+        extra = {"table5.html": build_scores_page(summary_table(df), failures(df), keep.gt, keep.pred, methods,
+                                                  f"Table V: every method on {data}",
+                                                  "Metrics: " + describe(params, res, colours=True) + note)}
+    report(df, params, a.out, note=note, resolution=res, extra=extra)
     return 0
 
 
