@@ -206,3 +206,28 @@ def test_from_run_draws_the_chosen_houses(tmp_path, capsys):
     default = tmp_path / "default"
     assert main(["from-run", str(res / "runs" / "figs"), "--out", str(default)]) == 0
     assert {p.name.split("_")[1] for p in default.iterdir()} == {"synthetic-s000000"}
+    # a from-run killed mid-way leaves the old set whole (never old and new mixed); the next run
+    # removes what the killed one left and replaces the set
+    import os
+    import signal
+    import time
+
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    proc = subprocess.Popen([sys.executable, "-m", "benchmark.commands.figures", "from-run", str(res / "runs" / "figs"),
+                             "--out", str(out), "--jobs", "1", "--format", "png,pdf"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    prefix = f".{out.name}.tmp-"  # the killed writer's temporary set (envs.atomic.leftover_prefix)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        tmps = [p for p in tmp_path.iterdir() if p.name.startswith(prefix)]
+        if tmps and any(tmps[0].iterdir()):
+            break
+        time.sleep(0.02)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert tmps and any(tmps[0].iterdir()), "the drawing finished before it could be killed"
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert main(["from-run", str(res / "runs" / "figs"), "--out", str(out), "--jobs", "1", "--format", "pdf"]) == 0
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(prefix)]  # the killed run's leftover is gone
+    names = {p.name for p in out.iterdir()}
+    assert sum(n.endswith(".pdf") for n in names) == 3 and set(before) <= names  # new set (first house) + old kept

@@ -45,10 +45,14 @@ def main(argv: list[str] | None = None) -> int:
         elif a.cmd == "house":
             paths = house_figures(a.house_index, a.out, a.overrides, formats)
         else:
-            paths = from_run(a.run_dir, a.out, a.house, formats, a.jobs)
-            if not paths:
-                print(f"error: no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
-                return 2
+            # the set is replaced as a whole: a run killed mid-way leaves the old figures, never a mix
+            from envs.atomic import atomic_folder
+
+            with atomic_folder(a.out) as tmp:
+                paths = from_run(a.run_dir, tmp, a.house, formats, a.jobs)
+                if not paths:
+                    raise FileNotFoundError(f"no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
+            paths = [a.out / p.relative_to(tmp) for p in paths]
     except (ValueError, FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}")
         return 2
