@@ -27,6 +27,7 @@ import numpy as np
 from filelock import FileLock
 
 from envs.atomic import atomic_write_text
+from envs.digest import file_digest  # noqa: F401 (re-exported: cache keys of files)
 from envs.npz import ChecksumError, load_npz, save_npz  # noqa: F401 - the cache's readers and writers of .npz entries
 
 
@@ -156,15 +157,6 @@ def _json_default(o: Any) -> Any:
 #: cache ``.npz`` entries: written with a checksum of their content and checked when read
 #: (:mod:`envs.npz`; a bad entry raises :class:`envs.npz.ChecksumError`, a ``ValueError``).
 atomic_save_npz = save_npz
-
-
-def file_digest(path: str | Path) -> str:
-    """SHA-256 (hex) of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _canonical(obj: Any) -> bytes:

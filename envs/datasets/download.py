@@ -17,13 +17,14 @@ Kinds ``prior`` and ``ai2thor`` are downloaded by those packages into their own 
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import urljoin
+
+from envs.digest import file_digest
 
 CATALOGUE = Path(__file__).with_name("catalogue.yaml")
 #: bytes per read while downloading.
@@ -104,15 +105,6 @@ def load_catalogue(path: str | Path = CATALOGUE) -> dict[str, Dataset]:
     return out
 
 
-def sha256_file(path: str | Path) -> str:
-    """The SHA-256 (hex) of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def status(ds: Dataset, root: str | Path, verify: bool = False) -> str:
     """``present``, ``absent``, ``partial (k of n files)`` or, with ``verify``, ``damaged (FILE)``
     for a ``files`` dataset under ``root`` (sizes are compared; ``verify`` also hashes); for
@@ -129,7 +121,7 @@ def status(ds: Dataset, root: str | Path, verify: bool = False) -> str:
         return f"partial ({len(have)} of {len(ds.files)} files)"
     if verify:
         for f in ds.files:
-            if sha256_file(folder / f.path) != f.sha256:
+            if file_digest(folder / f.path) != f.sha256:
                 return f"damaged ({f.path}: checksum differs)"
     return "present"
 
@@ -210,10 +202,10 @@ def fetch_files(ds: Dataset, root: str | Path, progress: bool = True, timeout: f
     for f in ds.files:  # verified files of an earlier run (in the stage, or in an old folder) are kept
         dest = stage / f.path
         old = folder / f.path
-        if not dest.is_file() and old.is_file() and old.stat().st_size == f.size and sha256_file(old) == f.sha256:
+        if not dest.is_file() and old.is_file() and old.stat().st_size == f.size and file_digest(old) == f.sha256:
             dest.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(old, dest)
-        if dest.is_file() and dest.stat().st_size == f.size and sha256_file(dest) == f.sha256:
+        if dest.is_file() and dest.stat().st_size == f.size and file_digest(dest) == f.sha256:
             done_bytes += f.size
         else:
             todo.append(f)
@@ -230,7 +222,7 @@ def fetch_files(ds: Dataset, root: str | Path, progress: bool = True, timeout: f
             if got < f.size:
                 raise DownloadError(f"{f.url}: the transfer ended after {got} of {f.size} bytes (kept in {part}: "
                                     f"run the fetch again to resume)")
-            digest = sha256_file(part)
+            digest = file_digest(part)
             if got != f.size or digest != f.sha256:
                 part.unlink()
                 raise DownloadError(f"{f.url}: {got} bytes, sha256 {digest}; expected {f.size} bytes, sha256 "
@@ -282,4 +274,4 @@ def fetch_with_package(ds: Dataset) -> str:
 
 
 __all__ = ["CATALOGUE", "DataFile", "Dataset", "DownloadError", "fetch_files", "fetch_with_package",
-           "load_catalogue", "sha256_file", "status"]
+           "load_catalogue", "status"]
