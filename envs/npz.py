@@ -42,8 +42,9 @@ def arrays_digest(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def save_npz(path: str | Path, **arrays: np.ndarray) -> None:
-    """Write ``arrays`` as a compressed ``.npz`` with their checksum, atomically.
+def save_npz(path: str | Path, *, durable: bool = True, **arrays: np.ndarray) -> None:
+    """Write ``arrays`` as a compressed ``.npz`` with their checksum, atomically (``durable``:
+    see :func:`envs.atomic.atomic_write_bytes`; no array may be named ``durable``).
 
     Raises:
         ValueError: an array name that is the checksum's own, or an object array (no pickles).
@@ -60,7 +61,7 @@ def save_npz(path: str | Path, **arrays: np.ndarray) -> None:
         for name, arr in members.items():
             with zf.open(name + ".npy", "w", force_zip64=True) as f:
                 np.lib.format.write_array(f, arr, allow_pickle=False)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(path, buf.getvalue(), durable)
 
 
 def load_npz(path: str | Path) -> dict[str, np.ndarray]:

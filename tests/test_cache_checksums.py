@@ -222,3 +222,26 @@ def test_a_row_served_from_the_cache_carries_this_runs_label(tmp_path):
     cfg, ch = _cfg(tmp_path, "run.label=second")
     again = run(cfg, tmp_path / "b", ch)
     assert set(again["label"]) == {"second"} and again.attrs["n_failed"] == 0
+
+
+def test_results_are_flushed_to_disk_cache_entries_are_not(tmp_path, monkeypatch):
+    """Results are fsynced before the rename (whole after a power failure); cache entries skip it,
+    as their checksum catches a torn one on read (and the harness computes it again)."""
+    import os
+
+    import numpy as np
+
+    from benchmark.harness.cache import atomic_save_npz, read_entry, write_entry
+    from envs.atomic import atomic_write_text
+    from envs.npz import load_npz
+
+    calls = []
+    real = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (calls.append(fd), real(fd))[1])
+    atomic_write_text(tmp_path / "metrics.csv", "house_id,iou\nh,0.5\n")
+    assert len(calls) == 1
+    write_entry(tmp_path / "e.json", {"iou": 0.5})
+    atomic_save_npz(tmp_path / "m.npz", raw=np.arange(4))
+    assert len(calls) == 1
+    assert read_entry(tmp_path / "e.json") == {"iou": 0.5}
+    assert load_npz(tmp_path / "m.npz")["raw"].tolist() == [0, 1, 2, 3]

@@ -154,9 +154,11 @@ def _json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-#: cache ``.npz`` entries: written with a checksum of their content and checked when read
-#: (:mod:`envs.npz`; a bad entry raises :class:`envs.npz.ChecksumError`, a ``ValueError``).
-atomic_save_npz = save_npz
+def atomic_save_npz(path: str | Path, **arrays) -> None:
+    """A cache ``.npz`` entry: written with a checksum of its content and checked when read
+    (:mod:`envs.npz`; a bad entry raises :class:`envs.npz.ChecksumError`, a ``ValueError``), so
+    without the fsync (a torn entry is recomputed, not served)."""
+    save_npz(path, durable=False, **arrays)
 
 
 def _canonical(obj: Any) -> bytes:
@@ -180,7 +182,7 @@ def write_entry(path: Path, obj: Any, files: Mapping[str, str | Path] | None = N
         recorded[role] = {"path": os.path.relpath(f, path.parent), "sha256": file_digest(f)}
     body = {"entry": obj, "files": recorded}
     atomic_write_text(path, json.dumps({"sha256": hashlib.sha256(_canonical(body)).hexdigest(), **body}, indent=1,
-                                       sort_keys=True, allow_nan=True))
+                                       sort_keys=True, allow_nan=True), durable=False)  # verified on read
 
 
 def read_entry(path: Path, check_files: bool = True, require: Sequence[str] = ()) -> Any:
