@@ -140,3 +140,26 @@ def test_cone_reference_line_agrees_with_the_exact_definition():
         n, d = max(abs(r1 - r0), abs(c1 - c0)), min(abs(r1 - r0), abs(c1 - c0))
         ties += n > 0 and any((2 * d * i) % (2 * n) == n for i in range(n + 1))  # d*i/n ends in .5
     assert ties > 10  # the random lines include half-way ties
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mark_visible_equals_the_union_of_reference_rays(seed):
+    """mark_visible skips a ray whose end cell repeats the ray before's (the same digital line);
+    its union equals every reference ray's cells, with dense cones where most rays repeat."""
+    from envs.render.raycast import mark_visible
+
+    rng = np.random.default_rng(100 + seed)
+    h, w = int(rng.integers(30, 70)), int(rng.integers(30, 70))
+    blocked = rng.random((h, w)) < 0.08
+    n_views = 5
+    rows, cols = rng.integers(0, h, n_views), rng.integers(0, w, n_views)
+    rows[0] = -3  # a view off the map sees nothing
+    max_range = float(rng.uniform(5, 40))
+    thetas = np.stack([cone_thetas(float(rng.uniform(0, 360)), 90.0, max_range, 4.0) for _ in range(n_views)])
+    want = np.zeros((h, w), bool)
+    for v in range(n_views):
+        if 0 <= rows[v] < h and 0 <= cols[v] < w:
+            for th in thetas[v]:
+                for r, c in reference_ray(blocked, int(rows[v]), int(cols[v]), float(th), max_range)[0]:
+                    want[r, c] = True
+    assert (mark_visible(blocked, rows, cols, thetas, max_range) == want).all() and want.any()

@@ -82,14 +82,28 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, thetas, max_
     cap = int(np.ceil(max_range)) + 2
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
+    last_objs = np.empty(cap + 1, np.int64)  # the objects the ray before touched (each once)
     ray_id = 0
     for v in range(n_views):
         r0 = rows[v]
         c0 = cols[v]
         if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
             continue
+        last_r = -(1 << 62)
+        last_c = -(1 << 62)
+        n_last = 0
         for t in range(n_rays):
             r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
+            if r1 == last_r and c1 == last_c:
+                # the same digital line as the ray before: the same cells (already counted for this
+                # view) and the same objects, each touched by one more ray
+                for j in range(n_last):
+                    obj_rays[v, last_objs[j]] += 1
+                ray_id += 1
+                continue
+            last_r = r1
+            last_c = c1
+            n_last = 0
             n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
             for j in range(n):
                 rr = buf_r[j]
@@ -104,11 +118,15 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, thetas, max_
                 if o >= 0 and ostamp[o] != ray_id:
                     ostamp[o] = ray_id
                     obj_rays[v, o] += 1
+                    last_objs[n_last] = o
+                    n_last += 1
             if hr >= 0:
                 o = object_map[hr, hc]
                 if o >= 0 and ostamp[o] != ray_id:
                     ostamp[o] = ray_id
                     obj_rays[v, o] += 1
+                    last_objs[n_last] = o
+                    n_last += 1
             ray_id += 1
     return vis, obj_rays, n_cells
 

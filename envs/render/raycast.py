@@ -171,8 +171,14 @@ def _mark_cones(blocked, rows, cols, thetas, max_range, seen):
         c0 = cols[v]
         if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
             continue
+        last_r = -(1 << 62)
+        last_c = -(1 << 62)
         for t in range(thetas.shape[1]):
             r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
+            if r1 == last_r and c1 == last_c:  # the same digital line as the ray before: the same cells
+                continue
+            last_r = r1
+            last_c = c1
             n, _, _ = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
             for j in range(n):
                 seen[buf_r[j], buf_c[j]] = True
