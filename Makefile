@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling clean
+.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -103,8 +103,14 @@ readme-tables: setup  ## rewrite the README's generated results blocks from resu
 scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000 generated houses on 1 and 2 workers
 	$(PY) -m benchmark.commands.scaling --houses 100 1000 --workers 1 2
 
+scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
+	$(PY) -m benchmark.commands.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
+
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf
+
+perf-publish: setup  ## make perf's tables -> results/published/perf.md (included by docs/robot-conditions.md)
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --robot-houses 10 --out results/published/perf.md
 
 # On a GPU workstation: the active environment's python (conda, README) unless .venv exists.
 GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)

@@ -59,6 +59,10 @@ def test_a_broken_link_fails_the_strict_build(tmp_path):
         pytest.skip("mkdocs is not installed (pip install 'roomseg-bench[docs]')")
     shutil.copytree(ROOT / "docs", tmp_path / "docs")
     shutil.copytree(ROOT / "examples", tmp_path / "examples")  # files the pages include (snippets)
+    (tmp_path / "results").mkdir()
+    for f in (ROOT / "results" / "published").glob("*.md"):  # published measurements the pages include
+        (tmp_path / "results" / "published").mkdir(exist_ok=True)
+        shutil.copy(f, tmp_path / "results" / "published" / f.name)
     shutil.copy(ROOT / "README.md", tmp_path / "README.md")
     shutil.copy(ROOT / "mkdocs.yml", tmp_path / "mkdocs.yml")
 

@@ -66,4 +66,24 @@ def test_a_tiny_scaling_run_prints_the_table(tmp_path, capsys):
     if sys.platform.startswith("linux"):
         assert table["processes"].tolist() == [1, 3]  # the driver; the driver and its 2 workers
         assert (table["peak PSS MB"] > 50).all()
-    assert "rows identical" in printed and "peak PSS MB" in out.read_text()
+    text = out.read_text()
+    assert "rows identical" in printed and "peak PSS MB" in text
+    # the file says when, where and by which command (docs include it as it is: results/published/scaling.md)
+    first = text.splitlines()[0]
+    assert first.startswith("Measured on ") and " cores" in first and "--houses 3 --workers 1 2" in first
+
+
+def test_perf_writes_its_tables_with_where_and_when(tmp_path, capsys):
+    """make perf-publish's file: the tables under a line with the date, machine, commit and command
+    (the docs include it as it is)."""
+    from benchmark.commands.perf import main as perf
+
+    out = tmp_path / "perf.md"
+    args = ["--houses", "0", "--robot-houses", "0", "--synthetic", "1", "--resolutions", "0.1",
+            "--cone-ref-views", "3", "--out", str(out)]
+    assert perf(args) == 0
+    text = out.read_text()
+    first = text.splitlines()[0]
+    assert first.startswith("Measured on ") and " cores" in first and "--synthetic 1 --resolutions 0.1" in first
+    assert "graph KNN ms" in text and "KNN identical" in text
+    assert "Medians over houses" in text and "graph KNN ms" in capsys.readouterr().out

@@ -185,19 +185,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot-houses", type=int, default=5,
                     help="shared ProcTHOR houses for the scan-map and frontier timings (0: none)")
     ap.add_argument("--scan-ref-scans", type=int, default=40, help="scans the scan-map reference runs on")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="also write the tables here (Markdown, with the date, machine, commit and command)")
     a = ap.parse_args(argv)
+    parts: list[str] = []
     if (a.houses > 0 or a.robot_houses > 0) and not a.data.exists():
         print(f"error: shared ProcTHOR houses not found at {a.data} (pass --houses 0 for generated houses only)")
         return 2
     if a.robot_houses > 0:
         robot = run_robot(a.robot_houses, a.scan_ref_scans, a.data)
-        print()
-        print(robot_table(robot).to_markdown(index=False, floatfmt=".1f"))
-        print(f"\nRobot conditions at 0.05 m/px, shared houses. Times: best of 3 calls per house (references: 1 call; "
-              f"the scan-map reference on the first {a.scan_ref_scans} scans, clean and noisy). Targets: scan map "
-              f"<= 50 ms, frontier <= 200 ms per house.\n")
+        parts += [robot_table(robot).to_markdown(index=False, floatfmt=".1f"),
+                  f"Robot conditions at 0.05 m/px, shared houses. Times: best of 3 calls per house (references: 1 "
+                  f"call; the scan-map reference on the first {a.scan_ref_scans} scans, clean and noisy). Targets: "
+                  f"scan map <= 50 ms, frontier <= 200 ms per house."]
+        print("\n" + "\n\n".join(parts[-2:]) + "\n")
     if a.houses == 0 and a.synthetic == 0:
-        return 0
+        return _write(a.out, parts, argv)
     df = run(a.houses, a.synthetic, a.resolutions, a.cone_ref_views, a.data)
     g = df.groupby(["dataset", "resolution"])
     table = pd.DataFrame({
@@ -212,11 +215,25 @@ def main(argv: list[str] | None = None) -> int:
         "post peak MB": g["pp_peak_MB"].median(),
     }).reset_index()
     table["resolution"] = table["resolution"].map(lambda r: f"{r:g} m/px")
-    print()
-    print(table.to_markdown(index=False, floatfmt=".1f"))
-    print(f"\nMedians over houses. Speed-ups measured in this run on the same inputs (cone: the first "
-          f"{a.cone_ref_views} views). Times: best of 3 calls per house. Peak: tracemalloc (Python/NumPy "
-          f"allocations, incl. the numba kernels' work arrays).")
+    parts += [table.to_markdown(index=False, floatfmt=".1f"),
+              f"Medians over houses. Speed-ups measured in this run on the same inputs (cone: the first "
+              f"{a.cone_ref_views} views). Times: best of 3 calls per house. Peak: tracemalloc (Python/NumPy "
+              f"allocations, incl. the numba kernels' work arrays)."]
+    print("\n" + "\n\n".join(parts[-2:]))
+    return _write(a.out, parts, argv)
+
+
+def _write(out: Path | None, parts: list[str], argv: list[str] | None) -> int:
+    """The tables to ``out`` (when given) under a line saying when, where and by which command."""
+    if out is None:
+        return 0
+    import sys
+
+    from benchmark.reports.readme_tables import measured_line
+    from envs.atomic import atomic_write_text
+
+    head = measured_line("benchmark.commands.perf", list(argv if argv is not None else sys.argv[1:]))
+    atomic_write_text(out, "\n\n".join([head, *parts]) + "\n")
     return 0
 
 

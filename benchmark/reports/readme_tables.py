@@ -97,6 +97,18 @@ def _commit(root: Path) -> str:
         return ""
 
 
+def measured_line(module: str, args: list[str]) -> str:
+    """``Measured on DATE on MACHINE at commit C by `python -m MODULE ARGS`.``: the first line
+    of a published measurement (``results/published/*.md``, included by the docs as it is)."""
+    import datetime
+    import shlex
+
+    commit = _commit(Path(__file__).resolve().parents[2])
+    return (f"Measured on {datetime.date.today().isoformat()} on {machine()}"
+            f"{f' at commit {commit}' if commit else ''} by "
+            f"`python -m {module} {' '.join(shlex.quote(x) for x in args)}`.")
+
+
 def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: str | Path | None = None,
             command: str = "make bench", columns: Sequence[str] | None = None) -> Path:
     """Copy a finished run's per-house metrics into ``<root>/results/published/<name>/``.
