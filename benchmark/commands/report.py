@@ -26,9 +26,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except OSError as e:  # a full disk, a read-only folder: one line naming the file
-        from benchmark.harness.write_errors import failed_path
+        from benchmark.harness.write_errors import cannot_write
 
-        print(f"error: cannot write {failed_path(e) or a.out} ({e.strerror or e})", file=sys.stderr)
+        print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
         return 2
     print(out)
     return 0

@@ -113,7 +113,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"robustness: error: {one_line(e)}", file=sys.stderr)
         return 2
     except OSError as e:
-        print(f"robustness: error: cannot write {e.filename or a.out} ({e.strerror or e})", file=sys.stderr)
+        from benchmark.harness.write_errors import cannot_write
+
+        print(f"robustness: error: {cannot_write(e, a.out)}", file=sys.stderr)
         return 2
     print(text)
     return 0

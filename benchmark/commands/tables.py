@@ -59,7 +59,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except OSError as e:
-        print(f"error: cannot write {e.filename or a.out} ({e.strerror or e})", file=sys.stderr)
+        from benchmark.harness.write_errors import cannot_write
+
+        print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
         return 2
     print(text)
     return 0

@@ -28,6 +28,12 @@ def failed_path(e: BaseException) -> str:
     return ""
 
 
+def cannot_write(e: OSError, default: object = "") -> str:
+    """The one line a command prints for a write that failed: ``cannot write FILE (reason)``,
+    the file from :func:`failed_path`, else ``default`` (e.g. the output folder asked for)."""
+    return f"cannot write {failed_path(e) or default} ({e.strerror or e})"
+
+
 def naming_the_file(e: BaseException) -> BaseException:
     """``e``, or for an ``OSError`` that names no file but whose file the traceback shows, an
     ``OSError`` with the same errno and message that names it."""
@@ -38,4 +44,4 @@ def naming_the_file(e: BaseException) -> BaseException:
     return e
 
 
-__all__ = ["failed_path", "naming_the_file"]
+__all__ = ["cannot_write", "failed_path", "naming_the_file"]
