@@ -191,7 +191,7 @@ def test_presets_are_hydra_configs_over_30_maps(selros_dir, tmp_path):
 
 
 @pytest.mark.slow
-def test_table5_cli_on_a_partial_copy(selros_dir, tmp_path):
+def test_table5_cli_on_a_partial_copy(selros_dir, tmp_path, capsys):
     """The table5 command on three SeLRoS maps renamed office_*, one VRF output removed: every
     method and sanity row, ids kept whole, the gap listed."""
     from benchmark.commands.baselines import main
@@ -244,6 +244,13 @@ def test_table5_cli_on_a_partial_copy(selros_dir, tmp_path):
     colours = {tuple(c) for c in gt_rgb.reshape(-1, 3)} - {(0, 0, 0), PAGE_BORDER_COLOR}
     assert colours <= set(INSTANCE_COLORS) and len(colours) >= 3
     assert main(["table5", "--data", str(tmp_path / "data"), "--bogus"]) == 2
+    # an output folder that cannot be made: one line naming it, exit 2
+    (tmp_path / "a_file").write_text("")
+    capsys.readouterr()
+    assert main(["table5", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "a_file" / "out"),
+                 "--no-geometric", "--no-sanity"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: cannot write") and "a_file" in err
 
 
 # ---------------------------------------------------------------- geometric segmenters

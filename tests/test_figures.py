@@ -231,3 +231,10 @@ def test_from_run_draws_the_chosen_houses(tmp_path, capsys):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(prefix)]  # the killed run's leftover is gone
     names = {p.name for p in out.iterdir()}
     assert sum(n.endswith(".pdf") for n in names) == 3 and set(before) <= names  # new set (first house) + old kept
+    # an output folder that cannot be made: one line naming it, exit 2, no traceback
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    capsys.readouterr()
+    assert main(["from-run", str(res / "runs" / "figs"), "--out", str(blocker / "figs")]) == 2
+    printed = capsys.readouterr().out.strip()
+    assert len(printed.splitlines()) == 1 and printed.startswith("error: cannot write") and "a_file" in printed

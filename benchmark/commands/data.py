@@ -69,7 +69,9 @@ def _fetch(names: Sequence[str], root: Path, catalogue: Path, progress: bool, ti
             print(f"error: {e}", file=sys.stderr)
             return 2
         except OSError as e:  # a full disk, a read-only folder
-            print(f"error: {name}: cannot write under {root} ({e.strerror or e})", file=sys.stderr)
+            from benchmark.harness.write_errors import cannot_write
+
+            print(f"error: {name}: {cannot_write(e, root)}", file=sys.stderr)
             return 2
     return 0
 

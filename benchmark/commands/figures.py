@@ -56,6 +56,11 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}")
         return 2
+    except OSError as e:  # a full disk, a read-only folder: one line naming the file
+        from benchmark.harness.write_errors import cannot_write
+
+        print(f"error: {cannot_write(e, a.out)}")  # on stdout, as this command's other errors
+        return 2
     for p in paths:
         print(p)
     return 0

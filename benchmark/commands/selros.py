@@ -133,7 +133,13 @@ def main(argv: list[str] | None = None) -> int:
         extra = {"table5.html": build_scores_page(summary_table(df), failures(df), keep.gt, keep.pred, methods,
                                                   f"Table V: every method on {data}",
                                                   "Metrics: " + describe(params, res, colours=True) + note)}
-    report(df, params, a.out, note=note, resolution=res, extra=extra)
+    try:
+        report(df, params, a.out, note=note, resolution=res, extra=extra)
+    except OSError as e:  # a full disk, a read-only folder: one line naming the file
+        from benchmark.harness.write_errors import cannot_write
+
+        print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
+        return 2
     return 0
 
 
