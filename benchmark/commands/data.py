@@ -59,9 +59,8 @@ def _fetch(names: Sequence[str], root: Path, catalogue: Path, progress: bool, ti
         ds = cat[name]
         try:
             if ds.kind == "files":
-                before = status(ds, root, verify=True)
-                folder = fetch_files(ds, root, progress=progress, timeout=timeout)
-                word = "already present, verified" if before == "present" else "fetched and verified"
+                folder, fetched = fetch_files(ds, root, progress=progress, timeout=timeout)
+                word = "fetched and verified" if fetched else "already present, verified"
                 print(f"{name}: {word}: {folder} ({len(ds.files)} files, {_size(ds)})")
             else:
                 print(f"{name}: in {fetch_with_package(ds)}")

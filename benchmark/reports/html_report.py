@@ -356,17 +356,21 @@ def _house_section(hid: str, jobs) -> str:
     return "".join(out)
 
 
-def _robustness_section(run_dirs: Sequence[str | Path]) -> str:
+def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
     """A robustness run's summary (``experiment=robustness``; rows with ``corruption``): per
     dataset, IoU under each robot condition (mean over its severities), mCE and mean drop
     against the Voronoi reference, and a figure per condition (IoU vs severity, one line per
-    method). Empty for a run without robot conditions."""
+    method). Empty for a run without robot conditions (told from ``jobs``' rows, so that an
+    ordinary run's metrics are not read a second time)."""
     import tempfile
 
     from benchmark.reports import robustness as rb
     from benchmark.reports.formatting import metric_words
     from benchmark.reports.tables import load_rows
 
+    if not any("corruption" in df and (df["corruption"].dropna().astype(str) != "clean").any()
+               for _, _, df in jobs):
+        return ""
     rows = load_rows(list(run_dirs))
     if "corruption" not in rows or "severity" not in rows:
         return ""
@@ -457,7 +461,7 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         + " Click a column header to sort; hover over a dataset for the job folder.</p>",
         "<h2>Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows), "</div>",
         "<h2>Failures</h2>", _failures(jobs),
-        _robustness_section(run_dirs),
+        _robustness_section(run_dirs, jobs),
         "<h2>Maps</h2>",
         f'<p class="muted">Per house and configuration: the ground truth, the raw label map and the '
         f"post-processed map(s) in class colours, or a geometric segmenter's rooms in a colour per room, side by "

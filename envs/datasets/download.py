@@ -179,12 +179,13 @@ def _download(url: str, part: Path, size: int, progress: Callable[[int], None], 
                             f"{part}: run the fetch again to resume") from None
 
 
-def fetch_files(ds: Dataset, root: str | Path, progress: bool = True, timeout: float = 60.0) -> Path:
+def fetch_files(ds: Dataset, root: str | Path, progress: bool = True,
+                timeout: float = 60.0) -> tuple[Path, bool]:
     """Download a ``files`` dataset into ``root/<folder>`` (see the module doc): resumable,
     checked against the catalogue's sizes and SHA-256, and moved into place as a whole.
 
     Returns:
-        The dataset folder.
+        The dataset folder, and whether it was fetched (False: already present and verified).
 
     Raises:
         DownloadError: a file that could not be fetched, ended early (kept for a resume) or
@@ -194,7 +195,7 @@ def fetch_files(ds: Dataset, root: str | Path, progress: bool = True, timeout: f
     root = Path(root)
     folder = root / ds.folder
     if status(ds, root, verify=True) == "present":
-        return folder
+        return folder, False
     stage = root / f".{ds.folder}.fetch"
     stage.mkdir(parents=True, exist_ok=True)
     done_bytes = 0
@@ -229,7 +230,7 @@ def fetch_files(ds: Dataset, root: str | Path, progress: bool = True, timeout: f
                                     f"{f.sha256} (removed: the source differs from the release the harness knows)")
             os.replace(part, dest)
     _move_into_place(stage, folder)
-    return folder
+    return folder, True
 
 
 def _move_into_place(stage: Path, folder: Path) -> None:
