@@ -171,4 +171,78 @@ def valid_keys_hint(error: BaseException, overrides: Sequence[str], config_name:
     return f"; valid keys{' of ' + parent if parent else ''}: {', '.join(map(str, keys))}"
 
 
-__all__ = ["compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]
+#: the robot-condition stages (null: the perfect robot): the map the robot builds, and the
+#: view transforms between the classifier and the aggregator, in order.
+ROBOT_STAGES = ("mapping", "pose_error", "label_noise")
+#: per view-transform group, the amounts that are all zero in its identity setting.
+IDENTITY_AMOUNTS = {"pose_error": ("sigma_xy", "sigma_yaw", "drift_xy", "drift_yaw"), "label_noise": ("share",)}
+
+
+def _plain_node(node):
+    from omegaconf import DictConfig, OmegaConf  # noqa: PLC0415
+
+    return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+
+
+def robot_settings(cfg) -> dict:
+    """The robot-condition stages that change anything, as plain configs: a stage that is
+    unset, or set to its identity (a pose error or label noise whose every amount is 0), is
+    left out, so that severity 0 of every condition has the clean run's keys and rows.
+
+    Args:
+        cfg: a composed config, or a plain mapping of group -> config."""
+    out = {}
+    for g in ROBOT_STAGES:
+        node = _plain_node(cfg.get(g))
+        if node is None:
+            continue
+        amounts = IDENTITY_AMOUNTS.get(g)
+        if amounts and all(not node.get(k) for k in amounts):
+            continue
+        out[g] = node
+    return out
+
+
+def build_method(cfg, stage=None, transforms=(), names=None):
+    """The :class:`benchmark.method.Method` of a config: the one function that turns the
+    ``classifier``, ``pose_error``, ``label_noise``, ``aggregator`` and ``postprocess`` groups
+    into a Method, for every command that segments (the harness, ``roomseg-segment``, the
+    figures, the confusion command).
+
+    Args:
+        cfg: a composed config (or a plain mapping of group -> config).
+        stage: group -> the built stage (None: absent); default ``instantiate(cfg[group])``.
+            Stages are built when the Method first needs them (:class:`benchmark.method.Lazy`),
+            so a run whose steps are cached builds none.
+        transforms: more view transforms, after the robot conditions' (``roomseg-segment``'s
+            off-map rule).
+        names: stage -> name in messages (default: the ``_target_``).
+
+    Returns:
+        The Method; its view transforms are the robot conditions that change anything
+        (:func:`robot_settings`): pose error, then label noise.
+    """
+    from benchmark.method import LabelNoiseTransform, Lazy, Method, PoseErrorTransform  # noqa: PLC0415
+
+    if stage is None:
+        def stage(group):
+            from hydra.utils import instantiate  # noqa: PLC0415
+
+            node = cfg.get(group)
+            return instantiate(node) if node is not None else None
+
+    def lazy(group):
+        return Lazy(lambda: stage(group))
+
+    robot = robot_settings(cfg)
+    steps = []
+    if "pose_error" in robot:
+        steps.append(PoseErrorTransform(lazy("pose_error")))
+    if "label_noise" in robot:
+        steps.append(LabelNoiseTransform(lazy("label_noise")))
+    if names is None:
+        names = {g: str((_plain_node(cfg.get(g)) or {}).get("_target_", "")) for g in ("classifier", "aggregator")}
+    return Method(lazy("classifier"), lazy("aggregator"), lazy("postprocess"), [*steps, *transforms], names)
+
+
+__all__ = ["build_method", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]

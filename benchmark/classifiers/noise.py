@@ -389,14 +389,16 @@ def view_confusion(truth: np.ndarray, pred: np.ndarray, n_classes: int) -> np.nd
     return np.bincount(t[m] * n_classes + p[m], minlength=n_classes * n_classes).reshape(n_classes, n_classes)
 
 
-def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Sequence[str],
+def classifier_confusion(env, viewpoints, renderer, method, house_ids: Sequence[str],
                          progress: bool = False) -> tuple[np.ndarray, int]:
     """A classifier's confusion on rendered views against the oracle's truth (the majority
     visible class): the matrix that drives the oracle's wrong classes in the ``confusion``
     noise setting. Needs a renderer that gives visible classes (the floorplan renderer).
 
     Args:
-        env, viewpoints, renderer, classifier: stages built from ``conf/`` (the runner's).
+        env, viewpoints, renderer: stages built from ``conf/`` (the runner's).
+        method: the :class:`benchmark.method.Method` whose classifier is measured (its
+            ``classify`` step: refused views left out, the house given to the classifier).
         house_ids: the houses to render and classify (keep them apart from the classifier's
             training houses and from the houses the oracle is later run on).
         progress: show a progress bar.
@@ -405,8 +407,10 @@ def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Seque
         ((C, C) int64 counts, rows = true class, columns = predicted; number of views that
         saw no floor and were left out).
     """
+    from benchmark.method import Context  # noqa: PLC0415
     from envs.render.observation import poses_array  # noqa: PLC0415
 
+    classifier = method.classifier
     n = len(classifier.classes)
     counts = np.zeros((n, n), dtype=np.int64)
     blind = 0
@@ -420,9 +424,9 @@ def classifier_confusion(env, viewpoints, renderer, classifier, house_ids: Seque
     for hid in it:
         scene = env.scene(hid)
         obs = renderer.render(env.house(hid), scene, poses_array(viewpoints.generate(scene)))
-        obs = [o for o in obs if not o.meta.get("refused", False)]
-        truth = true_labels(obs)
-        pred = np.asarray(classifier.predict_proba(obs)).argmax(axis=1)
+        classified = method.classify(obs, Context(scene=scene, house_id=hid))
+        truth = true_labels(classified.observations)
+        pred = classified.proba.argmax(axis=1)
         counts += view_confusion(truth, pred, n)
         blind += int((truth < 0).sum())
     return counts, blind

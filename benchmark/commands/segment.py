@@ -150,12 +150,6 @@ def _pose_ids(path: Path, n: int) -> list[str | None]:
     return [None] * n
 
 
-def on_map(grid, poses: np.ndarray) -> np.ndarray:
-    """(N,) bool: the pose stands on a walkable cell."""
-    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
-    return grid.is_walkable(r, c)
-
-
 def _classes_or_default(cfg) -> None:
     """Image classifiers need a class list before they are built: the paper's seven when
     ``classes`` is null."""
@@ -171,12 +165,16 @@ def _is_labels_classifier(cfg) -> bool:
     return str(cfg.classifier.get("_target_", "")).endswith("LabelsFileClassifier")
 
 
-def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], dict]:
-    """The views' poses (N, 3), their (N, C) probabilities, the classes and counts."""
+def read_views(cfg, grid) -> list:
+    """The views of ``poses=`` as Observations: with ``labels=``, each view's pose and id (the
+    labels file gives its class); with ``images=``, the renderer reads each view's picture.
+
+    Raises:
+        ValueError: no pose file, both or neither of labels= / images=, or a classifier that
+            does not fit the mode (one line each)."""
     from hydra.utils import instantiate  # noqa: PLC0415
     from omegaconf import OmegaConf  # noqa: PLC0415
 
-    from benchmark import method  # noqa: PLC0415
     from envs.maps.pose_files import read_poses  # noqa: PLC0415
     from envs.render.observation import Observation  # noqa: PLC0415
 
@@ -189,7 +187,6 @@ def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.nd
     if not labels_mode and cfg.images is None:
         raise ValueError("give labels=<labels file>, images=<image folder> (with classifier=cnn|dinov2|vlm), or "
                          "segmenter=distance|morphological|voronoi")
-    t = time.perf_counter()
     if labels_mode:
         if not _is_labels_classifier(cfg):
             raise ValueError(f"labels={cfg.labels} needs classifier=labels (got {cfg.classifier._target_}); image "
@@ -200,35 +197,37 @@ def views_and_probabilities(cfg, grid, timings: dict) -> tuple[np.ndarray, np.nd
         pose_file = Path(str(cfg.poses)).expanduser()
         poses = read_poses(pose_file, cfg.frame, grid)
         ids = _pose_ids(pose_file, len(poses))
-        obs = [Observation(pose=tuple(float(v) for v in p), meta={"id": i} if i is not None else {})
-               for p, i in zip(poses, ids)]
-    else:
-        if _is_labels_classifier(cfg):
-            raise ValueError(f"images={cfg.images} needs an image classifier: classifier=cnn|dinov2|vlm")
-        _classes_or_default(cfg)
-        obs = instantiate(cfg.renderer).observations(grid=grid)
-        poses = np.array([o.pose for o in obs], dtype=float).reshape(-1, 3)
-    timings["t_read_views"] = time.perf_counter() - t
-    t = time.perf_counter()
-    clf = instantiate(cfg.classifier)
-    proba = method.classify(clf, obs, str(cfg.classifier._target_))
-    timings["t_classify"] = time.perf_counter() - t
-    classes = tuple(clf.classes)
-    OmegaConf.update(cfg, "classes", list(classes), force_add=True)
-    ok = on_map(grid, poses)
-    if not ok.any():
-        raise ValueError(f"{cfg.poses}: none of the {len(poses)} poses (frame={cfg.frame}) is on a walkable cell of "
-                         f"{cfg.map}; is the frame right?")
-    if not ok.all():
-        bad = int(np.argmax(~ok))
-        if cfg.off_map == "error":
-            raise ValueError(f"{cfg.poses}: {int((~ok).sum())} of {len(poses)} poses are off the walkable map, first "
-                             f"view {obs[bad].meta.get('id', bad)} at x={poses[bad, 0]:.3f}, z={poses[bad, 1]:.3f} "
-                             f"(world); pass off_map=drop to leave them out")
-        if cfg.off_map != "drop":
-            raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
-    counts = {"n_views": int(len(poses)), "n_off_map": int((~ok).sum()), "pose_frame": POSE_FRAMES[str(cfg.frame)]}
-    return poses[ok], proba[ok], classes, counts
+        return [Observation(pose=tuple(float(v) for v in p), meta={"id": i} if i is not None else {})
+                for p, i in zip(poses, ids)]
+    if _is_labels_classifier(cfg):
+        raise ValueError(f"images={cfg.images} needs an image classifier: classifier=cnn|dinov2|vlm")
+    _classes_or_default(cfg)
+    return list(instantiate(cfg.renderer).observations(grid=grid))
+
+
+def build(cfg):
+    """The command's :class:`benchmark.method.Method`: the config's stages
+    (:func:`benchmark.config.build_method`; those built after the classifier see its classes as
+    ``${classes}``), then the ``off_map`` rule for views off the map."""
+    from hydra.utils import instantiate  # noqa: PLC0415
+    from omegaconf import OmegaConf  # noqa: PLC0415
+
+    from benchmark.config import build_method  # noqa: PLC0415
+    from benchmark.method import OnMapRule  # noqa: PLC0415
+
+    built: dict = {}
+
+    def stage(group):
+        node = cfg.get(group)
+        if node is None:
+            return None
+        if "classifier" in built:  # the later stages' ${classes} are the classifier's (a labels file's)
+            OmegaConf.update(cfg, "classes", list(built["classifier"].classes), force_add=True)
+        built[group] = instantiate(node)
+        return built[group]
+
+    rule = OnMapRule(str(cfg.off_map), source=str(cfg.poses), map_name=str(cfg.map), frame=str(cfg.frame))
+    return build_method(cfg, stage=stage, transforms=[rule])
 
 
 # --------------------------------------------------------------------------- outputs
@@ -401,7 +400,6 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     from hydra.utils import instantiate  # noqa: PLC0415
     from omegaconf import OmegaConf  # noqa: PLC0415
 
-    from benchmark import method  # noqa: PLC0415
     from benchmark.metrics import segments  # noqa: PLC0415
     from envs.atomic import clean_leftovers, leftover_prefix  # noqa: PLC0415
 
@@ -437,21 +435,22 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
         title = f"{Path(str(cfg.map)).name}: {summary['segmenter'].rsplit('.', 1)[-1]}, {len(ids)} segments"
     else:
         summary["mode"] = "labels" if cfg.labels is not None else "images"
-        poses, proba, classes, counts = views_and_probabilities(cfg, grid, timings)
-        summary.update(counts)
+        t = time.perf_counter()
+        views = read_views(cfg, grid)
+        timings["t_read_views"] = time.perf_counter() - t
+        m = build(cfg)
+        result = m.run(views, grid, timings=timings)
+        classes = tuple(m.classifier.classes)
+        OmegaConf.update(cfg, "classes", list(classes), force_add=True)
+        poses, labels = result.poses, result.labels
+        summary.update({"n_views": len(views), "n_off_map": int(result.info.get("n_off_map", 0)),
+                        "pose_frame": POSE_FRAMES[str(cfg.frame)]})
         summary["classes"] = list(classes)
         summary["classifier"] = str(cfg.classifier._target_)
         summary["aggregator"] = str(cfg.aggregator._target_)
         summary["postprocess"] = str(cfg.postprocess._target_) if cfg.get("postprocess") else None
-        t = time.perf_counter()
-        agg = instantiate(cfg.aggregator)
-        raw = method.aggregate(agg, grid, poses, proba, str(cfg.aggregator._target_))
-        timings["t_aggregate"] = time.perf_counter() - t
-        if hasattr(agg, "last_used"):
-            summary["n_views_used"] = int(agg.last_used)
-        t = time.perf_counter()
-        labels = method.postprocess(instantiate(cfg.postprocess) if cfg.get("postprocess") else None, raw, grid)
-        timings["t_postprocess"] = time.perf_counter() - t
+        if hasattr(m.aggregator, "last_used"):
+            summary["n_views_used"] = int(m.aggregator.last_used)
         segs = segments(labels, metric_params.connectivity)
         n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0
         first = np.full(n_seg, -1, np.int64)

@@ -35,17 +35,16 @@ def main(argv: list[str] | None = None) -> int:
         from hydra.utils import instantiate  # noqa: PLC0415
 
         from benchmark.classifiers.noise import classifier_confusion  # noqa: PLC0415
-        from benchmark.config import compose  # noqa: PLC0415
+        from benchmark.config import build_method, compose  # noqa: PLC0415
         from benchmark.harness.runner import select_houses  # noqa: PLC0415
         from envs.atomic import atomic_write_text  # noqa: PLC0415
 
         cfg = compose("config", a.overrides)
         env = instantiate(cfg.env)
         ids = select_houses(env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
-        clf = instantiate(cfg.classifier)
         t = time.perf_counter()
-        counts, blind = classifier_confusion(env, instantiate(cfg.viewpoints), instantiate(cfg.renderer), clf, ids,
-                                             progress=True)
+        counts, blind = classifier_confusion(env, instantiate(cfg.viewpoints), instantiate(cfg.renderer),
+                                             build_method(cfg), ids, progress=True)
         seconds = time.perf_counter() - t
         classes = list(cfg.classes)
         rows = counts.sum(1) > 0

@@ -444,6 +444,7 @@ class MethodPipeline(Pipeline):
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = (
         ("render", ("viewpoints", "renderer")), ("classify", ("classifier",)),
         ("aggregate", ("aggregator", "mapping", "pose_error", "label_noise")), ("score", ("postprocess", "metrics")))
+    _method: Any = field(default=None, repr=False)
 
     @property
     def viewpoints(self) -> Viewpoints:
@@ -474,25 +475,6 @@ class MethodPipeline(Pipeline):
     def aggregate_path(self, hid: str) -> Path:
         return self.store.aggregate_path(self.keys["aggregate"], hid, content=self.contents(hid)["aggregate"])
 
-    def _aggregated(self, hid: str, grid, poses: np.ndarray, proba: np.ndarray, timings: dict) -> np.ndarray:
-        """The raw label map on the robot's map ``grid`` from the poses and probabilities the
-        method received, cached per (views, classifier, robot conditions, aggregator): the jobs
-        that differ only in post-processing or metrics aggregate once."""
-
-        def load(path: Path) -> np.ndarray:
-            return check_labels_entry(load_npz(path), grid.shape, proba.shape[1])
-
-        def compute() -> np.ndarray:
-            t = time.perf_counter()
-            raw = method.aggregate(self.aggregator, grid, poses, proba, self.names.get("aggregator"))
-            timings["t_aggregate"] = time.perf_counter() - t
-            return raw
-
-        def save(path: Path, raw: np.ndarray) -> None:
-            atomic_save_npz(path, raw=raw.astype(np.int16))
-
-        return self._cached("aggregate", self.aggregate_path(hid), load, compute, save)
-
     def _observations(self, hid: str, scene, timings: dict) -> list:
         from envs.render import cache as render_cache
 
@@ -517,41 +499,16 @@ class MethodPipeline(Pipeline):
         return self._cached("render", self.render_dir(hid), load, compute, render_cache.write_observations,
                             exists=render_cache.is_complete)
 
-    def _classified(self, hid: str, scene, timings: dict) -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
-        """(poses (N, 3), proba (N, C), refused views, seen (N,) or None): ``seen`` is each
-        view's majority visible class (-1: no floor seen) where the renderer reports visible
-        classes, kept with the classification so later jobs need not re-read the render."""
-        from envs.render import cache as render_cache
+    @property
+    def method(self) -> method.Method:
+        """The configuration's :class:`benchmark.method.Method`, its stages built on first use
+        (:func:`benchmark.config.build_method` over this pipeline's stages)."""
+        if self._method is None:
+            from benchmark.config import build_method
 
-        def load(path: Path) -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
-            z = load_npz(path)
-            render = self.render_dir(hid)
-            views = render_cache.read_poses(render) if render_cache.is_complete(render) else None
-            out = check_classified(z, len(self.classes) if self.classes is not None else None, views)
-            check_poses(out[0], scene)
-            return (*out, check_seen(z, len(out[0]), out[1].shape[1]))
-
-        def compute() -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
-            obs = self._observations(hid, scene, timings)
-            kept = [o for o in obs if not o.meta.get("refused", False)]
-            n_refused = len(obs) - len(kept)
-            if not kept:
-                raise ValueError(f"house {hid!r}: every one of {len(obs)} views was refused by the renderer")
-            for o in kept:  # the house id, for classifiers that read per-house files (labels)
-                o.meta.setdefault("house_id", hid)
-            if hasattr(self.classifier, "set_scene"):  # the house, for classifiers that need it (oracle noise)
-                self.classifier.set_scene(scene)
-            t = time.perf_counter()
-            proba = method.classify(self.classifier, kept, repr(self.names.get("classifier")))
-            timings["t_classify"] = time.perf_counter() - t
-            seen = true_labels(kept) if all(o.visible_classes is not None for o in kept) else None
-            return poses_array([o.pose for o in kept]), proba, n_refused, seen
-
-        def save(path: Path, v: tuple[np.ndarray, np.ndarray, int, np.ndarray | None]) -> None:
-            extra = {} if v[3] is None else {"seen": np.asarray(v[3], np.int64)}
-            atomic_save_npz(path, poses=v[0], proba=v[1], n_refused=np.array(v[2]), **extra)
-
-        return self._cached("classify", self.classify_path(hid), load, compute, save)
+            names = {"classifier": repr(self.names.get("classifier")), "aggregator": self.names.get("aggregator")}
+            self._method = build_method(self.inputs, stage=self.stage, names=names)
+        return self._method
 
     def _compute(self, hid: str, timings: dict[str, float]) -> dict[str, Any]:
         from benchmark.metrics import score_semantic
@@ -564,72 +521,48 @@ class MethodPipeline(Pipeline):
             raise ValueError(f"house {hid!r}: {unclassed} of {len(scene.instance_classes)} ground-truth rooms have no "
                              f"class, so the method's class scores would be meaningless; give a label ground truth "
                              f"(env.gt_format=label) or score geometry only with a segmenter")
-        poses, proba, n_refused, seen = self._classified(hid, scene, timings)
-        grid, robot = self._robot_grid(hid, scene, self._render_poses(hid) if self.inputs.get("mapping") else None,
-                                       timings)
-        # what the method receives: the poses as the robot's SLAM gives them, the classes as its
-        # classifier (and the classifier-noise stage) gives them; the camera saw from the true poses
-        received, pose_info = self._received_poses(hid, scene, poses)
-        proba_in, noise_info = self._received_labels(scene, received, poses, proba)
-        raw = self._aggregated(hid, grid, received, proba_in, timings)
-        t = time.perf_counter()
-        post = method.postprocess(self.postprocess, raw, grid)
-        timings["t_postprocess"] = time.perf_counter() - t
+        robot: dict[str, Any] = {}
+
+        def robot_grid():  # after the views exist: the robot's map is built along them
+            grid, info = self._robot_grid(hid, scene, self._render_poses(hid) if self.inputs.get("mapping") else None,
+                                          timings)
+            robot.update(info)
+            return grid
+
+        # the camera saw from the true poses; the method receives the poses as the robot's SLAM
+        # gives them and the classes as its classifier (and the classifier-noise stage) gives them
+        result = self.method.run(lambda: self._observations(hid, scene, timings), robot_grid,
+                                 method.Context(scene=scene, house_id=hid), _HouseCache(self, hid, scene), timings)
+        grid, poses, proba_in, seen = result.grid, result.classified.poses, result.proba, result.classified.seen
         t = time.perf_counter()
         # scored on the ground truth's walkable area: cells the robot's map calls free beyond it
         # are not scored; walkable cells it leaves unknown or occupied are unlabelled (-1)
-        scored = np.where(scene.grid.walkable, post, -1)
+        scored = np.where(scene.grid.walkable, result.labels, -1)
         out: dict[str, Any] = score_semantic(scored, scene.instances, scene.instance_classes, self.metric_params,
                                              classes=list(scene.classes), resolution=scene.grid.resolution)
         timings["t_score"] = time.perf_counter() - t
         out["n_views"] = int(len(poses))
-        out["n_refused"] = int(n_refused)
+        out["n_refused"] = int(result.classified.n_refused)
         out["view_accuracy"] = view_accuracy(scene.grid, scene.semantic, poses, proba_in)
         out["view_accuracy_seen"] = (seen_accuracy(seen, proba_in) if seen is not None  # vs what views see
                                      else view_accuracy_seen(self.render_dir(hid), poses, proba_in))
         out.update(self._coverage(hid, scene, timings))
-        out.update(pose_info)
-        out.update(noise_info)
+        out.update({**ROBOT_VIEW_DEFAULTS, **result.info})
         out.update(robot)
         if self.save_maps:
             extra = {} if grid is scene.grid else {"free": grid.walkable}
-            if received is not poses:
+            if result.poses is not poses:
                 extra["true_poses"] = poses
-            atomic_save_npz(self.maps_path(hid), raw=raw.astype(np.int16), post=post.astype(np.int16),
-                            poses=received, proba=proba_in.astype(np.float32), **extra)
+            atomic_save_npz(self.maps_path(hid), raw=result.raw.astype(np.int16), post=result.labels.astype(np.int16),
+                            poses=result.poses, proba=proba_in.astype(np.float32), **extra)
         return out
 
-    # ---- robot conditions between the views and the aggregator
-    @property
-    def pose_error(self) -> Any:
-        return self.stage("pose_error")
-
-    @property
-    def label_noise(self) -> Any:
-        return self.stage("label_noise")
-
+    # ---- robot conditions
     def _render_poses(self, hid: str) -> np.ndarray:
         """Every view's true pose in capture order (refused ones included): the robot's path."""
         from envs.render import cache as render_cache
 
         return render_cache.read_poses(self.render_dir(hid))[0]
-
-    def _received_poses(self, hid: str, scene, poses: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        """(the poses the method receives, their error against the true ones): the true poses
-        without a ``pose_error`` stage."""
-        if self.pose_error is None:
-            return poses, {"pose_error_mean_m": 0.0, "pose_error_max_m": 0.0, "yaw_error_mean_deg": 0.0}
-        noisy, stats = self.pose_error(poses, scene.grid, hid)
-        keep = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg")
-        return noisy, {k: float(stats[k]) for k in keep if k in stats}
-
-    def _received_labels(self, scene, received: np.ndarray, poses: np.ndarray,
-                         proba: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
-        """(the probabilities the method receives, the share relabelled): the classifier's
-        without a ``label_noise`` stage. Draws are seeded by the true poses (what was seen)."""
-        if self.label_noise is None:
-            return proba, {"label_noise_share": 0.0}
-        return self.label_noise(proba, poses, scene, classes=list(scene.classes))
 
     def coverage_path(self, hid: str) -> Path:
         return self.store.coverage_path(self.keys["render"], hid, content=self.contents(hid)["render"])
@@ -659,6 +592,60 @@ class MethodPipeline(Pipeline):
             return {"coverage_area": float(cov["coverage_area"]), "coverage_rooms": float(cov["coverage_rooms"])}
 
         return self._cached("render", self.coverage_path(hid), load, compute, lambda p, v: write_entry(p, v))
+
+
+#: the view-transform columns of a row when no transform records them (the perfect robot).
+ROBOT_VIEW_DEFAULTS = {"pose_error_mean_m": 0.0, "pose_error_max_m": 0.0, "yaw_error_mean_deg": 0.0,
+                       "label_noise_share": 0.0}
+
+
+@dataclass
+class _HouseCache:
+    """The harness's :class:`benchmark.method.StageCache` for one house: the classification
+    (with the views' majority visible class, for the view-accuracy columns) cached per render
+    and classifier; the raw label map per views, classifier, robot conditions and aggregator
+    (the jobs that differ only in post-processing or metrics aggregate once)."""
+
+    pipe: MethodPipeline
+    hid: str
+    scene: Any
+
+    def classified(self, compute: Callable[[], method.Classified]) -> method.Classified:
+        from envs.render import cache as render_cache
+
+        pipe, hid = self.pipe, self.hid
+
+        def load(path: Path) -> method.Classified:
+            z = load_npz(path)
+            render = pipe.render_dir(hid)
+            views = render_cache.read_poses(render) if render_cache.is_complete(render) else None
+            poses, proba, n_refused = check_classified(z, len(pipe.classes) if pipe.classes is not None else None,
+                                                       views)
+            check_poses(poses, self.scene)
+            return method.Classified(poses, proba, n_refused, seen=check_seen(z, len(poses), proba.shape[1]))
+
+        def compute_seen() -> method.Classified:
+            c = compute()
+            kept = c.observations or []
+            c.seen = true_labels(kept) if kept and all(o.visible_classes is not None for o in kept) else None
+            return c
+
+        def save(path: Path, c: method.Classified) -> None:
+            extra = {} if c.seen is None else {"seen": np.asarray(c.seen, np.int64)}
+            atomic_save_npz(path, poses=c.poses, proba=c.proba, n_refused=np.array(c.n_refused), **extra)
+
+        return pipe._cached("classify", pipe.classify_path(hid), load, compute_seen, save)
+
+    def aggregated(self, grid, views: method.Views, compute: Callable[[], np.ndarray]) -> np.ndarray:
+        n_classes = views.proba.shape[1]
+
+        def load(path: Path) -> np.ndarray:
+            return check_labels_entry(load_npz(path), grid.shape, n_classes)
+
+        def save(path: Path, raw: np.ndarray) -> None:
+            atomic_save_npz(path, raw=raw.astype(np.int16))
+
+        return self.pipe._cached("aggregate", self.pipe.aggregate_path(self.hid), load, compute, save)
 
 
 @dataclass

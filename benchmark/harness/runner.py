@@ -37,6 +37,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
+from benchmark.config import ROBOT_STAGES, robot_settings
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
 from benchmark.harness.executor import (
@@ -78,26 +79,6 @@ CACHE_VERSION = 2
 
 def _plain(node: Any) -> Any:
     return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
-
-
-#: the robot-condition stages between the views and the aggregator (null: the perfect robot).
-ROBOT_STAGES = ("mapping", "pose_error", "label_noise")
-
-
-def robot_settings(cfg: DictConfig) -> dict[str, Any]:
-    """The robot-condition stages that change anything, as plain configs: a stage that is
-    unset, or set to its identity (a pose error or label noise whose every amount is 0), is
-    left out, so that severity 0 of every condition has the clean run's keys and rows."""
-    out = {}
-    for g in ROBOT_STAGES:
-        node = _plain(cfg.get(g))
-        if node is None:
-            continue
-        amounts = {"pose_error": ("sigma_xy", "sigma_yaw", "drift_xy", "drift_yaw"), "label_noise": ("share",)}.get(g)
-        if amounts and all(not node.get(k) for k in amounts):
-            continue
-        out[g] = node
-    return out
 
 
 def stage_keys(cfg: DictConfig) -> dict[str, str]:

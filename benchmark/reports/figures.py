@@ -415,13 +415,14 @@ def house_figures(house_index: int, out: Path, overrides: Sequence[str] = (),
     at = instantiate(cfg.viewpoints)
     poses = at.generate(scene)
     if hasattr(at, "path"):
-        clf = instantiate(cfg.classifier)
-        if hasattr(clf, "setup"):
-            clf.setup([hid])
-        if hasattr(clf, "set_scene"):
-            clf.set_scene(scene)
+        from benchmark.config import build_method
+        from benchmark.method import Context
+
+        m = build_method(cfg)
+        if hasattr(m.classifier, "setup"):
+            m.classifier.setup([hid])
         obs = instantiate(cfg.renderer).render(house, scene, poses[::3])
-        proba = clf.predict_proba(obs)
+        proba = m.classify(obs, Context(scene=scene, house_id=hid)).proba
         names = {"env": choices.get("env", ""), "classifier": choices.get("classifier", "")}
         title = (f"{house_title(names, hid)}: autotrace path and every third of its {len(poses)} viewpoints, "
                  f"coloured by the {describe(names, finite_float(cfg.classifier.get('accuracy')), aggregator=False, post=False)}")
