@@ -11,6 +11,7 @@ from hydra import compose, initialize_config_dir
 from hydra.utils import get_class, get_method, instantiate
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
+from benchmark.harness.typed import check_typed
 from benchmark.paths import CONF_DIR, procthor_houses
 
 CONF = Path(CONF_DIR)
@@ -83,6 +84,7 @@ def test_every_option_composes_resolves_and_builds(group, option, tmp_path, monk
     cfg = _compose([f"{prefix}{group}={option}"])
     node = cfg[group]
     plain = OmegaConf.to_container(node, resolve=True)  # every interpolation resolves
+    check_typed(OmegaConf.to_container(cfg, resolve=True))  # every key is a parameter, of its type
     targets = _targets(plain)
     for t in targets:
         assert callable(_locate(t)), f"conf/{group}/{option}.yaml: _target_ {t} is not importable"
@@ -110,7 +112,8 @@ def test_every_experiment_sweeps_existing_options(option):
             assert (CONF / key / f"{v}.yaml").exists(), f"experiment={option}: {key}={v} is not an option of conf/{key}/"
         # the job of every combination composes
         first = str(values).split(",")[0].strip()
-        _compose([f"experiment={option}", f"{key}={first}"])
+        job = _compose([f"experiment={option}", f"{key}={first}"])
+        check_typed(OmegaConf.to_container(job, resolve=True))
 
 
 def test_unknown_option_is_an_error_listing_the_options():
@@ -125,6 +128,7 @@ def test_every_corruption_level_composes_names_itself_and_builds(option):
     """Each severity file (conf/corruption, package _global_) composes, says its family and
     severity in ``robot`` as its name does, and every stage it sets is built."""
     cfg = _compose([f"corruption={option}"])
+    check_typed(OmegaConf.to_container(cfg, resolve=True))
     family, _, level = option.rpartition("_")
     if option == "clean":
         family, level = "clean", "0"

@@ -36,6 +36,7 @@ from benchmark.harness.checks import check_run_overrides
 from benchmark.harness.executor import WorkerDied
 from benchmark.harness.pipeline import StageError
 from benchmark.harness.runner import CONF_DIR, ConfigError, run
+from benchmark.harness.typed import check_top_overrides
 
 PROG = "roomseg-bench"
 register_resolvers()  # hydra.sweep.subdir's job_dir, before Hydra composes anything
@@ -121,6 +122,7 @@ def main() -> int:
 
         sys.argv[1:] = quote_braces(sys.argv[1:])  # viewpoints.path=poses/{house_id}.csv as typed
         check_run_overrides(sys.argv[1:])  # run.<typo> or +run.<typo>: refused before Hydra writes anything
+        check_top_overrides(sys.argv[1:])  # aggregater=... or +aggregater=...: the nearest known key
         app()
     except (ConfigError, StageError, HydraException, OmegaConfBaseException, OSError) as e:
         if _finished_jobs()[1]:  # a multirun whose jobs ran: report every failed job, count the finished
@@ -145,10 +147,27 @@ def _report_error(e: BaseException) -> int:
         print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
         return 2
     if isinstance(e, (HydraException, OmegaConfBaseException)):
-        print(f"{PROG}: config error: {_one_line(e).split(' full_key:')[0]}", file=sys.stderr)
+        print(f"{PROG}: config error: {_unknown_key_line(e) or _one_line(e).split(' full_key:')[0]}", file=sys.stderr)
         return 2
     print(f"{PROG}: error: {_write_error(e)}", file=sys.stderr)
     return 2
+
+
+def _unknown_key_line(e: BaseException) -> str:
+    """Hydra's "Could not override 'aggregator.kk'. To append to your config use +..." as our
+    line: the key is unknown with or without ``+`` (the typed check refuses it), so name the
+    node's valid keys and the nearest one instead of advising ``+``; "" for other errors."""
+    import re
+
+    from benchmark.config import valid_keys_hint
+    from benchmark.harness.typed import nearest
+
+    m = re.search(r"Could not override '([^']+)'", str(e))
+    if not m or "To append" not in str(e):
+        return ""
+    hint = valid_keys_hint(e, sys.argv[1:])
+    valid = hint.split(": ", 1)[1].split(", ") if ": " in hint else []
+    return f"{m.group(1)}: unknown key (with or without +){hint}{nearest(m.group(1).rsplit('.', 1)[-1], valid)}"
 
 
 def _write_error(e: BaseException) -> str:

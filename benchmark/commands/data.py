@@ -19,6 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmark.commands import prog
 from envs.datasets.download import (
     CATALOGUE,
     DownloadError,
@@ -78,7 +79,7 @@ def _fetch(names: Sequence[str], root: Path, catalogue: Path, progress: bool, ti
 def main(argv: Sequence[str] | None = None) -> int:
     from benchmark.paths import data_dir
 
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.data", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog=prog("data"), description=__doc__.split("\n\n")[0])
     ap.add_argument("--root", type=Path, default=None, help="data root (default $ROOMSEG_SHARED_DATA or ../shared/data)")
     ap.add_argument("--catalogue", type=Path, default=CATALOGUE, help=argparse.SUPPRESS)  # tests: a local server's
     sub = ap.add_subparsers(dest="cmd", required=True)

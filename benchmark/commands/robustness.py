@@ -21,6 +21,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmark.commands import prog
 from benchmark.commands.errors import one_line
 from benchmark.paths import CONF_DIR
 from benchmark.reports import robustness as rb
@@ -94,7 +95,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.robustness",
+    ap = argparse.ArgumentParser(prog=prog("robustness"),
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("paths", nargs="+", help="the robustness run's folder(s)")
     ap.add_argument("--out", type=Path, default=None, help="folder for the tables and figures (written as a whole)")

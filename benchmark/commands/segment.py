@@ -495,20 +495,17 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     return summary
 
 
-def _refuse_added_keys(cfg, argv: Sequence[str]) -> None:
-    """``+key=value`` at the top level adds a key the command never reads (a typo Hydra lets
-    through): refused, with the valid keys.
+def check_keys(cfg) -> None:
+    """The typed-config check of :mod:`benchmark.harness.typed` on the composed config: a key no
+    stage reads (``+agregator=...``), or a stage's key of the wrong type, is one line.
 
     Raises:
-        ValueError: one line naming the key and listing the valid ones."""
-    from benchmark.paths import CONF_DIR  # noqa: PLC0415
+        ConfigError: naming the key and the nearest valid one."""
+    from omegaconf import OmegaConf  # noqa: PLC0415
 
-    known = compose_config([])
-    names = set(known.keys()) | {p.name for p in Path(CONF_DIR).iterdir() if p.is_dir()}  # + groups chosen later
-    added = [k for k in cfg.keys() if k not in names]
-    if added:
-        keys = ", ".join(str(k) for k in known.keys() if k != "hydra")
-        raise ValueError(f"unknown key(s) {added} (from {[a for a in argv if a.startswith('+')]}); valid keys: {keys}")
+    from benchmark.harness.typed import check_typed  # noqa: PLC0415
+
+    check_typed(OmegaConf.to_container(cfg, resolve=True), "segment")
 
 
 def _errors() -> tuple[type[BaseException], ...]:
@@ -529,7 +526,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         cfg = compose_config(argv)
-        _refuse_added_keys(cfg, argv)
+        check_keys(cfg)
     except _errors() as e:
         from benchmark.config import valid_keys_hint  # noqa: PLC0415
 

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from benchmark.commands import prog
+
 
 def compose_score(overrides: list[str]):
     """conf/scoring/score.yaml composed with Hydra ``overrides`` (no app run)."""
@@ -52,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
         geometric_rows,
     )
 
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.selros", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog=prog("baselines table5"), description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=None, help="the SeLRoS release folder (default: shared data)")
     ap.add_argument("--resolution", type=float, default=None, help="metres per pixel (default: the presets', 0.02)")
     ap.add_argument("--gt-pattern", default=GT_PATTERN, help="ground-truth file rule with {id}")

@@ -60,6 +60,7 @@ from benchmark.harness.pipeline import (
 from benchmark.harness.processes import available_cores
 from benchmark.harness.progress import house_progress, job_label, parallel_jobs
 from benchmark.harness.store import NON_ROW_KEYS, SELECTION_KEYS, Job, claim_job_dir, flat_settings
+from benchmark.harness.typed import check_typed
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
 
@@ -291,6 +292,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     plain = OmegaConf.to_container(body, resolve=True)
     check_config(plain, STAGES)
+    check_typed(plain)
     check_writable(cfg.run.results_dir, "run.results_dir")
     check_writable(cfg.run.cache_dir, "run.cache_dir")
     choices = choices if choices is not None else _choices()

@@ -1,0 +1,253 @@
+"""Typed configuration: every key a config holds is one a stage reads, with a value of the type
+it declares, checked when the config is composed and before any work.
+
+Three checks, each one line naming the key, the value and what is expected:
+
+* **Known keys at the top** (:func:`check_top_keys`): a key that is neither in the default
+  config nor a config group (``+aggregater=vision_cone``, which Hydra lets through with ``+``)
+  is refused with the nearest known name.
+* **Typed ``_target_`` nodes** (:func:`check_targets`): a node with ``_target_`` is the keyword
+  arguments of that class or function, so its signature is its schema: a key that is not a
+  parameter (unless it takes ``**kwargs``) is refused with the nearest parameter; a value that
+  does not fit the parameter's annotation (``int``, ``float``, ``bool``, ``str``, ``Literal``,
+  ``Optional``, sequences, mappings) is refused; null is left to the stage (a value filled in
+  later, such as ``roomseg-segment``'s classes from its labels file). A user's own stage is
+  checked the same way.
+* **The robot label** (:class:`RobotLabel`): ``robot.corruption`` a family of
+  ``conf/corruption`` and ``robot.severity`` an integer 0..5.
+
+Value ranges that a type cannot say (a share in [0, 1], an odd window) are checked by
+:mod:`benchmark.harness.checks`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import importlib
+import inspect
+import math
+import re
+import typing
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from benchmark.harness.checks import ConfigError
+
+#: keys of a ``_target_`` node that Hydra reads itself.
+HYDRA_KEYS = frozenset({"_target_", "_partial_", "_convert_", "_recursive_", "_args_"})
+#: the highest severity of a robot condition.
+MAX_SEVERITY = 5
+
+
+def nearest(name: str, known: Sequence[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest of ``known``, or ``""``."""
+    best = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f"; did you mean {best[0]!r}?" if best else ""
+
+
+@functools.lru_cache(maxsize=8)
+def known_top_keys(config_name: str = "config") -> tuple[str, ...]:
+    """The keys a composed config may hold at the top: those of the default config, and every
+    config group of ``conf/`` (a group chosen later, such as ``segmenter``, adds its key)."""
+    from benchmark.config import compose, config_location
+
+    cfg = compose(config_name)
+    folder = Path(config_location(config_name)[0])
+    groups = {p.name for p in folder.iterdir() if p.is_dir() and p.name != "hydra"}
+    from benchmark.paths import CONF_DIR
+
+    groups |= {p.name for p in Path(CONF_DIR).iterdir() if p.is_dir() and p.name != "hydra"}
+    return tuple(sorted({str(k) for k in cfg.keys() if k != "hydra"} | groups))
+
+
+def check_top_keys(keys: Sequence[str], config_name: str = "config", where: str = "") -> None:
+    """Refuse top-level keys no stage reads.
+
+    Raises:
+        ConfigError: ``unknown key 'aggregater' (with or without +); did you mean 'aggregator'?``."""
+    known = known_top_keys(config_name)
+    for k in keys:
+        if str(k) not in known:
+            hint = nearest(k, known) or f"; valid keys: {', '.join(known)}"
+            raise ConfigError(f"{k}: unknown key{where} (with or without +); no stage reads it{hint}")
+
+
+def check_top_overrides(args: Sequence[str], config_name: str = "config") -> None:
+    """:func:`check_top_keys` on command-line overrides (``[+|++|~]key[.sub]=value``), before
+    Hydra composes or creates anything (flags and Hydra's own ``hydra.*`` are left alone)."""
+    keys = []
+    for a in map(str, args):
+        if a.startswith("-") or ("=" not in a and not a.startswith("~")):
+            continue
+        key = re.split(r"[./@]", a.split("=", 1)[0].lstrip("+~"), maxsplit=1)[0]  # group/option@pkg, a.b
+        if key and key != "hydra":
+            keys.append(key)
+    check_top_keys(keys, config_name, " on the command line")
+
+
+@dataclass(frozen=True)
+class RobotLabel:
+    """What every row says of the robot's conditions (``robot:`` of ``conf/config.yaml``).
+
+    Attributes:
+        corruption: the family: ``clean`` or a prefix of a ``conf/corruption`` file.
+        severity: 0 (clean) .. :data:`MAX_SEVERITY`.
+    """
+
+    corruption: str = "clean"
+    severity: int = 0
+
+    @staticmethod
+    def families() -> tuple[str, ...]:
+        from benchmark.paths import CONF_DIR
+
+        names = {p.stem.rsplit("_", 1)[0] for p in (Path(CONF_DIR) / "corruption").glob("*.yaml")}
+        return tuple(sorted(names | {"clean"}))
+
+    @classmethod
+    def check(cls, node: Any) -> RobotLabel:
+        """The label of a ``robot`` node.
+
+        Raises:
+            ConfigError: an unknown key, an unknown family, or a severity that is not an
+                integer 0..5 (and 0 exactly for ``clean``)."""
+        if node is None:
+            return cls()
+        if not isinstance(node, Mapping):
+            raise ConfigError(f"robot={node!r}: expected a mapping with corruption and severity")
+        for k in node:
+            if k not in ("corruption", "severity"):
+                raise ConfigError(f"robot.{k}: unknown key; expected corruption, severity{nearest(k, ['corruption', 'severity'])}")
+        fams = cls.families()
+        corruption = node.get("corruption", "clean")
+        if corruption not in fams:
+            raise ConfigError(f"robot.corruption={corruption!r}: expected one of {', '.join(fams)}"
+                              f"{nearest(str(corruption), fams)}")
+        sev = node.get("severity", 0)
+        if isinstance(sev, bool) or not isinstance(sev, int) or not 0 <= sev <= MAX_SEVERITY:
+            raise ConfigError(f"robot.severity={sev!r}: expected an integer 0..{MAX_SEVERITY}")
+        if (corruption == "clean") != (sev == 0):
+            raise ConfigError(f"robot.severity={sev!r} with robot.corruption={corruption!r}: expected severity 0 "
+                              f"exactly for clean (and 1..{MAX_SEVERITY} for a corruption)")
+        return cls(str(corruption), int(sev))
+
+
+# --------------------------------------------------------------------------- _target_ nodes
+
+
+@functools.lru_cache(maxsize=256)
+def _signature(target: str) -> tuple[dict[str, Any], bool] | None:
+    """(parameter -> annotation (None: any), takes **kwargs) of ``target``, or None when it
+    cannot be imported (the stage's own build then says why)."""
+    module, _, name = target.rpartition(".")
+    try:
+        obj = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError):
+        return None
+    try:
+        sig = inspect.signature(obj)
+    except (TypeError, ValueError):
+        return None
+    try:
+        hints = typing.get_type_hints(obj.__init__ if inspect.isclass(obj) else obj, include_extras=False)
+    except Exception:  # noqa: BLE001 - an annotation that does not resolve is not checked
+        hints = {}
+    params, var_kw = {}, False
+    for p in sig.parameters.values():
+        if p.kind is p.VAR_KEYWORD:
+            var_kw = True
+        elif p.kind is not p.VAR_POSITIONAL:
+            params[p.name] = hints.get(p.name)
+    return params, var_kw
+
+
+def _fits(value: Any, hint: Any) -> bool | None:
+    """Whether ``value`` (a plain config value) fits ``hint``; None where the hint says nothing
+    this check knows."""
+    if hint is None or hint is Any:
+        return None
+    origin = typing.get_origin(hint)
+    if origin is typing.Union or (origin is not None and str(origin) == "<class 'types.UnionType'>"):
+        answers = [_fits(value, h) for h in typing.get_args(hint)]
+        if any(a is True for a in answers):
+            return True
+        return None if any(a is None for a in answers) else False
+    if hint is type(None):
+        return value is None
+    if origin is typing.Literal:
+        return value in typing.get_args(hint)
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if hint is str:
+        return isinstance(value, str)
+    if hint is Path:
+        return isinstance(value, str)
+    base = origin or hint
+    if base in (list, tuple, Sequence, typing.Sequence) or (inspect.isclass(base) and base in (list, tuple)):
+        return isinstance(value, list | tuple)
+    if base in (dict, Mapping, typing.Mapping):
+        return isinstance(value, Mapping)
+    return None
+
+
+def _what(hint: Any) -> str:
+    text = str(hint).replace("typing.", "").replace("NoneType", "None").replace("<class '", "").replace("'>", "")
+    return {"int": "an integer", "float": "a number", "bool": "true or false", "str": "a string"}.get(text, text)
+
+
+def check_targets(node: Any, path: str = "") -> None:
+    """Check every ``_target_`` node under ``node`` (a plain config) against its signature.
+
+    Raises:
+        ConfigError: ``aggregator.kk: not a parameter of benchmark.aggregators...VisionCone;
+            did you mean 'k'?`` or ``aggregator.k='x': expected an integer``."""
+    if isinstance(node, Mapping):
+        target = node.get("_target_")
+        if isinstance(target, str):
+            sig = _signature(target)
+            if sig is not None:
+                params, var_kw = sig
+                for key, value in node.items():
+                    if key in HYDRA_KEYS:
+                        continue
+                    dotted = f"{path}.{key}" if path else str(key)
+                    if key not in params:
+                        if not var_kw:
+                            raise ConfigError(f"{dotted}: unknown key, not a parameter of {target} (valid: "
+                                              f"{', '.join(params)}){nearest(key, list(params))}")
+                        continue
+                    if isinstance(value, Mapping) and "_target_" in value:
+                        continue  # a nested stage: checked below
+                    if value is None or (isinstance(value, float) and math.isnan(value)):
+                        continue  # null: not set yet (roomseg-segment's ${classes} comes from its labels)
+                    if _fits(value, params[key]) is False:
+                        raise ConfigError(f"{dotted}={value!r}: expected {_what(params[key])} "
+                                          f"(the type of {target.rsplit('.', 1)[-1]}'s {key})")
+        for key, value in node.items():
+            if key != "_target_":
+                check_targets(value, f"{path}.{key}" if path else str(key))
+    elif isinstance(node, list | tuple):
+        for i, v in enumerate(node):
+            check_targets(v, f"{path}[{i}]")
+
+
+def check_typed(plain: Mapping[str, Any], config_name: str = "config") -> None:
+    """The three checks of this module on a composed config (plain, resolved, no ``hydra``).
+
+    Raises:
+        ConfigError: the first key that no stage reads or whose value has the wrong type."""
+    check_top_keys([k for k in plain if k != "hydra"], config_name)
+    if config_name == "config":
+        RobotLabel.check(plain.get("robot"))
+    check_targets({k: v for k, v in plain.items() if k != "hydra"})
+
+
+__all__ = ["RobotLabel", "check_typed", "check_targets", "check_top_keys", "check_top_overrides", "known_top_keys",
+           "nearest", "MAX_SEVERITY"]
