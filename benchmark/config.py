@@ -245,4 +245,32 @@ def build_method(cfg, stage=None, transforms=(), names=None):
     return Method(lazy("classifier"), lazy("aggregator"), lazy("postprocess"), [*steps, *transforms], names)
 
 
-__all__ = ["build_method", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]
+def _scoped(override: str) -> str:
+    """``key=value`` -> ``classifier.key=value`` (also ``+key``/``~key``); ``classes=...``
+    and ``classifier.*`` pass unchanged."""
+    prefix = override[0] if override[:1] in ("+", "~") else ""
+    body = override[len(prefix):]
+    if body.startswith(("classifier.", "classes=", "classes.", "run.")):
+        return override
+    return f"{prefix}classifier.{body}"
+
+
+def classifier_config(model: str, overrides: Sequence[str] = ()):
+    """The root config composed with ``classifier=<model>`` and the overrides (keys of the
+    classifier config, e.g. ``device=cpu``); ``cfg.classifier`` is what the runner builds."""
+    from benchmark.classifiers.evaluate import MODELS  # noqa: PLC0415
+
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
+    return compose("config", [f"classifier={model}", *(_scoped(o) for o in overrides)])
+
+
+def build_classifier(model: str, overrides: Sequence[str] = ()):
+    """(classifier, root config) for ``model`` with the overrides."""
+    from hydra.utils import instantiate  # noqa: PLC0415
+
+    cfg = classifier_config(model, overrides)
+    return instantiate(cfg.classifier), cfg
+
+
+__all__ = ["build_method", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]

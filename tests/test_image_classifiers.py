@@ -337,8 +337,8 @@ def test_qwen25_vl_scoring_sees_the_image_batches_and_picks_the_preferred_class(
 
 @needs_torch
 def test_vlm_prompt_follows_the_class_list_and_parsing():
-    from benchmark.classifiers.evaluate import classifier_config
     from benchmark.classifiers.vlm import VLMClassifier, parse_answer
+    from benchmark.config import classifier_config
 
     classes = ["bathroom", "kitchen"]
     model, tok = _tiny_lm(_words(classes + ["garage"]))

@@ -178,3 +178,53 @@ def test_the_rules_catch_a_bad_import(tmp_path):
         assert "benchmark.commands.bench" in imps and "benchmark.commands.bench.main" in imps
     finally:
         fake.unlink(missing_ok=True)
+
+
+def test_the_harness_never_imports_the_reports(graph):
+    """The harness runs houses and writes rows; tables, figures and pages read them afterwards."""
+    bad = sorted((m, i) for m, imps in graph.items() if m.startswith("benchmark.harness")
+                 for i in imps if i.startswith("benchmark.reports"))
+    assert not bad, f"harness modules importing the reports: {bad}"
+
+
+#: what composes a Hydra config: Hydra's compose API and the project's one place for it.
+COMPOSERS = ("hydra.compose", "hydra.initialize_config_dir", "hydra.initialize", "benchmark.config.compose",
+             "benchmark.config.compose_job", "benchmark.config.classifier_config",
+             "benchmark.config.build_classifier")
+#: the modules that may compose: the config module itself, and the layers above the algorithms.
+MAY_COMPOSE = ("benchmark.config", "benchmark.cli", *UPPER)
+
+
+def hydra_composers(path: Path) -> set[str]:
+    """The composing names ``path`` imports (Hydra's own included)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            out.update(f"{node.module}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+    return {n for n in out if n in COMPOSERS}
+
+
+def composing_algorithms() -> list[tuple[str, str]]:
+    files = [p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")]
+    return sorted((module_name(p), c) for p in files
+                  if not any(module_name(p) == u or module_name(p).startswith(u + ".") for u in MAY_COMPOSE)
+                  for c in hydra_composers(p))
+
+
+def test_algorithm_modules_never_compose_hydra_configs():
+    """A stage gets its settings as arguments; composing a config is the commands' and the
+    harness's job (benchmark/config.py is the one place that does it)."""
+    bad = composing_algorithms()
+    assert not bad, f"algorithm modules composing a Hydra config: {bad}"
+
+
+def test_the_compose_rule_catches_a_composing_stage():
+    fake = ROOT / "benchmark" / "aggregators" / "_layout_probe_tmp.py"
+    try:
+        fake.write_text("def f():\n    from benchmark.config import compose\n    return compose('config')\n")
+        assert ("benchmark.aggregators._layout_probe_tmp", "benchmark.config.compose") in composing_algorithms()
+    finally:
+        fake.unlink(missing_ok=True)

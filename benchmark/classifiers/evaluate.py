@@ -43,34 +43,6 @@ def table1_metrics(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int)
             "accuracy": float(tp.sum() / cm.sum()), "f1": float(f1[present].mean()), "confusion": cm}
 
 
-def _scoped(override: str) -> str:
-    """``key=value`` -> ``classifier.key=value`` (also ``+key``/``~key``); ``classes=...``
-    and ``classifier.*`` pass unchanged."""
-    prefix = override[0] if override[:1] in ("+", "~") else ""
-    body = override[len(prefix):]
-    if body.startswith(("classifier.", "classes=", "classes.", "run.")):
-        return override
-    return f"{prefix}classifier.{body}"
-
-
-def classifier_config(model: str, overrides: Sequence[str] = ()):
-    """The root config composed with ``classifier=<model>`` and the overrides (keys of the
-    classifier config, e.g. ``device=cpu``); ``cfg.classifier`` is what the runner builds."""
-    if model not in MODELS:
-        raise ValueError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
-    from benchmark.config import compose  # noqa: PLC0415
-
-    return compose("config", [f"classifier={model}", *(_scoped(o) for o in overrides)])
-
-
-def build_classifier(model: str, overrides: Sequence[str] = ()):
-    """(classifier, root config) for ``model`` with the overrides."""
-    from hydra.utils import instantiate  # noqa: PLC0415
-
-    cfg = classifier_config(model, overrides)
-    return instantiate(cfg.classifier), cfg
-
-
 def parse_split_sizes(text: str) -> tuple[int, int, int]:
     """``"4000,500,500"`` -> per-class train, val, test sizes."""
     try:

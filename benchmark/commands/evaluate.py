@@ -11,8 +11,6 @@ from pathlib import Path
 from benchmark.classifiers.evaluate import (
     CHECKPOINT_KEY,
     MODELS,
-    build_classifier,
-    classifier_config,
     parse_split_sizes,
     predict_items,
     table1_metrics,
@@ -20,6 +18,7 @@ from benchmark.classifiers.evaluate import (
     write_table,
 )
 from benchmark.commands.errors import cli_errors, one_line
+from benchmark.config import build_classifier, classifier_config
 from benchmark.reports.confusion import confusion_figure
 
 

@@ -243,7 +243,7 @@ def classifier_check(name: str) -> Callable[[Context], str]:
         if ctx.view is None:
             raise Skip("no rendered view (the ai2thor check did not pass)")
         try:
-            from benchmark.classifiers.evaluate import build_classifier  # noqa: PLC0415
+            from benchmark.config import build_classifier  # noqa: PLC0415
 
             clf, _ = build_classifier(name, [f"device={ctx.device}", *ctx.classifier_overrides.get(name, [])])
         except Exception as e:  # noqa: BLE001  Hydra wraps the constructor's error

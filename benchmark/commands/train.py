@@ -37,8 +37,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(a) -> int:
-    from benchmark.classifiers.evaluate import classifier_config, parse_split_sizes  # noqa: PLC0415
+    from benchmark.classifiers.evaluate import parse_split_sizes  # noqa: PLC0415
     from benchmark.classifiers.places import list_images, split  # noqa: PLC0415
+    from benchmark.config import classifier_config  # noqa: PLC0415
 
     cfg = classifier_config(a.model, a.overrides)
     c = cfg.classifier
