@@ -79,21 +79,34 @@ def _subcommands(text: str) -> list[str]:
 
 
 def commands_page() -> str:
-    """Markdown: every command's ``--help`` (and its sub-commands')."""
-    names = commands()
+    """Markdown: every ``roomseg`` subcommand's ``--help`` (and its sub-commands'), then the
+    maintainers' tools (``python -m benchmark.commands.<name>``) that ``roomseg`` leaves out."""
+    from benchmark.cli import COMMANDS  # noqa: PLC0415
+
+    user = list(COMMANDS)
+    listed = {m for m, _ in COMMANDS.values()} | {"selros"}  # selros = baselines table5
+    tools = [n for n in commands() if n not in listed]
     with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 2)) as pool:
-        helps = dict(zip(names, pool.map(lambda n: _help([f"benchmark.commands.{n}"]), names)))
+        helps = dict(zip(user, pool.map(lambda n: _help(["benchmark.cli", n]), user)))
         subs = {n: _subcommands(h) for n, h in helps.items()}
         jobs = [(n, s) for n, ss in subs.items() for s in ss]
-        sub_helps = dict(zip(jobs, pool.map(lambda j: _help([f"benchmark.commands.{j[0]}", j[1]]), jobs)))
+        sub_helps = dict(zip(jobs, pool.map(lambda j: _help(["benchmark.cli", j[0], j[1]]), jobs)))
+        tool_helps = dict(zip(tools, pool.map(lambda n: _help([f"benchmark.commands.{n}"]), tools)))
     out = [GENERATED, "", "# Commands", "",
-           "Every command of the project, as `python -m benchmark.commands.<name> --help` prints it. The two "
-           "installed scripts are `roomseg-bench` (= `bench`) and `roomseg-segment` (= `segment`).", ""]
-    out += [f"- [`{n}`](#{n})" for n in names] + [""]
-    for n in names:
-        out += [f"## {n}", "", "```text", helps[n], "```", ""]
+           "Every user command is a subcommand of `roomseg` (`roomseg --help` lists them), as `roomseg <name> "
+           "--help` prints it. `roomseg-bench` (= `roomseg bench`) and `roomseg-segment` (= `roomseg segment`) "
+           "are installed too, and `python -m benchmark.commands.<module>` still runs each.", ""]
+    out += [f"- [`roomseg {n}`](#roomseg-{n})" for n in user]
+    out += ["- [Maintainer tools](#maintainer-tools)", ""]
+    for n in user:
+        out += [f"## roomseg {n}", "", "```text", helps[n], "```", ""]
         for s in subs[n]:
-            out += [f"### {n} {s}", "", "```text", sub_helps[(n, s)], "```", ""]
+            out += [f"### roomseg {n} {s}", "", "```text", sub_helps[(n, s)], "```", ""]
+    out += ["## Maintainer tools", "",
+            "Not listed by `roomseg --help`: the project's own checks and generated pages (`make help` runs them).",
+            ""]
+    for n in tools:
+        out += [f"### {n}", "", "```text", tool_helps[n], "```", ""]
     return "\n".join(out).rstrip() + "\n"
 
 
