@@ -35,7 +35,7 @@ test: setup-test  ## run the whole test suite (what CI runs)
 	$(PY) -m pytest -q
 
 test-fast: setup-test  ## the suite without tests marked slow (pytest -m "not slow")
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -m "not slow" --max-unmarked-seconds 2
 
 lint: setup-test  ## ruff
 	$(VENV)/bin/ruff check benchmark envs tests

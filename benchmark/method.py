@@ -171,7 +171,7 @@ class ViewTransform(Protocol):
 @dataclass
 class PoseErrorTransform:
     """The robot's pose estimate: ``stage(true poses, the house's map, house id) -> (noisy
-    poses, stats)`` (:class:`benchmark.pose_error.PoseError`); records the mean and largest
+    poses, stats)`` (:class:`benchmark.conditions.pose_error.PoseError`); records the mean and largest
     position error (m) and the mean heading error (degrees)."""
 
     stage: Any
@@ -187,7 +187,7 @@ class PoseErrorTransform:
 @dataclass
 class LabelNoiseTransform:
     """Classifier noise: ``stage(proba, true poses, scene, classes) -> (proba, info)``
-    (:class:`benchmark.label_noise.LabelNoise`), seeded by the true poses (what was seen)."""
+    (:class:`benchmark.conditions.label_noise.LabelNoise`), seeded by the true poses (what was seen)."""
 
     stage: Any
 

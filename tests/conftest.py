@@ -45,3 +45,37 @@ def shared_scenes(shared_houses):
     from envs.maps.scene import rasterise_house
 
     return [rasterise_house(h) for h in shared_houses]
+
+
+# ---- the developer loop: `make test-fast` fails a test over N seconds that is not marked slow
+_DURATIONS: dict[str, list] = {}
+
+
+def pytest_addoption(parser):
+    parser.addoption("--max-unmarked-seconds", type=float, default=None, metavar="S",
+                     help="fail the session when a test not marked slow takes longer than S seconds "
+                          "(setup, call and teardown together); make test-fast sets 2")
+
+
+def pytest_runtest_logreport(report):
+    entry = _DURATIONS.setdefault(report.nodeid, [0.0, "slow" in report.keywords])
+    entry[0] += report.duration
+
+
+def unmarked_over(durations: dict[str, list], limit: float) -> list[tuple[str, float]]:
+    """(test id, seconds) of the tests over ``limit`` seconds that carry no ``slow`` mark, slowest first."""
+    return sorted(((k, v[0]) for k, v in durations.items() if v[0] > limit and not v[1]), key=lambda t: -t[1])
+
+
+def pytest_sessionfinish(session, exitstatus):
+    limit = session.config.getoption("--max-unmarked-seconds", default=None)
+    if limit is None:
+        return
+    over = unmarked_over(_DURATIONS, limit)
+    if over:
+        tr = session.config.pluginmanager.get_plugin("terminalreporter")
+        if tr is not None:
+            tr.write_line(f"{len(over)} test(s) took over {limit:g} s without @pytest.mark.slow:", red=True)
+            for k, s in over:
+                tr.write_line(f"  {s:6.2f} s  {k}")
+        session.exitstatus = 1

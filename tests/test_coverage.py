@@ -1,11 +1,11 @@
-"""View coverage (benchmark/coverage.py): hand-made maps where a view sees a known set of cells."""
+"""View coverage (benchmark/conditions/coverage.py): hand-made maps where a view sees a known set of cells."""
 
 import math
 
 import numpy as np
 import pytest
 
-from benchmark.coverage import view_coverage, visible_cells
+from benchmark.conditions.coverage import view_coverage, visible_cells
 from envs.maps.gridmap import GridMap
 from envs.maps.scene import Scene
 from tests.maps import pose_at

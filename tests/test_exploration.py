@@ -1,4 +1,4 @@
-"""Exploration viewpoints (benchmark/exploration.py): frontier and random walk on hand-made
+"""Exploration viewpoints (benchmark/conditions/exploration.py): frontier and random walk on hand-made
 maps with known answers; the frontier's fast path against its pure-Python reference."""
 
 import dataclasses
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from benchmark.coverage import view_coverage
-from benchmark.exploration import (
+from benchmark.conditions.coverage import view_coverage
+from benchmark.conditions.exploration import (
     Frontier,
     RandomWalk,
     explore_frontier_reference,

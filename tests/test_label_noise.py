@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from benchmark.classifiers.noise import PerRoom
-from benchmark.label_noise import LabelNoise
+from benchmark.conditions.label_noise import LabelNoise
 
 
 def _views(n=4000, c=7, seed=0):

@@ -1,9 +1,9 @@
-"""Pose error (benchmark/pose_error.py): known answers on a straight trajectory."""
+"""Pose error (benchmark/conditions/pose_error.py): known answers on a straight trajectory."""
 
 import numpy as np
 import pytest
 
-from benchmark.pose_error import PoseError, perturb_poses, pose_error_stats
+from benchmark.conditions.pose_error import PoseError, perturb_poses, pose_error_stats
 from envs.maps.gridmap import GridMap
 
 

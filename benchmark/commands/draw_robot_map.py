@@ -19,8 +19,8 @@ from benchmark.paths import procthor_houses
 
 def draw(houses: Path, index: int, budget: float, out: Path) -> str:
     """Draw the figure; returns a one-line summary."""
-    from benchmark.coverage import view_coverage
-    from benchmark.exploration import Frontier
+    from benchmark.conditions.coverage import view_coverage
+    from benchmark.conditions.exploration import Frontier
     from benchmark.reports.robot_map import draw_robot_map
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses

@@ -17,7 +17,7 @@ scan-map construction (:func:`envs.maps.scan.scan_map`, default :class:`ScanSett
 0.25 m, range 10 m, 1 degree beams, no noise; scans along the autotrace views' trajectory every
 0.5 m) and, with range noise 0.02 m and dropout 0.05, against the pure-Python reference on the
 first ``--scan-ref-scans`` scans (the fast mapper timed again on exactly those for the ratio);
-frontier exploration (:class:`benchmark.exploration.Frontier` with its defaults, 40 m budget)
+frontier exploration (:class:`benchmark.conditions.exploration.Frontier` with its defaults, 40 m budget)
 against its pure-Python reference on the whole exploration. Maps and poses must be identical.
 """
 
@@ -111,7 +111,7 @@ def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: i
 
 def run_robot(houses: int, scan_ref_scans: int, path: Path) -> pd.DataFrame:
     """Scan-map and frontier-exploration timings per shared house at 0.05 m/px (module docstring)."""
-    from benchmark.exploration import Frontier, explore_frontier_reference
+    from benchmark.conditions.exploration import Frontier, explore_frontier_reference
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses
     from envs.maps.scan import (

@@ -2,12 +2,12 @@
 the scan map agrees with the floor plan, on the shared ProcTHOR houses (or generated ones).
 
 Per house and strategy (autotrace; frontier and random walk at each ``--budgets``): views,
-metres driven, ``coverage_area`` and ``coverage_rooms`` (:func:`benchmark.coverage.view_coverage`
+metres driven, ``coverage_area`` and ``coverage_rooms`` (:func:`benchmark.conditions.coverage.view_coverage`
 with the floor-plan renderer's camera: 90 degree cone, 6 m, tall objects block) and, for the
 scan map the robot builds along its views (:func:`envs.maps.scan.robot_scan_map`, default
 scanner; the frontier's own map), the share of walkable cells it marks free and the share of
 its free cells that are walkable. Then the pose error of the autotrace views under a few
-example settings (:class:`benchmark.pose_error.PoseError`, drift along the autotrace route).
+example settings (:class:`benchmark.conditions.pose_error.PoseError`, drift along the autotrace route).
 Prints the means over houses as Markdown tables.
 """
 
@@ -43,9 +43,9 @@ POSE_ERRORS = {
 
 def run(houses: list, budgets: list[float]) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(one row per (house, strategy), one row per (house, pose-error setting))."""
-    from benchmark.coverage import view_coverage
-    from benchmark.exploration import Frontier, RandomWalk
-    from benchmark.pose_error import PoseError
+    from benchmark.conditions.coverage import view_coverage
+    from benchmark.conditions.exploration import Frontier, RandomWalk
+    from benchmark.conditions.pose_error import PoseError
     from benchmark.viewpoints import Autotrace
     from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map
     from envs.maps.scene import rasterise_house

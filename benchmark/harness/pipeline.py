@@ -568,10 +568,10 @@ class MethodPipeline(Pipeline):
         return self.store.coverage_path(self.keys["render"], hid, content=self.contents(hid)["render"])
 
     def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
-        """How much of the house the views saw (:func:`benchmark.coverage.view_coverage`) with
+        """How much of the house the views saw (:func:`benchmark.conditions.coverage.view_coverage`) with
         the renderer's field of view and range (90 degrees, 6 m when it has none) and the
         floor plan's occluders (walls, tall furniture): cached per render."""
-        from benchmark.coverage import view_coverage
+        from benchmark.conditions.coverage import view_coverage
         from envs.render.floorplan import occluders
 
         def load(path: Path) -> dict[str, float]:
