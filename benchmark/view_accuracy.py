@@ -9,7 +9,6 @@ of the method carries both (``view_accuracy``, ``view_accuracy_seen``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -51,31 +50,6 @@ def seen_accuracy(truth: np.ndarray, proba: np.ndarray) -> float:
     return float(np.mean(np.asarray(proba)[m].argmax(axis=1) == truth[m]))
 
 
-def view_accuracy_seen(render_folder: str | Path, poses: np.ndarray, proba: np.ndarray) -> float:
-    """Per-view accuracy against what each view sees (the oracle's truth: the class that
-    covers most of the visible floor), from a house's render cache.
-
-    Args:
-        render_folder: the house's render cache folder (:mod:`envs.render.cache`).
-        poses: (N, 3) poses of the classified (not refused) views.
-        proba: (N, C) their class probabilities.
-
-    Returns:
-        The share in [0, 1]; NaN when the render is not cached, its views carry no visible
-        classes (simulator renderers) or do not match ``poses``, or no view saw floor.
-    """
-    from envs.render import cache as render_cache  # noqa: PLC0415
-
-    if not render_cache.is_complete(render_folder):
-        return float("nan")
-    obs = [o for o in render_cache.read_observations(render_folder, images=False) if not o.meta.get("refused", False)]
-    if len(obs) != len(proba) or any(o.visible_classes is None for o in obs):
-        return float("nan")
-    if not np.allclose(np.asarray([o.pose for o in obs], dtype=float), np.asarray(poses, dtype=float), atol=1e-6):
-        return float("nan")
-    return seen_accuracy(true_labels(obs), proba)
-
-
 def view_accuracy(grid, semantic: np.ndarray, poses: np.ndarray, proba: np.ndarray) -> float:
     """Share of views whose top class equals the ground-truth class of the cell they stand on.
 
@@ -98,4 +72,4 @@ def view_accuracy(grid, semantic: np.ndarray, poses: np.ndarray, proba: np.ndarr
     return float(np.mean(np.asarray(proba)[m].argmax(axis=1) == truth[m]))
 
 
-__all__ = ["true_labels", "seen_accuracy", "view_accuracy_seen", "view_accuracy"]
+__all__ = ["true_labels", "seen_accuracy", "view_accuracy"]

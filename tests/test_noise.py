@@ -21,8 +21,9 @@ from benchmark.classifiers.noise import (
     view_rooms,
 )
 from benchmark.classifiers.oracle import OracleClassifier
+from benchmark.harness.entries import seen_from_render
 from benchmark.paths import CONF_DIR
-from benchmark.view_accuracy import view_accuracy_seen
+from benchmark.view_accuracy import seen_accuracy
 from envs.maps.gridmap import GridMap
 from envs.maps.scene import Scene
 from envs.render import cache as render_cache
@@ -250,9 +251,9 @@ def test_view_accuracy_seen_from_the_render_cache(tmp_path):
     kept = obs[:5]
     poses = np.array([o.pose for o in kept])
     proba = np.eye(C)[[2, 2, 3, 1, 6]]  # right, wrong (sees mostly 4), no floor (left out), right, wrong
-    assert view_accuracy_seen(folder, poses, proba) == pytest.approx(2 / 4)
-    assert np.isnan(view_accuracy_seen(folder, poses[::-1], proba))  # views do not match
-    assert np.isnan(view_accuracy_seen(tmp_path / "nothing", poses, proba))
+    assert seen_accuracy(seen_from_render(folder, poses), proba) == pytest.approx(2 / 4)
+    assert seen_from_render(folder, poses[::-1]) is None  # views do not match
+    assert seen_from_render(tmp_path / "nothing", poses) is None
 
 
 def test_configs_build_each_noise_model():

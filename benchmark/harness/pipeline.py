@@ -43,9 +43,18 @@ from benchmark.harness.cache import (
     read_entry,
     write_entry,
 )
+from benchmark.harness.entries import (
+    BadEntry,
+    check_classified,
+    check_labels_entry,
+    check_poses,
+    check_render,
+    check_seen,
+    seen_from_render,
+)
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
-from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy, view_accuracy_seen
+from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy
 from envs.datasets.base import Environment
 from envs.render.base import Renderer
 from envs.render.observation import poses_array
@@ -73,10 +82,6 @@ COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 class StageError(RuntimeError):
     """A stage that cannot be built, or does not fit the environment (e.g. another class
     order): no house's fault, so the run stops with this one-line message."""
-
-
-class BadEntry(ValueError):
-    """A cache entry that fails validation (it is recomputed, with a warning naming it)."""
 
 
 def expand_force(force: Sequence[str] | str | None) -> set[str]:
@@ -544,8 +549,9 @@ class MethodPipeline(Pipeline):
         out["n_views"] = int(len(poses))
         out["n_refused"] = int(result.classified.n_refused)
         out["view_accuracy"] = view_accuracy(scene.grid, scene.semantic, poses, proba_in)
-        out["view_accuracy_seen"] = (seen_accuracy(seen, proba_in) if seen is not None  # vs what views see
-                                     else view_accuracy_seen(self.render_dir(hid), poses, proba_in))
+        if seen is None:  # a classification cached before it kept what the views see: from the render
+            seen = seen_from_render(self.render_dir(hid), poses)
+        out["view_accuracy_seen"] = seen_accuracy(seen, proba_in) if seen is not None else float("nan")
         out.update(self._coverage(hid, scene, timings))
         out.update({**ROBOT_VIEW_DEFAULTS, **result.info})
         out.update(robot)
@@ -686,109 +692,8 @@ class SegmenterPipeline(Pipeline):
         return out
 
 
-def check_labels_entry(z: Mapping[str, np.ndarray], shape: tuple[int, int], n_classes: int) -> np.ndarray:
-    """A cached raw label map, checked: (H, W) integers in -1..C-1 on the scene's grid.
-
-    Returns:
-        (H, W) int32 labels.
-
-    Raises:
-        BadEntry: a missing array, another shape or dtype, or a label out of range."""
-    if "raw" not in z:
-        raise BadEntry("no 'raw' array")
-    raw = z["raw"]
-    if raw.shape != tuple(shape) or not np.issubdtype(raw.dtype, np.integer):
-        raise BadEntry(f"raw labels {raw.dtype} {raw.shape}, expected integers {tuple(shape)}")
-    if raw.size and (raw.min() < -1 or raw.max() >= n_classes):
-        raise BadEntry(f"raw labels in [{raw.min()}, {raw.max()}], expected -1..{n_classes - 1}")
-    return raw.astype(np.int32)
-
-
-def check_poses(poses: np.ndarray, scene) -> None:
-    """Poses (N, 3) must be finite and stand on walkable cells of ``scene.grid``.
-
-    Raises:
-        BadEntry: the count of offending poses and the first one."""
-    if not np.isfinite(poses).all():
-        raise BadEntry(f"{int((~np.isfinite(poses).all(axis=1)).sum())} pose(s) are not finite")
-    r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
-    on = scene.grid.is_walkable(r, c)
-    if not on.all():
-        i = int(np.nonzero(~on)[0][0])
-        raise BadEntry(f"{int((~on).sum())} of {len(poses)} poses lie off the walkable map "
-                       f"(e.g. view {i} at x={poses[i, 0]:.3f}, z={poses[i, 1]:.3f})")
-
-
-def check_render(observations: Sequence, scene) -> None:
-    """Validate a cached render against the house's map.
-
-    Raises:
-        BadEntry: no views, a non-finite pose, or a pose off the map or on a cell that is
-            not walkable (counts and the first offending pose in the message)."""
-    if not observations:
-        raise BadEntry("no views")
-    check_poses(poses_array([o.pose for o in observations]), scene)
-    for i, o in enumerate(observations):
-        for t, a in o.objects:
-            if not isinstance(t, str) or not math.isfinite(a) or a < 0:
-                raise BadEntry(f"view {i}: object entry ({t!r}, {a!r}) is not (type, amount >= 0)")
-
-
-def check_seen(z: Mapping[str, np.ndarray], n_views: int, n_classes: int) -> np.ndarray | None:
-    """The optional ``seen`` array of a classify entry: (N,) integers in -1..C-1, or None.
-
-    Raises:
-        BadEntry: another shape or dtype, or a class out of range."""
-    if "seen" not in z:
-        return None
-    seen = np.asarray(z["seen"])
-    if seen.shape != (n_views,) or not np.issubdtype(seen.dtype, np.integer):
-        raise BadEntry(f"seen has {seen.dtype} {seen.shape}, expected integers ({n_views},)")
-    if seen.size and (seen.min() < -1 or seen.max() >= n_classes):
-        raise BadEntry(f"seen classes in [{seen.min()}, {seen.max()}], expected -1..{n_classes - 1}")
-    return seen
-
-
-def check_classified(z: Mapping[str, np.ndarray], n_classes: int | None,
-                     views: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, int]:
-    """Validate a cached classification; ``views`` = (poses, refused) of the house's render
-    when that entry exists, so that counts and poses must agree between the two files.
-
-    Returns:
-        (poses (N, 3), proba (N, C), n_refused).
-
-    Raises:
-        BadEntry: a missing array, a wrong shape, a non-finite value, rows that are not
-            probabilities, or counts that disagree with the render.
-    """
-    missing = [k for k in ("poses", "proba", "n_refused") if k not in z]
-    if missing:
-        raise BadEntry(f"missing array(s) {missing}")
-    poses, proba, n_ref = np.asarray(z["poses"]), np.asarray(z["proba"]), np.asarray(z["n_refused"])
-    if poses.ndim != 2 or poses.shape[1] != 3 or len(poses) == 0:
-        raise BadEntry(f"poses have shape {poses.shape}, expected (N >= 1, 3)")
-    want = (len(poses), n_classes if n_classes is not None else (proba.shape[1] if proba.ndim == 2 else -1))
-    if proba.shape != want:
-        raise BadEntry(f"proba has shape {proba.shape}, expected {want}")
-    if not (np.isfinite(poses).all() and np.isfinite(proba).all()):
-        raise BadEntry("non-finite values")
-    if (proba < 0).any() or not np.allclose(proba.sum(axis=1), 1.0, atol=1e-6):
-        raise BadEntry("proba rows are not probabilities (negative, or not summing to 1)")
-    if n_ref.shape != () or not np.issubdtype(n_ref.dtype, np.integer) or int(n_ref) < 0:
-        raise BadEntry(f"n_refused is {n_ref!r}, expected an integer >= 0")
-    if views is not None:
-        vposes, refused = views
-        if len(vposes) != len(poses) + int(n_ref) or int(refused.sum()) != int(n_ref):
-            raise BadEntry(f"{len(poses)} classified + {int(n_ref)} refused views, but the render has "
-                           f"{len(vposes)} views ({int(refused.sum())} refused)")
-        if not np.allclose(vposes[~refused], poses):
-            raise BadEntry("poses differ from the render's")
-    return poses, proba.astype(np.float64), int(n_ref)
-
-
 def _one_line(e: BaseException) -> str:
     return " ".join(f"{type(e).__name__}: {e}".split())
 
 
-__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "BadEntry", "STAGES", "expand_force",
-           "house_content", "check_poses", "check_render", "check_classified"]
+__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "STAGES", "expand_force", "house_content"]
