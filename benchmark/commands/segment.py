@@ -4,6 +4,7 @@
     roomseg-segment map=robot.yaml poses=views.csv frame=ros images=pics/ classifier=cnn out=DIR
     roomseg-segment map=robot.yaml segmenter=voronoi out=DIR
     roomseg-segment ... aggregator=graph_knn postprocess=none gt=gt.png gt_format=label
+    roomseg-segment bag=run.bag out=DIR        (a ROS 1 / ROS 2 bag: map, tf, views; docs/own-robot-data.md)
 
 Arguments are Hydra overrides of ``conf/segment.yaml`` (composed with Hydra's compose API:
 the bench app's stage groups and ``_target_`` plug-ins work, and no Hydra output folder is
@@ -412,7 +413,13 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     if cfg.off_map not in ("error", "drop"):
         raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
     t = time.perf_counter()
-    grid, ros_origin, map_info = read_map(cfg)
+    bag_views = None
+    if cfg.get("bag") is not None:  # a robot's bag instead of map= / poses= (benchmark/commands/segment_bag.py)
+        from benchmark.commands.segment_bag import read_bag_inputs  # noqa: PLC0415
+
+        grid, ros_origin, map_info, bag_views = read_bag_inputs(cfg)
+    else:
+        grid, ros_origin, map_info = read_map(cfg)
     timings["t_read_map"] = time.perf_counter() - t
     metric_params = instantiate(cfg.metrics)
     summary: dict[str, Any] = {"command": "roomseg-segment " + " ".join(argv), **map_info,
@@ -437,7 +444,12 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
         title = f"{Path(str(cfg.map)).name}: {summary['segmenter'].rsplit('.', 1)[-1]}, {len(ids)} segments"
     else:
         summary["mode"] = "labels" if cfg.labels is not None else "images"
-        poses, proba, classes, counts = views_and_probabilities(cfg, grid, timings)
+        if bag_views is not None:  # the bag's views (benchmark/commands/segment_bag.py)
+            from benchmark.commands.segment_bag import bag_views_and_probabilities  # noqa: PLC0415
+
+            poses, proba, classes, counts = bag_views_and_probabilities(cfg, bag_views, grid, timings)
+        else:
+            poses, proba, classes, counts = views_and_probabilities(cfg, grid, timings)
         summary.update(counts)
         summary["classes"] = list(classes)
         summary["classifier"] = str(cfg.classifier._target_)
@@ -474,6 +486,10 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     try:
         t = time.perf_counter()
         summary.update(write_outputs(tmp, cfg, grid, ros_origin, labels, segs, seg_classes, classes, poses, title))
+        if bag_views is not None:  # the output bag: map + rooms as MarkerArray (benchmark/commands/segment_bag.py)
+            from benchmark.commands.segment_bag import write_bag_output  # noqa: PLC0415
+
+            summary.update(write_bag_output(tmp, cfg, bag_views, labels, segs, classes))
         timings["t_write"] = time.perf_counter() - t
         if cfg.gt is not None:
             t = time.perf_counter()
