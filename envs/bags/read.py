@@ -43,7 +43,7 @@ from envs.maps.gridmap import GridMap
 
 @dataclass(frozen=True)
 class BagOptions:
-    """How to read a bag (``bag.*`` in ``conf/segment.yaml``); None = found from the bag."""
+    """How to read a bag (``bag_options.*`` in ``conf/segment.yaml``); None = found from the bag."""
 
     map_topic: str | None = None
     map_stamp: float | None = None          # seconds: the last map at or before it (None: the last map)
@@ -132,21 +132,21 @@ def choose_topics(bag: Bag, opt: BagOptions, need_views: bool = True) -> dict[st
     Raises:
         BagError: a named topic that is missing or of the wrong type, a role with no topic,
             or several candidates (one line naming the bag and the option to set)."""
-    out: dict[str, Any] = {"map": _pick(bag, opt.map_topic, MAP_TYPES, "map", "bag.map_topic")}
+    out: dict[str, Any] = {"map": _pick(bag, opt.map_topic, MAP_TYPES, "map", "bag_options.map_topic")}
     if not need_views:
         return out
     if opt.view_topic:
-        out["views"] = _pick(bag, opt.view_topic, VIEW_TYPES, "view", "bag.view_topic")
+        out["views"] = _pick(bag, opt.view_topic, VIEW_TYPES, "view", "bag_options.view_topic")
     else:
-        labels = _pick(bag, None, LABEL_TYPES, "label", "bag.view_topic", required=False)
-        out["views"] = labels or _pick(bag, None, IMAGE_TYPES, "view (label or image)", "bag.view_topic")
+        labels = _pick(bag, None, LABEL_TYPES, "label", "bag_options.view_topic", required=False)
+        out["views"] = labels or _pick(bag, None, IMAGE_TYPES, "view (label or image)", "bag_options.view_topic")
     out["tf"] = [t.name for t in bag.topics.values() if t.msgtype in TF_TYPES]
-    out["poses"] = _pick(bag, opt.pose_topic, POSE_TYPES, "pose", "bag.pose_topic",
+    out["poses"] = _pick(bag, opt.pose_topic, POSE_TYPES, "pose", "bag_options.pose_topic",
                          required=False) if (opt.pose_topic or not out["tf"]) else None
     if out["poses"] is None and not out["tf"]:
         raise BagError(f"{bag.path}: no tf (/tf, /tf_static) and no pose topic (PoseStamped, "
                        f"PoseWithCovarianceStamped, Odometry); the views cannot be placed")
-    out["camera_info"] = (_pick(bag, opt.camera_info_topic, CAMERA_INFO_TYPES, "camera info", "bag.camera_info_topic",
+    out["camera_info"] = (_pick(bag, opt.camera_info_topic, CAMERA_INFO_TYPES, "camera info", "bag_options.camera_info_topic",
                                 required=False)
                           if out["views"].msgtype in IMAGE_TYPES or opt.camera_info_topic else None)
     return out
@@ -172,7 +172,7 @@ class _Clock:
         prev = self.last.get(key)
         if prev is not None and abs(off - prev) > self.limit:
             raise BagError(f"{path}: {key}: the clock jumps by {(off - prev) / 1e9:+.3f} s at {stamp_s(stamp)} "
-                           f"(header stamp against record time; bag.max_clock_jump_s={self.limit / 1e9:g})")
+                           f"(header stamp against record time; bag_options.max_clock_jump_s={self.limit / 1e9:g})")
         self.last[key] = off
 
 
@@ -223,7 +223,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                 elif m.geometry != first_geom and want_ns is None:
                     raise BagError(f"{path} {topic}: the map changes at {stamp_s(st)} from {first_text} to "
                                    f"{m.shape_text()}; a moving or growing map is not supported (pass "
-                                   f"bag.map_stamp=<seconds> to use one map message)")
+                                   f"bag_options.map_stamp=<seconds> to use one map message)")
                 chosen = m
             elif msgtype in TF_TYPES:
                 static = "static" in topic
@@ -287,7 +287,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
 
 def _camera_frame(opt: BagOptions, vframe: str | None, pose_child: str | None, tf: TfBuffer, path: Path,
                   topic: str) -> str:
-    """The frame whose pose is each view's pose: ``bag.camera_frame``, else the views' header
+    """The frame whose pose is each view's pose: ``bag_options.camera_frame``, else the views' header
     frame, else the pose topic's frame, else ``base_link`` (label messages without a header)."""
     for f in (opt.camera_frame, vframe):
         if f:
@@ -297,7 +297,7 @@ def _camera_frame(opt: BagOptions, vframe: str | None, pose_child: str | None, t
     if "base_link" in tf.frames:
         return "base_link"
     raise BagError(f"{path} {topic}: the views carry no frame and the bag has no base_link; pass "
-                   f"bag.camera_frame=<frame> (frames are {sorted(tf.frames)})")
+                   f"bag_options.camera_frame=<frame> (frames are {sorted(tf.frames)})")
 
 
 def iter_images(views: BagViews, chunk: int = 64, progress: bool = False) -> Iterator[list[tuple[int, np.ndarray]]]:

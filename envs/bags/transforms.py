@@ -154,7 +154,7 @@ class TfBuffer:
         t0, t1 = int(s[i - 1]), int(s[i])
         if t1 - t0 > self.max_gap_ns:
             raise BagError(f"{where}: no transform at {stamp_s(t)}; the samples around it are {(t1 - t0) / 1e9:.3f} s "
-                           f"apart (bag.tf_max_gap_s={self.max_gap_ns / 1e9:g})")
+                           f"apart (bag_options.tf_max_gap_s={self.max_gap_ns / 1e9:g})")
         f = 0.0 if t1 == t0 else (t - t0) / (t1 - t0)
         return transform_matrix(tr[i - 1] + f * (tr[i] - tr[i - 1]), slerp(rq[i - 1], rq[i], f))
 
@@ -177,7 +177,7 @@ def forward_axis(frame: str, axis: str = "auto") -> np.ndarray:
     if axis == "auto":
         axis = "z" if frame.rstrip("/").endswith(("optical_frame", "optical")) else "x"
     if axis not in ("x", "z"):
-        raise ValueError(f"bag.camera_axis={axis!r}; expected auto, x or z")
+        raise ValueError(f"bag_options.camera_axis={axis!r}; expected auto, x or z")
     return np.array([1.0, 0, 0]) if axis == "x" else np.array([0, 0, 1.0])
 
 
@@ -190,5 +190,5 @@ def planar_pose(m: np.ndarray, forward: np.ndarray, where: str) -> tuple[float, 
     d = m[:3, :3] @ forward
     if math.hypot(d[0], d[1]) < 0.1:
         raise BagError(f"{where}: the camera looks {'up' if d[2] > 0 else 'down'} (direction {np.round(d, 3).tolist()} "
-                       f"in the map); expected a camera looking along the floor (is bag.camera_axis right?)")
+                       f"in the map); expected a camera looking along the floor (is bag_options.camera_axis right?)")
     return float(m[0, 3]), float(m[1, 3]), math.atan2(d[1], d[0])

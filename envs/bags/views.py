@@ -122,7 +122,7 @@ def subsample(poses: np.ndarray, min_distance_m: float, min_turn_deg: float) -> 
         (K,) int64 increasing indices.
     """
     if min_distance_m < 0 or min_turn_deg < 0:
-        raise ValueError(f"bag.min_distance_m={min_distance_m}, bag.min_turn_deg={min_turn_deg}; expected >= 0")
+        raise ValueError(f"bag_options.min_distance_m={min_distance_m}, bag_options.min_turn_deg={min_turn_deg}; expected >= 0")
     n = len(poses)
     if n == 0:
         return np.zeros(0, np.int64)

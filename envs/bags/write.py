@@ -128,7 +128,7 @@ def write_segmentation_bag(path: str | Path, fmt: str, frame: str, stamp_ns: int
         The path written.
     """
     if fmt not in FORMATS:
-        raise ValueError(f"bag.out_format={fmt!r}; expected one of {list(FORMATS)}, auto or none")
+        raise ValueError(f"bag_options.out_format={fmt!r}; expected one of {list(FORMATS)}, auto or none")
     path = Path(path)
     T = _typestore(fmt).types
     ros1 = fmt == "ros1"
