@@ -77,7 +77,7 @@ class ColourClassifier:
     """Class = the paper class whose colour is nearest the image's median colour (the test
     images are filled with their class's colour): an image classifier with a known answer."""
 
-    def __init__(self, classes=None):
+    def __init__(self, classes=None, **_labels_file_options):
         self.classes = tuple(classes or PAPER_CLASSES)
         self.seen = 0
 

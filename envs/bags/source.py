@@ -27,8 +27,8 @@ def require_rosbags():
     """The ``rosbags.highlevel`` module, or ImportError with the install line."""
     try:
         from rosbags import highlevel  # noqa: PLC0415
-    except ImportError as e:  # pragma: no cover - depends on the environment
-        raise ImportError(INSTALL_HINT) from e
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise ImportError(INSTALL_HINT) from None
     return highlevel
 
 
@@ -116,14 +116,14 @@ class Bag:
                 return
             except errors as e:
                 where = f" after {last[0]} at {stamp_s(last[1])}" if last else ""
-                raise BagError(f"{self.path}: cannot read on{where}: {_what(e)} (a truncated or damaged bag?)") from e
+                raise BagError(f"{self.path}: cannot read on{where}: {_what(e)} (a truncated or damaged bag?)") from None
             conn, t, raw = item
             last = (conn.topic, t)
             try:
                 msg = self.reader.deserialize(raw, conn.msgtype)
             except errors as e:
                 raise BagError(f"{self.path}: topic {conn.topic} at {stamp_s(t)}: cannot decode a {conn.msgtype} "
-                               f"message: {_what(e)}") from e
+                               f"message: {_what(e)}") from None
             yield conn.topic, conn.msgtype, int(t), msg
 
 
@@ -150,9 +150,9 @@ def open_bag(path: str | Path) -> Iterator[Bag]:
         reader.open()
     except errors as e:
         raise BagError(f"{path}: not a readable bag: {_what(e)} (truncated, unindexed or not a bag: ROS 1 bags "
-                       f"can be reindexed with `rosbag reindex`, ROS 2 ones with `ros2 bag reindex`)") from e
+                       f"can be reindexed with `rosbag reindex`, ROS 2 ones with `ros2 bag reindex`)") from None
     except OSError as e:
-        raise BagError(f"{path}: cannot open: {_what(e)}") from e
+        raise BagError(f"{path}: cannot open: {_what(e)}") from None
     try:
         yield Bag(path, reader)
     finally:

@@ -106,7 +106,7 @@ def decode_image(msg: Any, msgtype: str, where: str) -> np.ndarray:
         with Image.open(io.BytesIO(np.asarray(msg.data, dtype=np.uint8).tobytes())) as im:
             return np.asarray(im.convert("RGB"))
     except (UnidentifiedImageError, OSError, ValueError) as e:
-        raise BagError(f"{where}: CompressedImage (format {str(msg.format)!r}) does not decode: {e}") from e
+        raise BagError(f"{where}: CompressedImage (format {str(msg.format)!r}) does not decode: {e}") from None
 
 
 def subsample(poses: np.ndarray, min_distance_m: float, min_turn_deg: float) -> np.ndarray:
