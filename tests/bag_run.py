@@ -10,10 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.commands.segment_example import FREE, FREE_THRESH, OCCUPIED_THRESH, WALL, example_map
-from benchmark.viewpoints import Autotrace
+from benchmark.commands.bag_example import example_run
+from benchmark.commands.segment_example import FREE_THRESH, OCCUPIED_THRESH
 from envs.bags.synthetic import RobotRun
-from envs.maps.frames import world_to_ros
 from envs.maps.gridmap import GridMap
 from envs.maps.ros import write_ros_map
 from envs.world.classes import PAPER_CLASSES, class_colors
@@ -50,16 +49,9 @@ class House:
 
 
 def house() -> House:
-    img, rooms, classes, gorigin, _ = example_map(resolution=RES, ros_origin=ORIGIN)
-    grid = GridMap(img == FREE, RES, gorigin)
-    occ = np.where(img == FREE, 0, np.where(img == WALL, 100, -1)).astype(np.int8)
-    poses = Autotrace().generate(grid)
-    x, y, th = world_to_ros(poses[:, 0], poses[:, 1], poses[:, 2])
-    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
-    labels = [PAPER_CLASSES[classes[rooms[a, b]]] for a, b in zip(r, c)]
-    route = np.column_stack([x, y, th]).astype(float)
-    stamps = T0 + np.arange(len(route), dtype=np.int64) * STEP_NS
-    return House(grid, img, occ, poses, route, labels, stamps)
+    r = example_run(resolution=RES, ros_origin=ORIGIN)
+    assert r.stamps[0] == T0 and r.stamps[1] - r.stamps[0] == STEP_NS
+    return House(r.grid, r.image, r.occupancy, r.poses, r.route, r.labels, r.stamps)
 
 
 def write_files(h: House, d: Path) -> list[str]:
