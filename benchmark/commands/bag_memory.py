@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import tempfile
@@ -127,13 +126,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rooms", default="4x3")
     ap.add_argument("--room-m", type=float, default=5.0)
     ap.add_argument("--dir", default=None, help="work folder (default: a temporary one, removed)")
-    a = ap.parse_args(argv)
+    ap.add_argument("--out", default=None, help="also write the lines as markdown here (results/published/bag_memory.md)")
+    a = ap.parse_args(argv if argv is not None else sys.argv[1:])
     h, w = (int(v) for v in a.size.lower().split("x"))
     nx, ny = (int(v) for v in a.rooms.lower().split("x"))
     with tempfile.TemporaryDirectory(prefix="bag_memory_") as tmp:
         d = Path(a.dir) if a.dir else Path(tmp)
         d.mkdir(parents=True, exist_ok=True)
-        rows = []
+        rows, lines = [], []
         for n in (a.small, a.images):
             name = f"run_{n}.bag" if a.format == "ros1" else f"run_{n}"
             t = time.perf_counter()
@@ -142,13 +142,23 @@ def main(argv: list[str] | None = None) -> int:
             r = measure(bag, d / f"out_{n}")
             r.update(images=n, bag_mib=_size_mib(bag), write_s=round(t_write, 1))
             rows.append(r)
-            print(f"{n:>6} images ({a.size} JPEG, {a.format}, {r['bag_mib']} MiB bag, {a.hours * n / a.images:.2f} h): "
-                  f"peak RSS {r['peak_rss_mib']} MiB, {r['wall_s']} s, {r['n_kept_views']} of {r['n_bag_views']} views "
-                  f"kept, {r['n_segments']} segments", flush=True)
+            lines.append(f"{n} images ({a.size} JPEG, {a.format}, {r['bag_mib']} MiB bag, "
+                         f"{a.hours * n / a.images:.2f} h): peak RSS {r['peak_rss_mib']} MiB, {r['wall_s']} s, "
+                         f"{r['n_kept_views']} of {r['n_bag_views']} views kept, {r['n_segments']} segments")
+            print(lines[-1], flush=True)
         big, small = rows[1], rows[0]
-        print(f"ratio: {big['images'] / small['images']:.0f}x the images -> {big['peak_rss_mib'] / small['peak_rss_mib']:.2f}x "
-              f"the peak memory ({big['peak_rss_mib'] - small['peak_rss_mib']:+.1f} MiB); machine "
-              f"{resource.getpagesize()}-byte pages, python {sys.version.split()[0]}")
+        lines.append(f"ratio: {big['images'] / small['images']:.0f}x the images -> "
+                     f"{big['peak_rss_mib'] / small['peak_rss_mib']:.2f}x the peak memory "
+                     f"({big['peak_rss_mib'] - small['peak_rss_mib']:+.1f} MiB)")
+        print(lines[-1])
+    if a.out:
+        from benchmark.reports.readme_tables import measured_line  # noqa: PLC0415
+        from envs.atomic import atomic_write_text  # noqa: PLC0415
+
+        args = list(argv if argv is not None else sys.argv[1:])
+        text = measured_line("benchmark.commands.bag_memory", args) + "\n\n" + "".join(f"- {x}\n" for x in lines)
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(a.out, text)
     return 0
 
 

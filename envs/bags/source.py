@@ -93,7 +93,8 @@ class Bag:
 
     @property
     def end_ns(self) -> int:
-        return int(self.reader.end_time)
+        """The last message's record time (rosbags' ``end_time`` is one past it)."""
+        return int(self.reader.end_time) - 1
 
     def messages(self, topics: Sequence[str]) -> Iterator[tuple[str, str, int, Any]]:
         """Stream ``(topic, msgtype, record time ns, message)`` of ``topics`` in record-time

@@ -7,12 +7,13 @@ between two frames (e.g. map -> odom -> base_link -> camera), each dynamic edge 
 at the stamp (translation linearly, rotation by slerp), as tf2 does; a stamp outside an
 edge's samples by more than ``tolerance_ns``, or between two samples further apart than
 ``max_gap_ns``, has no transform (tf2 refuses to extrapolate). Static edges hold at every stamp.
-Memory: 64 bytes per sample (an hour of 100 Hz tf on 3 edges is ~70 MB).
+Memory: 64 bytes per sample in typed arrays (an hour of 100 Hz tf on 2 edges is 46 MB).
 """
 
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,20 +57,22 @@ def transform_matrix(t: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Edge:
-    """Samples of one ``parent -> child`` transform (the child's pose in the parent)."""
+    """Samples of one ``parent -> child`` transform (the child's pose in the parent), kept in
+    flat typed arrays (8 bytes per number: 64 bytes per sample)."""
 
     parent: str
     child: str
     source: str
     static: bool = False
-    stamps: list[int] = field(default_factory=list)
-    trans: list[tuple[float, float, float]] = field(default_factory=list)
-    rots: list[tuple[float, float, float, float]] = field(default_factory=list)
+    stamps: array = field(default_factory=lambda: array("q"))
+    trans: array = field(default_factory=lambda: array("d"))  # x, y, z per sample
+    rots: array = field(default_factory=lambda: array("d"))  # x, y, z, w per sample
     _arrays: tuple | None = None
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(stamps (n,) int64, translations (n, 3), quaternions (n, 4)), sorted by stamp."""
         if self._arrays is None or len(self._arrays[0]) != len(self.stamps):
-            s = np.asarray(self.stamps, dtype=np.int64)
+            s = np.frombuffer(self.stamps, dtype=np.int64) if len(self.stamps) else np.zeros(0, np.int64)
             order = np.argsort(s, kind="stable")
             self._arrays = (s[order], np.asarray(self.trans, float).reshape(-1, 3)[order],
                             np.asarray(self.rots, float).reshape(-1, 4)[order])
@@ -101,11 +104,12 @@ class TfBuffer:
                            f"({e.source}) and {parent!r}; expected one tf tree")
         if static:
             e.static = True
-            e.stamps[:], e.trans[:], e.rots[:] = [stamp_ns], [tuple(trans)], [tuple(rot)]
+            e.stamps, e.trans, e.rots = array("q", [int(stamp_ns)]), array("d", trans), array("d", rot)
+            e._arrays = None
             return
         e.stamps.append(int(stamp_ns))
-        e.trans.append(tuple(float(v) for v in trans))
-        e.rots.append(tuple(float(v) for v in rot))
+        e.trans.extend(float(v) for v in trans)
+        e.rots.extend(float(v) for v in rot)
 
     @property
     def frames(self) -> set[str]:
