@@ -272,3 +272,21 @@ def test_bag_that_does_not_exist(tmp_path):
     with pytest.raises(BagError, match=r"bag=.*nothere.bag does not exist"):
         read_bag(tmp_path / "nothere.bag")
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+@pytest.mark.parametrize("fmt,pose_topic", [("ros1", "pose"), ("mcap", "odometry")])
+def test_pose_topics_instead_of_tf(tmp_path, h, fmt, pose_topic):
+    """A PoseStamped of the camera in the map (no tf), or Odometry odom -> base_link chained
+    with tf's map -> odom and the static camera mount."""
+    from dataclasses import replace
+
+    p = write_robot_bag(_path(tmp_path, fmt), fmt, h.run(label_type="classification", pose_topic=pose_topic))
+    if pose_topic == "odometry":  # with tf in the bag, a pose topic is used when named
+        with pytest.raises(BagError, match=r"'map' and 'camera_optical_frame' are not connected .*pose topics in "
+                                           r"the bag: \['/odom'\]; bag_options.pose_topic=<topic>"):
+            read_bag(p, ALL)
+    v = read_bag(p, replace(ALL, pose_topic="/odom") if pose_topic == "odometry" else ALL)
+    assert v.topics["poses"].name == ("/camera_pose" if pose_topic == "pose" else "/odom")
+    assert v.camera_frame == ("camera_pose" if pose_topic == "pose" else "camera_optical_frame")
+    assert np.abs(v.poses_ros[:, :2] - h.route[:, :2]).max() < 1e-9
+    assert _angle_diff(v.poses_ros[:, 2], h.route[:, 2]).max() < 1e-9

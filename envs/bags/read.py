@@ -187,6 +187,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
     path = Path(path).expanduser()
     with open_bag(path) as bag:
         topics = choose_topics(bag, opt, need_views)
+        topics_all = bag.topics
         map_t: Topic = topics["map"]
         names = [map_t.name]
         if need_views:
@@ -202,7 +203,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
         vt = topics.get("views")
         stamps, records, vframe, labels_all = [], [], None, []
         hfov = None
-        pose_child = None
+        pose_child = _pose_child(bag, topics["poses"]) if need_views and topics.get("poses") is not None else None
         total = sum(bag.topics[n].count for n in names)
         bar = None
         if progress:
@@ -239,9 +240,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
             elif topics.get("poses") is not None and topic == topics["poses"].name:
                 st = header_ns(msg, t)
                 clock.check(topic, st, t, path)
-                pose, child = _pose_of(msg, msgtype)
-                if pose_child is None:
-                    pose_child = child if child and child not in tf.edges else f"{topic.strip('/')}"
+                pose, _ = _pose_of(msg, msgtype)
                 p, q = pose.position, pose.orientation
                 tf.add(str(msg.header.frame_id), pose_child, st, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), False, topic)
             elif topics.get("camera_info") is not None and topic == topics["camera_info"].name:
@@ -276,7 +275,11 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
         try:
             m = tf.lookup(map_frame, cam, st)
         except BagError as e:
-            raise BagError(f"{where}: {e}") from None
+            hint = ""
+            unused = sorted(t.name for t in topics_all.values() if t.msgtype in POSE_TYPES)
+            if "not connected" in str(e) and unused and topics.get("poses") is None:
+                hint = f"; pose topics in the bag: {unused}; bag_options.pose_topic=<topic> uses one"
+            raise BagError(f"{where}: {e}{hint}") from None
         poses[i] = planar_pose(m, fwd, where)
     kept = subsample(poses, opt.min_distance_m, opt.min_turn_deg)
     kind = "labels" if vt.msgtype in LABEL_TYPES else "images"
@@ -285,13 +288,24 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                     np.asarray(records, np.int64), poses, kept, labels, hfov, n_maps)
 
 
+def _pose_child(bag: Bag, topic: Topic) -> str:
+    """The frame a pose topic places: an Odometry's ``child_frame_id`` (its tf edge, if the bag
+    also has one, is then left out: the pose topic wins), else the topic's name."""
+    for _, msgtype, _, msg in bag.messages([topic.name]):
+        child = _pose_of(msg, msgtype)[1]
+        return child or topic.name.strip("/")
+    return topic.name.strip("/")
+
+
 def _camera_frame(opt: BagOptions, vframe: str | None, pose_child: str | None, tf: TfBuffer, path: Path,
                   topic: str) -> str:
-    """The frame whose pose is each view's pose: ``bag_options.camera_frame``, else the views' header
-    frame, else the pose topic's frame, else ``base_link`` (label messages without a header)."""
-    for f in (opt.camera_frame, vframe):
-        if f:
-            return f.lstrip("/")
+    """The frame whose pose is each view's pose: ``bag_options.camera_frame``, else the views'
+    header frame (when tf knows it), else the pose topic's frame, else ``base_link`` (label
+    messages without a header)."""
+    if opt.camera_frame:
+        return opt.camera_frame.lstrip("/")
+    if vframe and (vframe in tf.frames or pose_child is None):
+        return vframe
     if pose_child is not None:
         return pose_child
     if "base_link" in tf.frames:

@@ -56,6 +56,9 @@ class RobotRun:
         map_stamps_ns: when the map is published (default: once, at the first stamp).
         map_sizes: per map message an (H, W) to publish instead (a map that changes size).
         tf_stamps_shift_ns: shift of the ``/tf`` stamps against the views' (a clock that jumps).
+        pose_topic: also publish the poses on a topic: ``pose`` (``/camera_pose``, a
+            PoseStamped of the camera in ``map``, and no tf at all) or ``odometry``
+            (``/odom``, Odometry ``odom -> base_link``; ``/tf`` then holds ``map -> odom`` only).
     """
 
     occupancy: np.ndarray
@@ -74,6 +77,7 @@ class RobotRun:
     map_stamps_ns: Sequence[int] | None = None
     map_sizes: Sequence[tuple[int, int]] | None = None
     tf_stamps_shift_ns: int = 0
+    pose_topic: str | None = None
 
 
 def _quat_z(theta: float) -> tuple[float, float, float, float]:
@@ -148,7 +152,8 @@ def write_robot_bag(path: str | Path, fmt: str, run: RobotRun) -> Path:
     q_opt = (-0.5, 0.5, -0.5, 0.5)
     static = TF(transforms=[tfs(int(stamps[0]), "base_link", "camera_link", run.camera_offset_m, 0.0, 0.5, (0, 0, 0, 1)),
                             tfs(int(stamps[0]), "camera_link", "camera_optical_frame", 0.0, 0.0, 0.0, q_opt)])
-    msgs.append((int(stamps[0]), "/tf_static", "tf2_msgs/msg/TFMessage", static))
+    if run.pose_topic != "pose":
+        msgs.append((int(stamps[0]), "/tf_static", "tf2_msgs/msg/TFMessage", static))
     m2o = run.map_to_odom
     cam_in_base = (run.camera_offset_m, 0.0, 0.0)
     o2m = _inverse(m2o)
@@ -156,9 +161,27 @@ def write_robot_bag(path: str | Path, fmt: str, run: RobotRun) -> Path:
         base = _compose(tuple(float(v) for v in pose), _inverse(cam_in_base))
         ob = _compose(o2m, base)
         tns = int(ns) + int(run.tf_stamps_shift_ns)
-        msg = TF(transforms=[tfs(tns, "map", "odom", m2o[0], m2o[1], 0.0, _quat_z(m2o[2])),
-                             tfs(tns, "odom", "base_link", ob[0], ob[1], 0.0, _quat_z(ob[2]))])
-        msgs.append((int(ns), "/tf", "tf2_msgs/msg/TFMessage", msg))
+        edges = [tfs(tns, "map", "odom", m2o[0], m2o[1], 0.0, _quat_z(m2o[2]))]
+        if run.pose_topic is None:
+            edges.append(tfs(tns, "odom", "base_link", ob[0], ob[1], 0.0, _quat_z(ob[2])))
+        if run.pose_topic != "pose":
+            msgs.append((int(ns), "/tf", "tf2_msgs/msg/TFMessage", TF(transforms=edges)))
+        if run.pose_topic is not None:
+            P, Q = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
+            x, y, t = (float(v) for v in pose) if run.pose_topic == "pose" else ob
+            qz = _quat_z(t)
+            ps = T["geometry_msgs/msg/Pose"](position=P(x=x, y=y, z=0.0),
+                                             orientation=Q(x=qz[0], y=qz[1], z=qz[2], w=qz[3]))
+            if run.pose_topic == "pose":
+                msgs.append((int(ns), "/camera_pose", "geometry_msgs/msg/PoseStamped",
+                             T["geometry_msgs/msg/PoseStamped"](header=header(int(ns), "map"), pose=ps)))
+            else:
+                V = T["geometry_msgs/msg/Vector3"]
+                tw = T["geometry_msgs/msg/Twist"](linear=V(x=0.0, y=0.0, z=0.0), angular=V(x=0.0, y=0.0, z=0.0))
+                msgs.append((int(ns), "/odom", "nav_msgs/msg/Odometry", T["nav_msgs/msg/Odometry"](
+                    header=header(int(ns), "odom"), child_frame_id="base_link",
+                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=ps, covariance=np.zeros(36)),
+                    twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=tw, covariance=np.zeros(36)))))
         h = header(int(ns), "camera_optical_frame")
         if run.labels is not None:
             if run.label_type == "string":
