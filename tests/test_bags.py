@@ -290,3 +290,56 @@ def test_pose_topics_instead_of_tf(tmp_path, h, fmt, pose_topic):
     assert v.camera_frame == ("camera_pose" if pose_topic == "pose" else "camera_optical_frame")
     assert np.abs(v.poses_ros[:, :2] - h.route[:, :2]).max() < 1e-9
     assert _angle_diff(v.poses_ros[:, 2], h.route[:, 2]).max() < 1e-9
+
+
+def test_raw_image_encodings_known_answers():
+    """Image encodings with a padded row step, against hand-written pixels."""
+    from types import SimpleNamespace
+
+    from envs.bags.views import decode_image
+
+    def msg(enc, w, h, step, data, big=0):
+        return SimpleNamespace(encoding=enc, width=w, height=h, step=step, is_bigendian=big,
+                               data=np.frombuffer(bytes(data), np.uint8))
+
+    # 2 x 1 bgr8 with 2 padding bytes: blue then red
+    got = decode_image(msg("bgr8", 2, 1, 8, [255, 0, 0, 0, 0, 255, 9, 9]), "sensor_msgs/msg/Image", "t")
+    assert got.tolist() == [[[0, 0, 255], [255, 0, 0]]]
+    got = decode_image(msg("rgba8", 1, 2, 4, [1, 2, 3, 4, 5, 6, 7, 8]), "sensor_msgs/msg/Image", "t")
+    assert got.tolist() == [[[1, 2, 3]], [[5, 6, 7]]]
+    got = decode_image(msg("mono8", 2, 1, 3, [10, 20, 0]), "sensor_msgs/msg/Image", "t")
+    assert got.tolist() == [[[10, 10, 10], [20, 20, 20]]]
+    # mono16: scaled so the largest value is 255 (little and big endian)
+    got = decode_image(msg("mono16", 2, 1, 4, [0, 0, 0xE8, 0x03]), "sensor_msgs/msg/Image", "t")
+    assert got[0, :, 0].tolist() == [0, 255]
+    got = decode_image(msg("16UC1", 2, 1, 4, [0x01, 0xF4, 0x03, 0xE8], big=1), "sensor_msgs/msg/Image", "t")
+    assert got[0, :, 0].tolist() == [128, 255]
+    with pytest.raises(BagError, match=r"t: image encoding 'bayer_rggb8'; expected one of"):
+        decode_image(msg("bayer_rggb8", 1, 1, 1, [0]), "sensor_msgs/msg/Image", "t")
+    with pytest.raises(BagError, match=r"t: image of 2 x 2 px, step 6, 6 bytes; expected step >= 6 and 12 bytes"):
+        decode_image(msg("rgb8", 2, 2, 6, [0] * 6), "sensor_msgs/msg/Image", "t")
+    bad = SimpleNamespace(format="jpeg", data=np.frombuffer(b"not a jpeg", np.uint8))
+    with pytest.raises(BagError, match=r"t: CompressedImage \(format 'jpeg'\) does not decode"):
+        decode_image(bad, "sensor_msgs/msg/CompressedImage", "t")
+
+
+def test_occupancy_values_and_rotated_origin():
+    from types import SimpleNamespace
+
+    from envs.bags.occupancy import grid_from_map, map_message
+
+    q0 = SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0)
+    info = SimpleNamespace(width=3, height=2, resolution=np.float32(0.05),
+                           origin=SimpleNamespace(position=SimpleNamespace(x=1.0, y=2.0, z=0.0), orientation=q0))
+    # row 0 of the message is the bottom row: [0, 25, 26] bottom, [-1, 100, 0] top
+    m = map_message(SimpleNamespace(info=info, data=np.array([0, 25, 26, -1, 100, 0], np.int8),
+                                    header=SimpleNamespace(frame_id="/map")), "b /map", 5)
+    assert m.resolution == 0.05 and m.frame == "map" and m.values.tolist() == [[-1, 100, 0], [0, 25, 26]]
+    g = grid_from_map(m)
+    assert g.walkable.tolist() == [[False, False, True], [True, True, False]]
+    assert g.origin == (1.0, 2.0 + 2 * 0.05)
+    assert grid_from_map(m, "free").walkable[0, 0]
+    info.origin.orientation = SimpleNamespace(x=0.0, y=0.0, z=math.sin(0.05), w=math.cos(0.05))
+    with pytest.raises(BagError, match=r"b /map at 0.000000005 s: OccupancyGrid origin is rotated by 5.730 degrees"):
+        map_message(SimpleNamespace(info=info, data=np.zeros(6, np.int8), header=SimpleNamespace(frame_id="map")),
+                    "b /map", 5)
