@@ -137,6 +137,7 @@ def _bad(tmp_path, capsys, args):
     return err
 
 
+@pytest.mark.slow
 def test_bad_bags_exit_2_and_write_nothing(tmp_path, capsys):
     h = house()
     bag = write_robot_bag(tmp_path / "run.bag", "ros1", h.run(label_type="string"))
