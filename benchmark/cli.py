@@ -21,7 +21,8 @@ from collections.abc import Sequence
 #: meets them.
 COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("bench", "run the benchmark: one configuration or a sweep (-m), per-house metrics"),
-    "segment": ("segment", "segment your own occupancy map from poses and labels or images"),
+    "segment": ("segment", "segment your own occupancy map from poses and labels or images, or a robot's bag"),
+    "bag-info": ("bag_info", "what a ROS 1 / ROS 2 bag holds, and what roomseg segment bag= would use"),
     "tables": ("tables", "the paper's tables (Markdown, CSV, LaTeX) from a finished run"),
     "report": ("report", "a run as one HTML page: tables, maps, configuration"),
     "figures": ("figures", "the paper's figures for a house, or from a run's saved maps"),

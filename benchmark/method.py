@@ -385,14 +385,15 @@ class Method:
         return postprocess(self.postprocess, raw, grid)
 
     # ---- the chain, once
-    def run(self, observations: Sequence[Observation] | Callable[[], Sequence[Observation]],
+    def run(self, observations: Sequence[Observation] | Callable[[], Sequence[Observation]] | Classified,
             grid: GridMap | Callable[[], GridMap], ctx: Context | None = None, cache: StageCache | None = None,
             timings: dict[str, float] | None = None) -> MethodResult:
         """The whole method on one map.
 
         Args:
             observations: the posed views, or a function giving them (called only when the
-                classification is not cached).
+                classification is not cached), or views classified already (:class:`Classified`:
+                a robot that publishes its own labels, images classified in chunks).
             grid: the map the method works on, or a function giving it, called after the
                 classification (a robot's map is built along the views the renderer made).
             ctx: the house and its id, when known (the grid is filled in here).
@@ -408,6 +409,8 @@ class Method:
         ctx = replace(ctx) if ctx is not None else Context()
 
         def compute_classified() -> Classified:
+            if isinstance(observations, Classified):  # views labelled already (a robot's own labels)
+                return observations
             obs = observations() if callable(observations) else observations
             t = time.perf_counter()
             out = self.classify(obs, ctx)

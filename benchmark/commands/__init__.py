@@ -7,7 +7,7 @@ import sys as _sys
 _MOVED = {"tables": "tables", "report": "report", "figures": "figures", "robustness": "robustness",
           "baselines": "baselines", "baselines_score": "score", "data": "data", "doctor": "doctor",
           "evaluate": "evaluate", "train": "train", "view_confusion": "confusion", "robot_coverage": "coverage",
-          "house_stats": "houses", "draw_house": "draw-house", "annotations": "annotations", "bench": "bench",
+          "house_stats": "houses", "draw_house": "draw-house", "annotations": "annotations", "bench": "bench", "bag_info": "bag-info",
           "segment": "segment"}
 
 

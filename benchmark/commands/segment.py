@@ -4,6 +4,7 @@
     roomseg-segment map=robot.yaml poses=views.csv frame=ros images=pics/ classifier=cnn out=DIR
     roomseg-segment map=robot.yaml segmenter=voronoi out=DIR
     roomseg-segment ... aggregator=graph_knn postprocess=none gt=gt.png gt_format=label
+    roomseg-segment bag=run.bag out=DIR        (a ROS 1 / ROS 2 bag: map, tf, views; docs/own-robot-data.md)
 
 Arguments are Hydra overrides of ``conf/segment.yaml`` (composed with Hydra's compose API:
 the bench app's stage groups and ``_target_`` plug-ins work, and no Hydra output folder is
@@ -205,10 +206,11 @@ def read_views(cfg, grid) -> list:
     return list(instantiate(cfg.renderer).observations(grid=grid))
 
 
-def build(cfg):
+def build(cfg, source: str | None = None, frame: str | None = None):
     """The command's :class:`benchmark.method.Method`: the config's stages
     (:func:`benchmark.config.build_method`; those built after the classifier see its classes as
-    ``${classes}``), then the ``off_map`` rule for views off the map."""
+    ``${classes}``), then the ``off_map`` rule for views off the map (``source`` and ``frame``
+    name the views in its messages: the pose file, or a bag's view topic)."""
     from hydra.utils import instantiate  # noqa: PLC0415
     from omegaconf import OmegaConf  # noqa: PLC0415
 
@@ -226,7 +228,8 @@ def build(cfg):
         built[group] = instantiate(node)
         return built[group]
 
-    rule = OnMapRule(str(cfg.off_map), source=str(cfg.poses), map_name=str(cfg.map), frame=str(cfg.frame))
+    rule = OnMapRule(str(cfg.off_map), source=source or str(cfg.poses), map_name=str(cfg.map),
+                     frame=frame or str(cfg.frame))
     return build_method(cfg, stage=stage, transforms=[rule])
 
 
@@ -410,7 +413,13 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     if cfg.off_map not in ("error", "drop"):
         raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
     t = time.perf_counter()
-    grid, ros_origin, map_info = read_map(cfg)
+    bag_views = None
+    if cfg.get("bag") is not None:  # a robot's bag instead of map= / poses= (benchmark/commands/segment_bag.py)
+        from benchmark.commands.segment_bag import read_bag_inputs  # noqa: PLC0415
+
+        grid, ros_origin, map_info, bag_views = read_bag_inputs(cfg)
+    else:
+        grid, ros_origin, map_info = read_map(cfg)
     timings["t_read_map"] = time.perf_counter() - t
     metric_params = instantiate(cfg.metrics)
     summary: dict[str, Any] = {"command": "roomseg-segment " + " ".join(argv), **map_info,
@@ -435,16 +444,24 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
         title = f"{Path(str(cfg.map)).name}: {summary['segmenter'].rsplit('.', 1)[-1]}, {len(ids)} segments"
     else:
         summary["mode"] = "labels" if cfg.labels is not None else "images"
-        t = time.perf_counter()
-        views = read_views(cfg, grid)
-        timings["t_read_views"] = time.perf_counter() - t
-        m = build(cfg)
+        if bag_views is not None:  # the bag's views (benchmark/commands/segment_bag.py), classified in chunks
+            from benchmark.commands.segment_bag import bag_source, classify_bag_views  # noqa: PLC0415
+
+            m = build(cfg, *bag_source(bag_views))
+            views, classes, counts = classify_bag_views(cfg, m, bag_views, timings)
+            summary.update(counts)
+        else:
+            t = time.perf_counter()
+            views = read_views(cfg, grid)
+            timings["t_read_views"] = time.perf_counter() - t
+            m = build(cfg)
+            summary["pose_frame"] = POSE_FRAMES[str(cfg.frame)]
         result = m.run(views, grid, timings=timings)
-        classes = tuple(m.classifier.classes)
-        OmegaConf.update(cfg, "classes", list(classes), force_add=True)
+        if bag_views is None:
+            classes = tuple(m.classifier.classes)
+            OmegaConf.update(cfg, "classes", list(classes), force_add=True)
         poses, labels = result.poses, result.labels
-        summary.update({"n_views": len(views), "n_off_map": int(result.info.get("n_off_map", 0)),
-                        "pose_frame": POSE_FRAMES[str(cfg.frame)]})
+        summary.update({"n_views": len(result.classified.poses), "n_off_map": int(result.info.get("n_off_map", 0))})
         summary["classes"] = list(classes)
         summary["classifier"] = str(cfg.classifier._target_)
         summary["aggregator"] = str(cfg.aggregator._target_)
@@ -473,6 +490,10 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     try:
         t = time.perf_counter()
         summary.update(write_outputs(tmp, cfg, grid, ros_origin, labels, segs, seg_classes, classes, poses, title))
+        if bag_views is not None:  # the output bag: map + rooms as MarkerArray (benchmark/commands/segment_bag.py)
+            from benchmark.commands.segment_bag import write_bag_output  # noqa: PLC0415
+
+            summary.update(write_bag_output(tmp, cfg, bag_views, labels, segs, classes))
         timings["t_write"] = time.perf_counter() - t
         if cfg.gt is not None:
             t = time.perf_counter()

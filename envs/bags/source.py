@@ -1,0 +1,163 @@
+"""Opening a bag: ``rosbags`` imported lazily, every reader failure one line naming the file.
+
+A bag is a ROS 1 ``.bag`` file, a ROS 2 bag folder (``metadata.yaml`` + ``.db3`` or
+``.mcap``) or a lone ``.mcap`` / ``.db3`` file. Messages are streamed (one in memory at a
+time); stamps are integers in nanoseconds.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import struct
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+#: What to install when ``rosbags`` is missing.
+INSTALL_HINT = "reading ROS bags needs rosbags: pip install 'roomseg-bench[bags]' (or pip install rosbags)"
+
+
+class BagError(ValueError):
+    """A bag that cannot be used: the message is one line naming the file, topic or stamp."""
+
+
+def require_rosbags():
+    """The ``rosbags.highlevel`` module, or ImportError with the install line."""
+    try:
+        from rosbags import highlevel  # noqa: PLC0415
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise ImportError(INSTALL_HINT) from None
+    return highlevel
+
+
+def stamp_s(ns: int) -> str:
+    """A stamp in nanoseconds as seconds text for messages (``1700000000.123456789 s``)."""
+    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d} s"
+
+
+def header_ns(msg: Any, fallback: int) -> int:
+    """The message's ``header.stamp`` in nanoseconds, or ``fallback`` (the record time) for a
+    message without a header or with a zero stamp."""
+    h = getattr(msg, "header", None)
+    if h is None:
+        return int(fallback)
+    st = h.stamp
+    ns = int(st.sec) * 1_000_000_000 + int(getattr(st, "nanosec", getattr(st, "nsec", 0)))
+    return ns if ns > 0 else int(fallback)
+
+
+def _reader_errors() -> tuple[type[BaseException], ...]:
+    from rosbags.highlevel.anyreader import AnyReaderError  # noqa: PLC0415
+    from rosbags.rosbag1 import ReaderError as R1  # noqa: PLC0415
+    from rosbags.rosbag2 import ReaderError as R2  # noqa: PLC0415
+    from rosbags.serde import SerdeError  # noqa: PLC0415
+    from rosbags.typesys import TypesysError  # noqa: PLC0415
+
+    return (AnyReaderError, R1, R2, SerdeError, TypesysError, sqlite3.Error, struct.error, EOFError,
+            KeyError, IndexError, UnicodeDecodeError, AssertionError, ValueError, RuntimeError)
+
+
+def _what(e: BaseException) -> str:
+    text = " ".join(str(e).split()) or type(e).__name__
+    return text if len(text) < 300 else text[:297] + "..."
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic of a bag: name, ROS 2 style type (``nav_msgs/msg/OccupancyGrid``), count."""
+
+    name: str
+    msgtype: str
+    count: int
+
+
+class Bag:
+    """An open bag (use :func:`open_bag`): its topics and a message stream."""
+
+    def __init__(self, path: Path, reader: Any):
+        self.path, self.reader = path, reader
+
+    @property
+    def topics(self) -> dict[str, Topic]:
+        out = {}
+        for c in self.reader.connections:
+            t = out.get(c.topic)
+            out[c.topic] = Topic(c.topic, c.msgtype, (t.count if t else 0) + int(c.msgcount))
+        return out
+
+    @property
+    def start_ns(self) -> int:
+        return int(self.reader.start_time)
+
+    @property
+    def end_ns(self) -> int:
+        """The last message's record time (rosbags' ``end_time`` is one past it)."""
+        return int(self.reader.end_time) - 1
+
+    def messages(self, topics: Sequence[str]) -> Iterator[tuple[str, str, int, Any]]:
+        """Stream ``(topic, msgtype, record time ns, message)`` of ``topics`` in record-time
+        order, deserialising one message at a time.
+
+        Raises:
+            BagError: a message that cannot be read (truncated file, unknown type), naming
+                the file, topic and record time.
+        """
+        errors = _reader_errors()
+        conns = [c for c in self.reader.connections if c.topic in set(topics)]
+        if not conns:
+            return
+        it = self.reader.messages(connections=conns)
+        last: tuple[str, int] | None = None
+        while True:
+            try:
+                item = next(it)
+            except StopIteration:
+                return
+            except errors as e:
+                where = f" after {last[0]} at {stamp_s(last[1])}" if last else ""
+                raise BagError(f"{self.path}: cannot read on{where}: {_what(e)} (a truncated or damaged bag?)") from None
+            conn, t, raw = item
+            last = (conn.topic, t)
+            try:
+                msg = self.reader.deserialize(raw, conn.msgtype)
+            except errors as e:
+                raise BagError(f"{self.path}: topic {conn.topic} at {stamp_s(t)}: cannot decode a {conn.msgtype} "
+                               f"message: {_what(e)}") from None
+            yield conn.topic, conn.msgtype, int(t), msg
+
+
+def _bag_paths(path: Path) -> list[Path]:
+    if not path.exists():
+        raise BagError(f"bag={path} does not exist; expected a ROS 1 .bag file, a ROS 2 bag folder or an .mcap file")
+    return [path]
+
+
+@contextmanager
+def open_bag(path: str | Path) -> Iterator[Bag]:
+    """Open ``path`` for reading (a context manager yielding a :class:`Bag`).
+
+    Raises:
+        ImportError: ``rosbags`` is not installed (the message says what to install).
+        BagError: the file is missing, unindexed, truncated, or not a bag (one line naming it).
+    """
+    highlevel = require_rosbags()
+    path = Path(path).expanduser()
+    paths = _bag_paths(path)
+    errors = _reader_errors()
+    try:
+        reader = highlevel.AnyReader(paths)
+        reader.open()
+    except errors as e:
+        raise BagError(f"{path}: not a readable bag: {_what(e)} (truncated, unindexed or not a bag: ROS 1 bags "
+                       f"can be reindexed with `rosbag reindex`, ROS 2 ones with `ros2 bag reindex`)") from None
+    except OSError as e:
+        raise BagError(f"{path}: cannot open: {_what(e)}") from None
+    try:
+        yield Bag(path, reader)
+    finally:
+        try:
+            reader.close()
+        except errors:  # pragma: no cover - closing a damaged bag
+            pass
