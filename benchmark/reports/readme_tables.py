@@ -220,7 +220,7 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         return f"({spec.title}: no rows, {reason}.)\n"
     grid = format_cells(summ, spec, True, block.table)
     notes = metric_notes(df)
-    return (formatting.to_markdown(grid) + "\n\n" + f"Mean ± std over {grid.over}, in percent. " + " ".join(grid.notes)
+    return (formatting.to_markdown(grid) + "\n\n" + f"{grid.legend}, in percent. " + " ".join(grid.notes)
             + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n")
 
 

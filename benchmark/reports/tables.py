@@ -38,7 +38,7 @@ import pandas as pd
 
 from benchmark.harness.cache import atomic_write_text
 from benchmark.harness.store import METRICS, SELECTION_KEYS, Job, iter_metric_files, read_metrics
-from benchmark.reports import formatting
+from benchmark.reports import formatting, stats
 
 
 @dataclass(frozen=True)
@@ -364,10 +364,15 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
             notes.append(f"Note: rows of different settings that would share a cell are kept apart, labelled by "
                          f"{', '.join(shown)}.")
     ok = sel[sel["status"] == "ok"]
+    if "house_id" in ok:  # a cell's houses in a fixed order: its seeded interval does not follow file order
+        ok = ok.sort_values("house_id", kind="stable")
     metrics = [m for m in spec.metrics if m in ok]
     g = ok.groupby(keys, dropna=False)[metrics]
-    out = pd.concat({"mean": g.mean(), "std": g.std(ddof=1), }, axis=1)
+    ci = g.agg(lambda s: stats.bootstrap_ci(pd.to_numeric(s, errors="coerce").dropna().to_numpy()))
+    out = pd.concat({"mean": g.mean(), "std": g.std(ddof=1),
+                     "lo": ci.map(lambda t: t[0]), "hi": ci.map(lambda t: t[1])}, axis=1)
     out.columns = [f"{m}_{s}" for s, m in out.columns]
+    out = out[[f"{m}_{s}" for m in metrics for s in ("mean", "std", "lo", "hi")]]
     out["n"] = ok.groupby(keys, dropna=False).size()
     out["n_failed"] = sel[sel["status"] != "ok"].groupby(keys, dropna=False).size()
     out["n_failed"] = out["n_failed"].fillna(0).astype(int)
@@ -452,9 +457,9 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
         grid = format_cells(summ, spec, percent, name)
         notes = metric_notes(df)
         unit = "in percent" if percent else "as fractions"
-        caption = f"{spec.title}. Mean ± std over {grid.over}, {unit}. " + " ".join(grid.notes)
+        caption = f"{spec.title}. {grid.legend}, {unit}. " + " ".join(grid.notes)
         md = (f"### {spec.title}\n\n" + formatting.to_markdown(grid) + "\n\n" +
-              f"Mean ± std over {grid.over}, {unit}. " + " ".join(grid.notes) +
+              f"{grid.legend}, {unit}. " + " ".join(grid.notes) +
               (" Metrics: " + "; ".join(notes) + "." if notes else "") +
               (f" Note: {reason}." if reason else "") + "\n")
         chunks.append(md)
