@@ -71,3 +71,24 @@ def test_power_against_the_textbook_paired_t_test():
     assert stats.houses_needed(1.0, 2.0) < 6 and stats.houses_needed(1.0, 0.1) > 700
     with pytest.raises(ValueError, match="> 0"):
         stats.houses_needed(1.0, 0.0)
+
+
+def test_tables_rank_rows_in_groups_and_state_a_single_difference_with_its_interval():
+    import pandas as pd
+
+    from benchmark.reports.tables import TABLES, summarise
+
+    base = np.linspace(0.2, 0.8, 10)
+    rows = []
+    for method, v in (("a", base + 0.10), ("b", base + 0.10 + np.array([0.01, -0.01] * 5)), ("c", base)):
+        rows += [{"house_id": f"h{i}", "dataset": "synthetic", "method": method, "segmenter_row": True,
+                  "status": "ok", "iou": x, "matched_iou": x, "pq": x} for i, x in enumerate(v)]
+    summ = summarise(pd.DataFrame(rows), TABLES["table5"])
+    lines = [n for n in summ.attrs["notes"] if n.startswith("Ranking on matched IoU")]
+    assert lines == ["Ranking on matched IoU (synthetic, paired over 10 houses; braces hold rows no paired 95 % "
+                     "interval separates): {a, b} > {c}."]
+    assert summ.set_index("method").loc["a", "matched_iou_lo"] < 0.6 < summ.set_index("method").loc["a", "matched_iou_hi"]
+    two = pd.DataFrame([r for r in rows if r["method"] != "b"])
+    line = next(n for n in summarise(two, TABLES["table5"]).attrs["notes"] if n.startswith("Ranking on PQ"))
+    assert line == ("Ranking on PQ (synthetic, paired over 10 houses): a ahead of c by 10.0 "
+                    "(95 % CI +10.0 to +10.0 for a - c).")

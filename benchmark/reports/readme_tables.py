@@ -192,6 +192,7 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         format_cells,
         load_rows,
         metric_notes,
+        split_rank_notes,
         summarise,
         why_empty,
     )
@@ -220,8 +221,10 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         return f"({spec.title}: no rows, {reason}.)\n"
     grid = format_cells(summ, spec, True, block.table)
     notes = metric_notes(df)
-    return (formatting.to_markdown(grid) + "\n\n" + f"{grid.legend}, in percent. " + " ".join(grid.notes)
-            + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n")
+    text, ranks = split_rank_notes(grid.notes)
+    return (formatting.to_markdown(grid) + "\n\n" + f"{grid.legend}, in percent. " + text
+            + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n"
+            + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
 
 
 def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str]) -> str:

@@ -62,6 +62,9 @@ class TableSpec:
     #: config groups a cell averages over on purpose (their settings and names may differ
     #: inside a cell); every other difference splits the cell (see the module doc).
     pools: tuple[str, ...] = ()
+    #: metrics the table ranks its rows by, per dataset, in groups that a paired interval
+    #: cannot separate (a line each under the table: :func:`rank_lines`).
+    rank: tuple[str, ...] = ()
 
 
 #: the sanity segmenters (benchmark/segmenters/sanity.py), shown in comparison tables.
@@ -79,13 +82,15 @@ TABLES: dict[str, TableSpec] = {
                         where={"postprocess": "none"}, exclude={"segmenter_row": True}),
     "table3": TableSpec("Table III: post-processing, mean over all classifier x aggregator combinations",
                         rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True},
-                        pools=("classifier", "aggregator")),
+                        pools=("classifier", "aggregator"), rank=("iou",)),
     "table4": TableSpec("Table IV: classifier x aggregator per dataset (with post-processing)",
                         rows=("classifier", "aggregator"), cols=("dataset",),
                         metrics=("iou", "matched_iou", "pq", "accuracy"),
-                        exclude={"postprocess": "none", "segmenter_row": True}, sanity=True),
+                        exclude={"postprocess": "none", "segmenter_row": True}, sanity=True,
+                        rank=("matched_iou", "pq")),
     "table5": TableSpec("Table V: comparison with baselines", rows=("dataset", "method"),
-                        metrics=("iou", "precision", "recall", *ROBUST_METRICS, "accuracy")),
+                        metrics=("iou", "precision", "recall", *ROBUST_METRICS, "accuracy"),
+                        rank=("matched_iou", "pq")),
     "sensitivity": TableSpec("Sensitivity to classifier accuracy (oracle; classifier = noise model)",
                              rows=("classifier", "oracle_accuracy"), cols=("aggregator", "postprocess"),
                              metrics=("iou", "accuracy", "view_accuracy_seen"),
@@ -368,7 +373,11 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
         ok = ok.sort_values("house_id", kind="stable")
     metrics = [m for m in spec.metrics if m in ok]
     g = ok.groupby(keys, dropna=False)[metrics]
-    ci = g.agg(lambda s: stats.bootstrap_ci(pd.to_numeric(s, errors="coerce").dropna().to_numpy()))
+    # a pooled cell (several configurations per house) is resampled by house: its mean over maps
+    # is the mean of its per-house means when every house has the same configurations
+    per = ok.groupby([*keys, "house_id"], dropna=False)[metrics].mean() if spec.pools and "house_id" in ok else None
+    ci_of = per.groupby(level=list(range(len(keys))), dropna=False) if per is not None else g
+    ci = ci_of.agg(lambda s: stats.bootstrap_ci(pd.to_numeric(s, errors="coerce").dropna().to_numpy()))
     out = pd.concat({"mean": g.mean(), "std": g.std(ddof=1),
                      "lo": ci.map(lambda t: t[0]), "hi": ci.map(lambda t: t[1])}, axis=1)
     out.columns = [f"{m}_{s}" for s, m in out.columns]
@@ -379,9 +388,61 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     houses = house_set_note(ok, keys)
     if houses:
         notes.append(houses)
+    if spec.rank:
+        notes += rank_lines(ok, [k for k in keys if k != "dataset"], spec.rank)
     out = out.reset_index()
     out.attrs["notes"] = notes
     return out
+
+
+def rank_lines(ok: pd.DataFrame, keys: Sequence[str], metrics: Sequence[str]) -> list[str]:
+    """Per dataset and metric, one line ranking the table's rows (grouped by ``keys``) in groups
+    that cannot be separated (:func:`benchmark.reports.stats.groups`: paired by house, 95 %
+    bootstrap interval of the difference against the group's best), over the houses every row
+    holds (a house's mean where a pooled table holds several configurations per house); rows of
+    the sanity segmenters are left out (they are checks, not methods)."""
+    out = []
+    if "house_id" not in ok or not keys or ok.empty:
+        return out
+    parts = ok.groupby("dataset") if "dataset" in ok else [("", ok)]
+    for ds, d in parts:
+        d = d[~d.get("segmenter", pd.Series("", index=d.index)).isin(SANITY_SEGMENTERS)]
+        if "classifier" in d:
+            d = d[d["classifier"] != "sanity"]
+        for metric in metrics:
+            if metric not in d:
+                continue
+            v = d.dropna(subset=[metric])
+            wide = v.pivot_table(index="house_id", columns=list(keys), values=metric, aggfunc="mean")
+            if wide.shape[1] < 2:
+                continue
+            n_all = len(wide)
+            wide = wide.dropna()
+            if len(wide) < 2:
+                continue
+            labels = {}
+            for col in wide.columns:
+                col = col if isinstance(col, tuple) else (col,)
+                labels[col] = " + ".join(formatting.value_label(k, x) for k, x in zip(keys, col) if str(x))
+            values = {labels[c if isinstance(c, tuple) else (c,)]: 100.0 * wide[c].to_numpy(dtype=float)
+                      for c in wide.columns}
+            where = f"{formatting.value_label('dataset', ds)}, " if ds else ""
+            lost = f" ({n_all - len(wide)} houses some rows lack left out)" if len(wide) < n_all else ""
+            if len(values) == 2:  # one difference: say it with its paired interval
+                (a, va), (b, vb) = sorted(values.items(), key=lambda kv: -float(np.mean(kv[1])))
+                out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses"
+                           f"{lost}): {stats.verdict(a, b, *stats.paired_ci(va, vb))}.")
+                continue
+            out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses{lost}; "
+                       f"braces hold rows no paired 95 % interval separates): "
+                       f"{stats.group_words(stats.groups(values))}.")
+    return out
+
+
+def split_rank_notes(notes: Sequence[str]) -> tuple[str, list[str]]:
+    """(the notes but the ranking lines, joined by spaces; the ranking lines of :func:`rank_lines`)."""
+    ranks = [n for n in notes if n.startswith("Ranking on ")]
+    return " ".join(n for n in notes if n not in ranks), ranks
 
 
 #: tables that compare values of one column: printed only when that column takes >= 2
@@ -458,10 +519,11 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
         notes = metric_notes(df)
         unit = "in percent" if percent else "as fractions"
         caption = f"{spec.title}. {grid.legend}, {unit}. " + " ".join(grid.notes)
+        text, ranks = split_rank_notes(grid.notes)
         md = (f"### {spec.title}\n\n" + formatting.to_markdown(grid) + "\n\n" +
-              f"{grid.legend}, {unit}. " + " ".join(grid.notes) +
+              f"{grid.legend}, {unit}. " + text +
               (" Metrics: " + "; ".join(notes) + "." if notes else "") +
-              (f" Note: {reason}." if reason else "") + "\n")
+              (f" Note: {reason}." if reason else "") + "\n" + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
         chunks.append(md)
         if out_dir is not None:
             out_dir.mkdir(parents=True, exist_ok=True)
