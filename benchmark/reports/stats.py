@@ -158,7 +158,10 @@ def power_paired(n: int, delta: float, sd: float, alpha: float = 1.0 - LEVEL) ->
     df = n - 1
     t = stats.t.ppf(1.0 - alpha / 2.0, df)
     nc = delta / sd * np.sqrt(n)
-    return float(stats.nct.sf(t, df, nc) + stats.nct.cdf(-t, df, nc))
+    p = float(stats.nct.sf(t, df, nc) + stats.nct.cdf(-t, df, nc))
+    if not np.isfinite(p):  # SciPy's noncentral t gives up far in the tail: the normal limit there
+        p = float(stats.norm.sf(t - nc) + stats.norm.cdf(-t - nc))
+    return p
 
 
 def houses_needed(sd: float, delta: float, power: float = 0.8, alpha: float = 1.0 - LEVEL,

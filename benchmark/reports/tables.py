@@ -540,6 +540,9 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
                 plot_sensitivity(summ, out_dir / "sensitivity.png")
     if skipped:
         chunks.append("\n".join(skipped) + "\n")
+    from benchmark.reports.sweep_jobs import partial_sweep_lines
+
+    chunks += [f"Note: {line}.\n" for line in partial_sweep_lines(paths)]
     failed = df[df["status"] != "ok"]
     if len(failed):
         reasons = failed["error"].fillna("").str.split(":").str[0].value_counts()
