@@ -268,6 +268,19 @@ def fmt_cell(cell: tuple | None, decimals: int, std: bool = True) -> str:
     return f"{cell[0]:.{decimals}f} ± {cell[1]:.{decimals}f}"
 
 
+def error_bars(frame: pd.DataFrame, metric: str, scale: float = 100.0) -> np.ndarray:
+    """Matplotlib ``yerr`` for a summary's ``<metric>_mean``: (2, n) distances down to
+    ``<metric>_lo`` and up to ``<metric>_hi`` (its 95 % interval), times ``scale``; the std
+    either side for a summary without bounds; 0 where a bound is missing (one house)."""
+    mean = frame[f"{metric}_mean"].to_numpy(float)
+    if f"{metric}_lo" in frame and f"{metric}_hi" in frame:
+        down = mean - frame[f"{metric}_lo"].to_numpy(float)
+        up = frame[f"{metric}_hi"].to_numpy(float) - mean
+    else:
+        down = up = frame[f"{metric}_std"].to_numpy(float)
+    return scale * np.nan_to_num(np.clip(np.vstack([down, up]), 0.0, None))
+
+
 def _md_escape(text: str) -> str:
     return str(text).replace("|", "/").replace("\n", " ")
 

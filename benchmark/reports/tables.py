@@ -552,7 +552,7 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
 
 
 def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] | None = None) -> list[Path]:
-    """IoU and pixel accuracy (mean ± std over houses) against the oracle's accuracy: one
+    """IoU and pixel accuracy (mean and 95 % interval over houses) against the oracle's accuracy: one
     line per aggregator x post-processing, a fixed colour per aggregator (Okabe-Ito) and a
     solid (post-processed) or dashed (raw) line, labelled in words.
 
@@ -578,7 +578,7 @@ def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] |
             label += " (raw)"
         style = "--" if vals.get("postprocess") == "none" else "-"
         for ax, m in zip(axes, ("iou", "accuracy")):
-            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=g[f"{m}_std"] * 100, marker="o",
+            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=formatting.error_bars(g, m), marker="o",
                         ms=4, capsize=3, ls=style, color=colours.get(vals.get("aggregator", ""), None), label=label)
     for ax, m in zip(axes, ("IoU (%)", "pixel accuracy (%)")):
         ax.set_xlabel("oracle classifier accuracy (%)")
@@ -586,6 +586,6 @@ def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] |
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     n = int(summary["n"].max()) if "n" in summary and len(summary) else 0
-    fig.suptitle(f"Segmentation quality against classifier accuracy (mean ± std over {n} houses)", fontsize=10)
+    fig.suptitle(f"Segmentation quality against classifier accuracy (mean and 95 % interval over {n} houses)", fontsize=10)
     fig.tight_layout()
     return save(fig, path, formats)
