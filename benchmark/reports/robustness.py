@@ -439,7 +439,7 @@ def power_lines(dataset: str, p: dict, metric_words: str) -> list[str]:
              f"(paired t-test, two-sided 5 %) a cell needs {p['need_median']} houses at the median spread, "
              f"{p['need_p90']} at the 90th percentile. With its {p['n']} houses this run detects "
              f"{p['detectable']:.1f} points at the median spread."]
-    if dataset.startswith("procthor") and p["need_median"] > PROCTHOR_SHARED_HOUSES:
+    if dataset.lower().startswith("procthor") and p["need_median"] > PROCTHOR_SHARED_HOUSES:
         lines.append(f"{dataset}: the {PROCTHOR_SHARED_HOUSES} shared ProcTHOR houses are too few for a "
                      f"{p['delta']:g}-point claim at the median spread; at {PROCTHOR_SHARED_HOUSES} houses the "
                      f"smallest detectable difference is "
@@ -457,12 +457,13 @@ def _cell_text(row: pd.Series, c: str, decimals: int) -> str:
     return f"{x:.{decimals}f}"
 
 
-def to_markdown(table: pd.DataFrame, decimals: int = 1, columns: Sequence[str] | None = None) -> str:
+def to_markdown(table: pd.DataFrame, decimals: int = 1, columns: Sequence[str] | None = None,
+                labels: Mapping[str, str] | None = None) -> str:
     """The table in Markdown: each number with its 95 % interval beside it where the table has
     one (``mean [lo, hi]``), ``decimals`` decimals, a missing value as a dash. ``columns``: the
-    value columns to show (default all)."""
+    value columns to show (default all); ``labels``: header words for some of them."""
     cols = list(columns) if columns is not None else numbers(table)
-    header = ["method", *cols]
+    header = ["method", *[(labels or {}).get(c, c) for c in cols]]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---", *["---:"] * len(cols)]) + "|"]
     for m, row in table.iterrows():
         cells = [_cell_text(row, c, decimals) for c in cols]
