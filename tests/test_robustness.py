@@ -41,7 +41,7 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
         else:  # CE relative to a method every family degrades (Voronoi is untouched by pose, labels, views)
             assert {"mCE", "mCE lo", "mCE hi", "rel mCE", "CE realistic"} <= set(t.columns)
             assert (t[["clean lo", "clean hi"]].notna()).all().all()
-        assert (out / f"robustness_synthetic_{metric}.tex").read_text().startswith(r"\begin{table}")
+        assert (out / f"robustness_synthetic_{metric}.tex").read_text().startswith(r"\begin{table*}")  # wide: every column with its interval
     # geometry ignores poses, labels and the views it is not built from: its score is the clean one there
     t = pd.read_csv(out / "robustness_synthetic_iou.csv", index_col="method")
     for fam in ("pose", "explore", "classifier"):
