@@ -92,3 +92,21 @@ def test_tables_rank_rows_in_groups_and_state_a_single_difference_with_its_inter
     line = next(n for n in summarise(two, TABLES["table5"]).attrs["notes"] if n.startswith("Ranking on PQ"))
     assert line == ("Ranking on PQ (synthetic, paired over 10 houses): a ahead of c by 10.0 "
                     "(95 % CI +10.0 to +10.0 for a - c).")
+
+
+def test_table2_ranks_the_viewpoint_strategies_of_each_configuration():
+    import pandas as pd
+
+    from benchmark.reports.tables import TABLES, summarise
+
+    base = np.linspace(0.2, 0.8, 8)
+    rows = [{"house_id": f"h{i}", "dataset": "synthetic", "classifier": "oracle", "aggregator": agg,
+             "viewpoints": vp, "postprocess": "none", "segmenter_row": False, "status": "ok", "iou": x + shift}
+            for agg, gap in (("graph_knn", 0.05), ("vision_cone", 0.0))
+            for vp, shift in (("autotrace", gap), ("autotrace_sparse", 0.0)) for i, x in enumerate(base)]
+    lines = [n for n in summarise(pd.DataFrame(rows), TABLES["table2"]).attrs["notes"] if n.startswith("Ranking")]
+    assert lines == [
+        "Ranking of oracle + graph KNN on IoU (synthetic, paired over 8 houses): autotrace ahead of autotrace "
+        "(sparse) by 5.0 (95 % CI +5.0 to +5.0 for autotrace - autotrace (sparse)).",
+        "Ranking of oracle + vision cone on IoU (synthetic, paired over 8 houses): autotrace and autotrace (sparse) "
+        "tied (+0.0, 95 % CI +0.0 to +0.0)."]

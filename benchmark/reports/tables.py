@@ -65,6 +65,10 @@ class TableSpec:
     #: metrics the table ranks its rows by, per dataset, in groups that a paired interval
     #: cannot separate (a line each under the table: :func:`rank_lines`).
     rank: tuple[str, ...] = ()
+    #: with ``rank``: the columns whose values are ranked against each other, once per
+    #: combination of the other row and column keys (Table II: the viewpoint strategies of
+    #: each classifier x aggregator); empty: every row of a dataset is ranked together.
+    rank_within: tuple[str, ...] = ()
 
 
 #: the sanity segmenters (benchmark/segmenters/sanity.py), shown in comparison tables.
@@ -79,7 +83,8 @@ ROBUST_METRICS = ("matched_iou", "pq", "room_iou", "ipa_recall", "ipa_precision"
 TABLES: dict[str, TableSpec] = {
     "table2": TableSpec("Table II: viewpoint strategies (no post-processing)",
                         rows=("dataset", "classifier", "aggregator"), cols=("viewpoints",),
-                        where={"postprocess": "none"}, exclude={"segmenter_row": True}),
+                        where={"postprocess": "none"}, exclude={"segmenter_row": True},
+                        rank=("iou",), rank_within=("viewpoints",)),
     "table3": TableSpec("Table III: post-processing, mean over all classifier x aggregator combinations",
                         rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True},
                         pools=("classifier", "aggregator"), rank=("iou",)),
@@ -388,7 +393,15 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     houses = house_set_note(ok, keys)
     if houses:
         notes.append(houses)
-    if spec.rank:
+    if spec.rank and spec.rank_within:
+        outer = [k for k in keys if k != "dataset" and k not in spec.rank_within]
+        inner = [k for k in keys if k in spec.rank_within]
+        for key, part in (ok.groupby(outer, dropna=False) if outer and inner else []):
+            key = key if isinstance(key, tuple) else (key,)
+            what = " + ".join(formatting.value_label(k, v) for k, v in zip(outer, key) if str(v))
+            notes += [line.replace("Ranking on ", f"Ranking of {what} on ", 1)
+                      for line in rank_lines(part, inner, spec.rank)]
+    elif spec.rank:
         notes += rank_lines(ok, [k for k in keys if k != "dataset"], spec.rank)
     out = out.reset_index()
     out.attrs["notes"] = notes
