@@ -72,7 +72,7 @@ def test_report_holds_configurations_failures_and_maps(sweep, tmp_path, capsys):
     for v in ious:  # the mean, and its 95 % interval over houses beside it
         assert f">{v.mean():.2f}" in body
         if len(v) == 2 and v.iloc[0] != v.iloc[1]:  # two houses: the interval is [lower, higher]
-            assert f">{v.mean():.2f} <span class=\"muted\">[{v.min():.2f}, {v.max():.2f}]</span></td>" in body
+            assert f">{v.mean():.2f}<br><small class=\"muted\">[{v.min():.1f}, {v.max():.1f}]</small></td>" in body
     # failures, escaped
     assert "HouseError: wall 3 has no points" in page and "empty map &lt;b&gt;" in page and "<b>" not in page
     # maps: per configuration group (2 aggregators): ground truth, raw, post-processed; then the

@@ -62,7 +62,7 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
     assert section.count("<img ") == 5 and "IoU vs severity: scan map" in section
     t = pd.read_csv(out / "robustness_synthetic_matched_iou.csv", index_col="method")
     row = section[section.index("<td>voronoi</td>"):]
-    assert f'>{t.loc["voronoi", "clean"]:.1f} <span class="muted">[' in row[:row.index("</tr>")]
+    assert f'>{t.loc["voronoi", "clean"]:.1f}<br><small class="muted">[' in row[:row.index("</tr>")]
     assert section.count("<tr><td>") == 4  # one row per method
     # its maps are the clean condition's: one group per method, not one per condition
     assert page.count("<figcaption>ground truth</figcaption>") == 2 * 4  # 2 houses x 4 methods

@@ -194,10 +194,11 @@ def _config_rows(jobs) -> tuple[list[str], list[dict]]:
 
 
 def _ci_words(ci: tuple[float, float] | None, scale: float) -> str:
-    """`` [lo, hi]`` (muted) for a cell's 95 % interval, or "" without one (one house)."""
+    """The 95 % interval under a cell's mean (small, muted, one decimal, so that the table keeps
+    its width), or "" without one (one house)."""
     if ci is None or not all(np.isfinite(ci)):
         return ""
-    return f' <span class="muted">[{scale * ci[0]:.2f}, {scale * ci[1]:.2f}]</span>'
+    return f'<br><small class="muted">[{scale * ci[0]:.1f}, {scale * ci[1]:.1f}]</small>'
 
 
 def _partial_lines(run_dirs) -> list[str]:
@@ -380,7 +381,7 @@ def _robust_cell(table: pd.DataFrame, m: str, c: str) -> str:
     v, lo, hi = (table.loc[m, k] if k in table else float("nan") for k in (c, f"{c} lo", f"{c} hi"))
     if pd.isna(v):
         return '<td class="num">–</td>'
-    iv = "" if pd.isna(lo) or pd.isna(hi) else f' <span class="muted">[{lo:.1f}, {hi:.1f}]</span>'
+    iv = "" if pd.isna(lo) or pd.isna(hi) else f'<br><small class="muted">[{lo:.1f}, {hi:.1f}]</small>'
     return f'<td class="num" data-v="{v:.6g}">{v:.1f}{iv}</td>'
 
 

@@ -440,7 +440,7 @@ def rank_lines(ok: pd.DataFrame, keys: Sequence[str], metrics: Sequence[str]) ->
             values = {labels[c if isinstance(c, tuple) else (c,)]: 100.0 * wide[c].to_numpy(dtype=float)
                       for c in wide.columns}
             where = f"{formatting.value_label('dataset', ds)}, " if ds else ""
-            lost = f" ({n_all - len(wide)} houses some rows lack left out)" if len(wide) < n_all else ""
+            lost = f", leaving out {n_all - len(wide)} houses some rows lack" if len(wide) < n_all else ""
             if len(values) == 2:  # one difference: say it with its paired interval
                 (a, va), (b, vb) = sorted(values.items(), key=lambda kv: -float(np.mean(kv[1])))
                 out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses"
