@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_readme_blocks_are_what_make_readme_tables_writes():
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     found = rt.blocks_in(text)
-    assert {"bench-timing", "bench-table4", "bench-table3"} <= set(found)
+    assert {"bench-timing", "bench-table4", "bench-table3", "robustness"} <= set(found)
     changed = rt.check(ROOT / "README.md", ROOT)
     assert changed == [], (f"README block(s) {changed} differ from the published runs in results/published/: "
                            "run `make readme-tables` (after `make bench-publish` for fresh numbers)")
@@ -68,8 +68,10 @@ def test_publish_then_write_a_block(tmp_path, monkeypatch):
     assert rt.check(readme, tmp_path) == []
     assert readme.stat().st_mode & 0o777 == 0o644
     text = readme.read_text()
-    assert "| oracle     | graph KNN   | 30.00 ± 14.14 | 60.00 ± 14.14 |" in text
-    assert "| oracle     | vision cone | 70.00 ± 14.14 | 60.00 ± 14.14 |" in text
+    # mean [95 % interval]: two houses 20 points apart give [lower, higher]
+    assert "| oracle     | graph KNN   | 30.00 [20.00, 40.00] | 60.00 [50.00, 70.00] |" in text
+    assert "| oracle     | vision cone | 70.00 [60.00, 80.00] | 60.00 [50.00, 70.00] |" in text
+    assert "Mean [95 % interval] over houses (95 % intervals: percentile bootstrap over houses" in text
     assert "**61 s wall, 341 MB peak RSS**" in text and text.startswith("intro\n") and text.endswith("end\n")
 
 
@@ -85,3 +87,18 @@ def test_bad_markers_and_missing_inputs(tmp_path):
     readme = tmp_path / "R.md"
     readme.write_text("<!-- BEGIN generated: bench-table3 -->\n<!-- END generated: bench-table3 -->\n")
     assert main(["check", "--readme", str(readme)]) in (1, 2)
+
+
+def test_robustness_sentences_follow_the_paired_intervals():
+    """issue 35: at the flips the README used to report, the paired difference of the best
+    view-based and the best geometric method is inside the noise (+0.8, 95 % CI about -9 to +10
+    at exploration severity 1 on ProcTHOR): the block says tied there, and "change places" only
+    between two leads the intervals support; no mCE on the paper's IoU; the power report."""
+    block = rt.blocks_in((ROOT / "README.md").read_text(encoding="utf-8"))["robustness"]
+    procthor, synthetic = block.split("**synthetic**")
+    explore = next(x for x in procthor.splitlines() if x.startswith("- exploration budget:"))
+    assert "1: tied +0.8 [" in explore and "they change places at severity 3" in explore
+    classifier = next(x for x in synthetic.splitlines() if x.startswith("- classifier noise:"))
+    assert "2: tied +0.1 [" in classifier and "they change places at severity 4" in classifier
+    assert "paper IoU" not in block and "| mCE | rel mCE | realistic (apart) |" in block
+    assert "With its 20 houses this run detects" in block and "150 shared ProcTHOR houses are too few" in block

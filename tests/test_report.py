@@ -68,9 +68,11 @@ def test_report_holds_configurations_failures_and_maps(sweep, tmp_path, capsys):
     body = page[page.index('<table class="sortable" id="configs">'):]
     body = body[:body.index("</table>")]
     assert body.count("<tr>") == 1 + 6  # header + 4 jobs + the sanity row + the broken one
-    ious = [float(pd.read_csv(j / "metrics.csv")["iou"].mean()) * 100 for j in jobs]
-    for v in ious:
-        assert f">{v:.2f}</td>" in body
+    ious = [pd.read_csv(j / "metrics.csv")["iou"].dropna() * 100 for j in jobs]
+    for v in ious:  # the mean, and its 95 % interval over houses beside it
+        assert f">{v.mean():.2f}" in body
+        if len(v) == 2 and v.iloc[0] != v.iloc[1]:  # two houses: the interval is [lower, higher]
+            assert f">{v.mean():.2f}<br><small class=\"muted\">[{v.min():.1f}, {v.max():.1f}]</small></td>" in body
     # failures, escaped
     assert "HouseError: wall 3 has no points" in page and "empty map &lt;b&gt;" in page and "<b>" not in page
     # maps: per configuration group (2 aggregators): ground truth, raw, post-processed; then the

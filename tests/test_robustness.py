@@ -35,8 +35,13 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
     for metric in ("iou", "matched_iou", "pq"):
         t = pd.read_csv(out / f"robustness_synthetic_{metric}.csv", index_col="method")
         assert set(t.index) == {"voronoi", "one_room", "oracle@0.8+vision_cone +post", "oracle@0.8+graph_knn +post"}
-        assert (t.loc["voronoi", [c for c in t.columns if c.startswith("CE ")]] == 100).all()  # the reference
-        assert (out / f"robustness_synthetic_{metric}.tex").read_text().startswith(r"\begin{table}")
+        ce = [c for c in t.columns if c.startswith("CE ") and not c.endswith((" lo", " hi"))]
+        if metric == "iou":
+            assert ce == [] and "mCE" not in t  # the paper's IoU rewards shrinking maps: no mCE on it
+        else:  # CE relative to a method every family degrades (Voronoi is untouched by pose, labels, views)
+            assert {"mCE", "mCE lo", "mCE hi", "rel mCE", "CE realistic"} <= set(t.columns)
+            assert (t[["clean lo", "clean hi"]].notna()).all().all()
+        assert (out / f"robustness_synthetic_{metric}.tex").read_text().startswith(r"\begin{table*}")  # wide: every column with its interval
     # geometry ignores poses, labels and the views it is not built from: its score is the clean one there
     t = pd.read_csv(out / "robustness_synthetic_iou.csv", index_col="method")
     for fam in ("pose", "explore", "classifier"):
@@ -46,16 +51,18 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
         for ext in ("png", "pdf"):
             assert (out / "figures" / f"robustness_synthetic_iou_{fam}.{ext}").stat().st_size > 1000
     md = (out / "robustness.md").read_text()
-    assert "relative to **voronoi**" in md and "| scan | 2 | mapping.max_range 8.0 metres" in md
+    assert "relative to a method every family degrades" in md and "| scan | 2 | mapping.max_range 8.0 metres" in md
+    assert "## How many houses" in md and "Reference: " in md
     assert "2 houses per cell." in md
-    # the sweep report has a robustness section: the IoU table (the same numbers) and a figure per family
+    # the sweep report has a robustness section: the matched IoU table (the same numbers) and a figure per family
     from benchmark.reports.html_report import build_report
 
     page = build_report([results / "runs" / "robustness"])
     section = page[page.index('id="robustness"'):page.index("<h2>Maps</h2>")]
     assert section.count("<img ") == 5 and "IoU vs severity: scan map" in section
+    t = pd.read_csv(out / "robustness_synthetic_matched_iou.csv", index_col="method")
     row = section[section.index("<td>voronoi</td>"):]
-    assert f'<td class="num">{t.loc["voronoi", "clean"]:.1f}</td>' in row[:row.index("</tr>")]
+    assert f'>{t.loc["voronoi", "clean"]:.1f}<br><small class="muted">[' in row[:row.index("</tr>")]
     assert section.count("<tr><td>") == 4  # one row per method
     # its maps are the clean condition's: one group per method, not one per condition
     assert page.count("<figcaption>ground truth</figcaption>") == 2 * 4  # 2 houses x 4 methods

@@ -11,7 +11,10 @@ import pytest
 from benchmark.reports.robustness import (
     RobustnessError,
     cell_means,
+    complete_families,
+    house_values,
     rank_notes,
+    rising_curves,
     summary_table,
     to_latex,
     to_markdown,
@@ -47,26 +50,96 @@ def test_corruption_error_and_drop_by_hand():
     assert a["CE scan"] == pytest.approx(100) and b["CE scan"] == pytest.approx(50)
     assert a["CE pose"] == pytest.approx(100) and b["CE pose"] == pytest.approx(100 * 200 / 75)
     assert b["mCE"] == pytest.approx((50 + 100 * 200 / 75) / 2) and a["mCE"] == pytest.approx(100)
+    # relative CE: errors above each method's clean error; A scan 5 x 30 = 150, B 5 x 15 = 75;
+    # pose A 5 x 5 = 25, B 5 x 35 = 175
+    assert b["rel CE scan"] == pytest.approx(50) and b["rel CE pose"] == pytest.approx(700)
+    assert b["rel mCE"] == pytest.approx(375) and a["rel mCE"] == pytest.approx(100)
     assert a["drop scan"] == pytest.approx(30) and b["drop scan"] == pytest.approx(15)
     assert b["drop pose"] == pytest.approx(35) and b["mean drop"] == pytest.approx(25)
     assert list(t.index) == ["A", "B"]  # sorted by mCE: the reference (100) before B (158.3)
-    assert list(t.columns) == ["clean", "scan", "pose", "CE scan", "CE pose", "mCE", "drop scan", "drop pose",
-                               "mean drop"]
+    assert list(t.columns) == ["clean", "scan", "pose", "CE scan", "CE pose", "mCE", "rel CE scan", "rel CE pose",
+                               "rel mCE", "drop scan", "drop pose", "mean drop"]
     md = to_markdown(t)
-    assert "| B | 95.0 | 80.0 | 60.0 | 50.0 | 266.7 | 158.3 | 15.0 | 35.0 | 25.0 |" in md
+    assert "| B | 95.0 | 80.0 | 60.0 | 50.0 | 266.7 | 158.3 | 50.0 | 700.0 | 375.0 | 15.0 | 35.0 | 25.0 |" in md
     assert r"\toprule" in to_latex(t, "caption", "tab:x") and "266.7" in to_latex(t, "c", "l")
 
 
-def test_rank_notes_say_who_leads_and_whether_geometry_overtakes():
-    t = summary_table(cell_means(_rows(), "iou"), reference="A")
-    cells = cell_means(_rows(), "iou")
-    notes = rank_notes(t, geometric=["A"], cells=cells)
-    assert notes[0] == "clean: B first (95.0); best view-based 95.0, best geometric 90.0 (view-based ahead)"
-    # pose: B (60) below A (85) at every severity, but above it clean: the ranking flips at severity 1
-    assert notes[2] == ("pose error: A first (85.0); best view-based 60.0, best geometric 85.0 (view-based ahead "
-                        "at severity 0, geometric ahead at severities 1-5)")
-    assert notes[1] == ("scan map: B first (80.0); best view-based 80.0, best geometric 60.0 "
-                        "(view-based ahead)")  # ahead at every severity: no flip to report
+def test_realistic_stands_apart_and_a_family_that_spares_the_reference_gets_no_ce():
+    rows = _rows()
+    extra = rows[rows["corruption"] == "scan"].copy()
+    extra["corruption"] = "realistic"
+    rows = pd.concat([rows, extra], ignore_index=True)
+    # A is untouched by pose: CE against A there would measure clean accuracy
+    rows.loc[(rows["method"] == "A") & (rows["corruption"] == "pose"), "iou"] = \
+        rows.loc[(rows["method"] == "A") & (rows["corruption"] == "clean"), "iou"].to_numpy().repeat(5)
+    t = summary_table(cell_means(rows, "iou"), reference="A")
+    assert np.isnan(t.loc["B", "CE pose"]) and t.loc["B", "mCE"] == pytest.approx(50)  # scan only
+    assert t.loc["B", "CE realistic"] == pytest.approx(50)  # reported ...
+    assert list(t.columns)[-4:] == ["realistic", "CE realistic", "rel CE realistic", "drop realistic"]  # ... apart
+    assert t.loc["B", "mean drop"] == pytest.approx((15 + 35) / 2)  # realistic not in the mean
+    assert any("No CE for pose error: it does not degrade the reference A" in n for n in t.attrs["notes"])
+
+
+def _noisy_rows(n=12):
+    """A (geometric) and B (view-based) on n houses with per-house spread: B leads clean by
+    10 +- 1 (clear); under pose, B - A is +10 at severities 1-2, +0.5 +- 5 at 3 (a tie), -10 at
+    4-5 (clear): a change of places at severity 4, not 3."""
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0.3, 0.6, n)
+    rows = []
+    for h in range(n):
+        wig = 0.05 if h % 2 else -0.05
+        for m, clean, pose in (("A", base[h], [base[h]] * 5),
+                               ("B", base[h] + 0.10 + wig / 5, [base[h] + 0.10, base[h] + 0.10, base[h] + 0.005 + wig,
+                                                              base[h] - 0.10, base[h] - 0.10])):
+            rows.append({"method": m, "corruption": "clean", "severity": 0, "house_id": f"h{h:02d}", "iou": clean,
+                         "status": "ok"})
+            rows += [{"method": m, "corruption": "pose", "severity": s, "house_id": f"h{h:02d}", "iou": v,
+                      "status": "ok"} for s, v in enumerate(pose, start=1)]
+    return pd.DataFrame(rows)
+
+
+def test_rank_notes_say_ahead_only_where_the_paired_interval_excludes_zero():
+    rows = _noisy_rows()
+    cells = cell_means(rows, "iou")
+    values = house_values(rows, "iou")
+    t = summary_table(cells, reference="B", values=values)
+    assert t.loc["B", "clean lo"] < t.loc["B", "clean"] < t.loc["B", "clean hi"]
+    notes = rank_notes(t, geometric=["A"], cells=cells, values=values)
+    assert notes[0].startswith("clean: {B} > {A}; best view-based minus best geometric: view-based ahead +10.0 [")
+    pose = notes[1]
+    assert pose.startswith("pose error: {B, A}")  # over the family's mean (B +0.1) they cannot be separated
+    assert "3: tied +0.5 [" in pose and "1: view-based ahead +10.0 [+10.0, +10.0]" in pose
+    assert "4: geometric ahead -10.0" in pose and pose.endswith("they change places at severity 4")
+
+
+def test_rising_curves_are_listed_with_their_intervals():
+    rows = _noisy_rows()
+    curves = rising_curves(house_values(rows, "iou"), ["pose"])
+    b = curves[curves["method"] == "B"].set_index("step")
+    assert list(b.index) == []  # B only falls (10 -> 10 is no rise)
+    rows.loc[(rows["method"] == "A") & (rows["severity"] == 5), "iou"] += 0.02
+    curves = rising_curves(house_values(rows, "iou"), ["pose"])
+    (r,) = curves.itertuples()
+    assert (r.method, r.step, r.significant) == ("A", "4->5", True) and r.rise == pytest.approx(2.0)
+
+
+def test_a_severity_missing_for_every_method_leaves_its_family_out():
+    """issue 38: scan_3 gone for all methods passed the old check (methods agreed with each other)."""
+    rows = _rows()
+    gone = rows[~((rows["corruption"] == "scan") & (rows["severity"] == 3))]
+    kept, notes = complete_families(cell_means(gone, "iou"))
+    assert kept == ["pose"]
+    assert notes == ["scan map left out of the summary: severity 3 has no rows for any method (a mean over the "
+                     "other severities would not compare)"]
+    # the top severity gone for all: found when the sweep says what it asked for
+    top = rows[~((rows["corruption"] == "pose") & (rows["severity"] == 5))]
+    assert complete_families(cell_means(top, "iou"))[0] == ["scan", "pose"]
+    kept, notes = complete_families(cell_means(top, "iou"), expected={"scan": range(1, 6), "pose": range(1, 6)})
+    assert kept == ["scan"] and "severity 5 has no rows for any method" in notes[0]
+    one = rows[~((rows["corruption"] == "pose") & (rows["severity"] == 2) & (rows["method"] == "B"))]
+    kept, notes = complete_families(cell_means(one, "iou"))
+    assert kept == ["scan"] and "pose error left out of the summary: severity 2 has no rows for B" in notes[0]
 
 
 def test_cells_never_mix_house_sets_or_hide_failures():

@@ -183,7 +183,8 @@ def test_tables_match_hand_computed_means(tmp_path):
     assert none["iou_mean"] == pytest.approx(0.1) and none["n"] == 1 and none["n_failed"] == 1
     dflt = t3[t3["postprocess"] == "default"].iloc[0]
     assert dflt["iou_mean"] == pytest.approx(np.mean([0.5, 0.7, 0.2, 0.4]))
-    assert "60.00 ± 14.14" in text  # graph_knn IoU in percent
+    assert "60.00 [50.00, 70.00]" in text  # graph_knn IoU in percent: mean [95 % interval of two houses]
+    assert knn["iou_lo"] == pytest.approx(0.5) and knn["iou_hi"] == pytest.approx(0.7)
     assert (tmp_path / "tables" / "table4.tex").read_text().count("\\\\") >= 2
     assert "1 of 6 rows failed: HouseError x1" in text
 

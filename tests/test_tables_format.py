@@ -88,16 +88,19 @@ def test_sensitivity_markdown_has_a_column_per_aggregator_and_post(sensitivity_r
     assert head[-4:] == ["graph KNN", "graph KNN + post", "vision cone", "vision cone + post"]
     assert len(sep) == len(head)
     assert all(len(b) == len(head) for b in body)
-    # mean = acc/2 + bump + post + 0.05, std = 0.1/sqrt(2)
+    # mean = acc/2 + bump + post + 0.05 over two houses 10 points apart: the bootstrap interval of a
+    # mean of two houses is [lower, higher] (resamples: both low, one each, both high)
     acc_col = head.index("oracle accuracy")
     assert [b[acc_col] for b in body] == ["0.5", "1"]
-    assert body[0][-4:] == ["30.00 ± 7.07", "40.00 ± 7.07", "50.00 ± 7.07", "60.00 ± 7.07"]
-    assert body[1][-4:] == ["55.00 ± 7.07", "65.00 ± 7.07", "75.00 ± 7.07", "85.00 ± 7.07"]
-    assert tables[1][2][0][-4:] == ["50.00 ± 0.00"] * 4  # pixel accuracy = oracle accuracy
+    assert body[0][-4:] == ["30.00 [25.00, 35.00]", "40.00 [35.00, 45.00]", "50.00 [45.00, 55.00]",
+                            "60.00 [55.00, 65.00]"]
+    assert body[1][-4:] == ["55.00 [50.00, 60.00]", "65.00 [60.00, 70.00]", "75.00 [70.00, 80.00]",
+                            "85.00 [80.00, 90.00]"]
+    assert tables[1][2][0][-4:] == ["50.00 [50.00, 50.00]"] * 4  # pixel accuracy = oracle accuracy
     assert "2 houses per cell." in text
     assert (tmp_path / "out" / "sensitivity.png").stat().st_size > 10_000
     tex = (tmp_path / "out" / "sensitivity.tex").read_text()
-    assert "0.500000" not in tex and "$30.0 \\pm 7.1$" in tex
+    assert "0.500000" not in tex and "$30.0$ [$25.0$, $35.0$]" in tex
 
 
 def test_tables_prints_only_tables_with_data_and_says_why(table4_run):
@@ -111,8 +114,9 @@ def test_tables_prints_only_tables_with_data_and_says_why(table4_run):
     head, sep, body = _md_tables(text)[0]
     assert head == ["classifier", "aggregator", "ProcTHOR IoU", "ProcTHOR matched IoU", "ProcTHOR PQ", "ProcTHOR acc",
                     "synthetic IoU", "synthetic matched IoU", "synthetic PQ", "synthetic acc"]
-    assert body[0] == ["objects", "graph KNN", "50.00 ± 14.14", "45.00 ± 0.00", "40.00 ± 0.00", "50.00 ± 0.00",
-                       "50.00 ± 14.14", "45.00 ± 0.00", "40.00 ± 0.00", "50.00 ± 0.00"]
+    assert body[0] == ["objects", "graph KNN", "50.00 [40.00, 60.00]", "45.00 [45.00, 45.00]", "40.00 [40.00, 40.00]",
+                       "50.00 [50.00, 50.00]", "50.00 [40.00, 60.00]", "45.00 [45.00, 45.00]",
+                       "40.00 [40.00, 40.00]", "50.00 [50.00, 50.00]"]
     assert [b[1] for b in body[:3]] == ["graph KNN", "vision cone", "Euclidean KNN"]
 
 
@@ -141,8 +145,10 @@ def test_latex_is_booktabs_with_caption_label_and_right_aligned_numbers(table4_r
     assert first.startswith("%") and "booktabs" in first
     assert "\\caption{Table IV" in tex and "\\label{tab:table4}" in tex
     assert "\\begin{tabular}{llrrrrrrrr}" in tex and "\\toprule" in tex and "\\bottomrule" in tex
-    numbers = re.findall(r"\$(\d+\.\d+) \\pm (\d+\.\d+)\$", tex)
-    assert len(numbers) == 48 and all(len(x.split(".")[1]) == 1 for pair in numbers for x in pair)
+    numbers = re.findall(r"\$(\d+\.\d+)\$(?: |\\\\\{\})\[\$(\d+\.\d+)\$, \$(\d+\.\d+)\$\]", tex)
+    # mean [interval], beside it or (a wide table) under it
+    assert len(numbers) == 48 and all(len(x.split(".")[1]) == 1 for trio in numbers for x in trio)
+    assert all(float(lo) <= float(m) <= float(hi) for m, lo, hi in numbers)
     assert "\\multicolumn{4}{c}{ProcTHOR}" in tex
 
 
@@ -220,7 +226,7 @@ def test_table5_printed_when_a_baseline_is_there(table4_run, tmp_path):
     text = render([table4_run])
     head, _, body = next(t for t in _md_tables(text) if "method" in t[0])
     assert [b[1] for b in body if b[0] == "synthetic"][-1] == "voronoi"
-    assert next(b for b in body if b[1] == "voronoi")[2] == "30.00 ± 0.00"
+    assert next(b for b in body if b[1] == "voronoi")[2] == "30.00 [30.00, 30.00]"
 
 
 def test_a_missing_grouping_value_keeps_its_cells():
@@ -251,6 +257,6 @@ def test_table4_carries_the_sanity_rows(table4_run):
     head, _, body = _md_tables(render([table4_run], ["table4"]))[0]
     sanity = [b for b in body if b[0] == "(sanity row)"]
     assert [b[1] for b in sanity] == ["one room", "ground-truth geometry"] and body[-2:] == sanity
-    assert sanity[0][head.index("synthetic IoU")] == "40.00 ± 0.00"
-    assert sanity[1][head.index("synthetic IoU")] == "100.00 ± 0.00"
+    assert sanity[0][head.index("synthetic IoU")] == "40.00 [40.00, 40.00]"
+    assert sanity[1][head.index("synthetic IoU")] == "100.00 [100.00, 100.00]"
     assert sanity[0][head.index("ProcTHOR IoU")] == "–"

@@ -130,7 +130,7 @@ def test_different_settings_become_separate_rows_labelled_by_what_differs(tmp_pa
     assert t4["iou_mean"].to_dict() == pytest.approx({"aggregator.k=3": 0.3, "aggregator.k=5": 0.7})
     assert t4["n"].tolist() == [2, 2]
     table = [ln for ln in out.splitlines() if ln.startswith("| oracle")]
-    assert len(table) == 2 and "aggregator.k=3" in table[0] and "30.00 ± 14.14" in table[0]
+    assert len(table) == 2 and "aggregator.k=3" in table[0] and "30.00 [20.00, 40.00]" in table[0]
     assert "kept apart, labelled by aggregator.k" in out
     # Table III pools classifiers and aggregators on purpose: one cell of 4 maps
     t3 = _csv(tmp_path / "t", "table3")

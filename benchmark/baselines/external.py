@@ -395,16 +395,22 @@ SUMMARY_METRICS = ("iou", "precision", "recall", "matched_iou", "pq", "room_iou"
 
 
 def summary_table(df: pd.DataFrame, metrics: tuple[str, ...] = SUMMARY_METRICS) -> pd.DataFrame:
-    """Table V-style summary: mean ± std per method over its successful maps, in percent, then
-    the mean segment count, count error and reader counts, the maps scored and failed."""
+    """Table V-style summary: per method, the mean over its successful maps with its 95 %
+    interval (``mean [lo, hi]``, percentile bootstrap over maps, :mod:`benchmark.reports.stats`),
+    in percent, then the mean segment count, count error and reader counts, the maps scored and
+    failed."""
+    from benchmark.reports.stats import bootstrap_ci  # noqa: PLC0415
+
     ok = df[df["status"] == "ok"]
     methods = list(dict.fromkeys(df["method"]))
     g = ok.groupby("method", sort=False)
     out = pd.DataFrame(index=pd.Index(methods, name="method"))
     out["maps"] = g.size().reindex(methods).fillna(0).astype(int)
     for m in metrics:
-        mean, std = g[m].mean().reindex(methods), g[m].std(ddof=1).reindex(methods).fillna(0)
-        out[m] = [f"{100 * a:.2f} ± {100 * s:.2f}" if np.isfinite(a) else "n/a" for a, s in zip(mean, std)]
+        mean = g[m].mean().reindex(methods)
+        ci = {k: bootstrap_ci(v.dropna().to_numpy()) for k, v in g[m]}
+        out[m] = [("n/a" if not np.isfinite(a) else f"{100 * a:.2f}" if not np.isfinite(ci.get(k, (np.nan,))[0])
+                   else f"{100 * a:.2f} [{100 * ci[k][0]:.2f}, {100 * ci[k][1]:.2f}]") for k, a in zip(methods, mean)]
     out["segments"] = [f"{v:.1f}" if np.isfinite(v) else "n/a"
                        for v in g["n_pred_segments"].mean().reindex(methods)]
     out["count_error"] = [f"{v:+.1f}" if np.isfinite(v) else "n/a" for v in g["count_error"].mean().reindex(methods)]
@@ -431,7 +437,8 @@ def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note
 
     summary = summary_table(df)
     text = summary.to_markdown(index=False)
-    text += (f"\n\nMean ± std over maps, percent; segments, count error (segments - rooms) and unassigned "
+    text += (f"\n\nMean [95 % interval] over maps (percentile bootstrap over maps, 2000 resamples, seed 0), "
+             f"percent; segments, count error (segments - rooms) and unassigned "
              f"pixels (prediction pixels of not-a-room colours) are means. Metrics: "
              f"{describe(params, resolution, colours=True)}{note}\n")
     bad = failures(df)
@@ -448,7 +455,7 @@ def report(df: pd.DataFrame, params: MetricParams, out: Path | None = None, note
             atomic_write_text(tmp / "table5.md", text)
             atomic_write_text(tmp / "table5.csv", summary.to_csv(index=False))
             atomic_write_text(tmp / "table5.tex", summary.to_latex(index=False, escape=True, caption=(
-                f"Comparison on the same maps (mean and std over maps, percent). {describe(params, resolution)}"),
+                f"Comparison on the same maps (mean [95 % interval] over maps, percent). {describe(params, resolution)}"),
                 label="tab:table5"))
             for name, body in (extra or {}).items():
                 atomic_write_text(tmp / name, body)

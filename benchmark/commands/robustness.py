@@ -5,10 +5,15 @@
 
 Reads every job of the run (``experiment=robustness``), and per dataset and metric (the paper's
 IoU, matched IoU, PQ) writes the summary of :mod:`benchmark.reports.robustness` (clean score,
-each family's mean over its severities, corruption error and mCE against ``--reference``,
-drops) as Markdown, CSV and LaTeX, a figure per family (metric vs severity, one line per
-method, PNG and PDF), and ``robustness.md`` with every table, what it shows in words, the
-reference and every severity's physical values. A house that failed under any condition is
+each family's mean over its severities, corruption error, relative CE, mCE and relative mCE
+against ``--reference`` for matched IoU and PQ, drops; each with its 95 % interval over houses)
+as Markdown, CSV and LaTeX, the steps where a curve rises with severity (``*_rising.csv``), a
+figure per family (metric vs severity, one line per method, PNG and PDF), and
+``robustness.md`` with every table, the rankings and what they show in words, the curves that
+rise by more than chance, how many houses a cell needs to detect ``--delta`` points (the power
+report) and every severity's physical values. A family whose severities are not all there (a
+job that did not finish, for some method or all) is left out with a line naming it; a sweep
+whose jobs did not all finish is named with its missing jobs (stderr and robustness.md). A house that failed under any condition is
 left out of every cell of its dataset (one line names it), so every cell holds the same houses.
 The output folder is written as a whole (an interrupted command leaves the old set or the new).
 """
@@ -52,39 +57,105 @@ def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], 
     return out
 
 
-def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str) -> str:
+def expected_severities(paths: Sequence[str | Path]) -> dict[str, list[int]] | None:
+    """family -> the severities the sweep(s) under ``paths`` asked for (their ``multirun.yaml``),
+    or None when no path holds a sweep description (a published copy: gaps are then found from
+    the rows alone)."""
+    from benchmark.reports.sweep_jobs import MULTIRUN, expected_jobs
+
+    out: dict[str, set[int]] = {}
+    found = False
+    for p in map(Path, paths):
+        for sweep in ([p] if (p / MULTIRUN).exists() else sorted(m.parent for m in p.rglob(MULTIRUN)) if p.is_dir()
+                      else []):
+            jobs = expected_jobs(sweep) or []
+            found = True
+            for job in jobs:
+                for o in job:
+                    m = re.fullmatch(r"corruption=(\w+)_(\d+)", o)
+                    if m:
+                        out.setdefault(m.group(1), set()).add(int(m.group(2)))
+    return {f: sorted(v) for f, v in out.items()} if found else None
+
+
+#: value columns shown in robustness.md (every column, with its interval, is in the .csv and .md
+#: files of each table).
+SHOWN = ("clean", *rb.FAMILIES, "mCE", "rel mCE", "mean drop")
+
+
+def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
+           delta: float = rb.DELTA) -> str:
     """The Markdown of every table (and, with ``out``, the files). Raises RobustnessError."""
+    from benchmark.reports.stats import METHOD_WORDS
+    from benchmark.reports.sweep_jobs import partial_sweep_lines
+
     rows = load_rows(paths)
     if rows.attrs.get("set_aside"):
         print(f"robustness: {rows.attrs['set_aside']}", file=sys.stderr)
+    partial = partial_sweep_lines(paths)
+    for line in partial:
+        print(f"robustness: {line}", file=sys.stderr)
     missing = [c for c in ("corruption", "severity") if c not in rows]
     if missing:
         raise rb.RobustnessError(f"the rows under {[str(p) for p in paths]} have no {missing} column: "
                                  f"run `roomseg-bench experiment=robustness` (conf/corruption) first")
     rows = rows.copy()
     rows["severity"] = rows["severity"].astype(int)
-    parts = rb.summarise(rows, metrics, reference)
+    parts = rb.summarise(rows, metrics, reference, expected_severities(paths), delta=delta)
     settings = severity_settings()
+    ref_words = ("a method every family degrades, chosen per dataset and metric (named under each table)"
+                 if reference in (None, "auto") else f"**{reference}**")
     md = ["# Robustness to robot conditions", "",
-          f"Corruption error (CE) and mCE relative to **{reference}** (100 = as robust as it; lower is better); "
-          "error = 100 - metric; drop = clean - mean over the family's severities. Metrics in percent, mean over "
-          "houses; every cell of a dataset holds the same houses.", ""]
+          f"Matched IoU and PQ rank the methods; the paper's IoU is shown beside them but builds no mCE (it "
+          f"rewards maps that shrink). Corruption error (CE), relative CE and their means over the families "
+          f"(mCE, rel mCE; `realistic`, the combination of the others, is reported apart and in neither) are "
+          f"relative to {ref_words}: 100 = as robust as it, lower is better; relative CE subtracts each "
+          f"method's clean error, so clean accuracy cancels. Error = 100 - metric; drop = clean - mean over "
+          f"the family's severities. Metrics in percent, mean over houses with its 95 % interval "
+          f"[lo, hi] ({METHOD_WORDS}); every cell of a dataset holds the same houses. Rankings: braces hold "
+          f"methods that no paired interval separates.", "", *[f"**Partial sweep**: {x}." for x in partial],
+          *([""] if partial else [])]
+    power = []
     for (dataset, metric), p in parts.items():
         words = metric_words(metric)
+        t = p["table"]
+        shown = [c for c in SHOWN if c in t.columns]
         md += [f"## {dataset}: {words}", "", f"{p['houses']} houses per cell"
                + (f"; left out (failed under some condition): {', '.join(p['dropped'])}" if p["dropped"] else "")
-               + ".", "", rb.to_markdown(p["table"]), *[f"- {n}" for n in p["notes"]], ""]
+               + ".", "", rb.to_markdown(t, columns=shown), *[f"- {n}" for n in p["notes"]], ""]
+        curves = p["curves"]
+        if metric in rb.RANKED:
+            sig = curves[curves["significant"]] if len(curves) else curves
+            n_curves = len({(m, f) for m in t.index if m not in SANITY for f in rb.FAMILIES if f in t.columns})
+            md += [f"Curves that rise with severity ({words}): {curves[['method', 'family']].drop_duplicates().shape[0]} "
+                   f"of {n_curves} method x family curves rise somewhere; {len(sig)} step(s) rise with a paired 95 % "
+                   f"interval above zero (the others are within noise; docs/robustness.md says what the "
+                   f"significant ones are)"
+                   + (":" if len(sig) else "."), ""]
+            md += [f"- {r.method} / {rb.FAMILY_WORDS.get(r.family, r.family)}, severity {r.step}: +{r.rise:.1f} "
+                   f"[{r.lo:+.1f}, {r.hi:+.1f}]" for r in sig.itertuples()]
+            md.append("")
+        if p.get("power") and metric == "matched_iou":
+            power += rb.power_lines(dataset, p["power"], words)
         if out is not None:
             stem = f"robustness_{dataset}_{metric}"
-            p["table"].round(4).to_csv(out / f"{stem}.csv")
-            (out / f"{stem}.tex").write_text(rb.to_latex(p["table"], f"Robustness on {dataset}: {words}, CE relative "
-                                                         f"to {reference}", f"tab:{stem}"), encoding="utf-8")
-            (out / f"{stem}.md").write_text(rb.to_markdown(p["table"]), encoding="utf-8")
+            t.round(4).to_csv(out / f"{stem}.csv")
+            if len(curves):
+                curves.round(4).to_csv(out / f"{stem}_rising.csv", index=False)
+            (out / f"{stem}.tex").write_text(rb.to_latex(t[[c for c in t.columns if c.split(" lo")[0].split(" hi")[0]
+                                                              in shown]],
+                                                         f"Robustness on {dataset}: {words}"
+                                                         + (f", CE relative to {p['reference']}" if p["reference"] else "")
+                                                         + "; mean [95 % interval] over houses", f"tab:{stem}"),
+                                             encoding="utf-8")
+            (out / f"{stem}.md").write_text(rb.to_markdown(t), encoding="utf-8")
             if metric in ("iou", "matched_iou"):
                 for family in rb.FAMILIES:
                     if family in set(p["cells"]["corruption"]):
                         rb.family_figure(p["cells"], family, out / "figures" / f"{stem}_{family}",
                                          words, f"{dataset}: {rb.FAMILY_WORDS[family]}")
+    if power:
+        md += ["## How many houses", "", *[f"- {x}" for x in power], ""]
     md += ["## Severities", "", "| family | severity | settings |", "|---|---:|---|"]
     md += [f"| {f} | {k} | {v} |" for (f, k), v in sorted(settings.items())]
     md.append("")
@@ -99,17 +170,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("paths", nargs="+", help="the robustness run's folder(s)")
     ap.add_argument("--out", type=Path, default=None, help="folder for the tables and figures (written as a whole)")
-    ap.add_argument("--reference", default=DEFAULT_REFERENCE, help="the method CE is relative to (a method label)")
+    ap.add_argument("--reference", default=DEFAULT_REFERENCE,
+                    help="the method CE is relative to (a method label), or auto (default): a method every family "
+                         "degrades")
+    ap.add_argument("--delta", type=float, default=rb.DELTA,
+                    help="the difference (points of matched IoU) the power report sizes the houses for (default 3)")
     ap.add_argument("--metric", action="append", choices=rb.METRICS, help="metric(s) (default: all three)")
     a = ap.parse_args(argv)
     metrics = a.metric or list(rb.METRICS)
     try:
         if a.out is None:
-            text = render(a.paths, None, metrics, a.reference)
+            text = render(a.paths, None, metrics, a.reference, a.delta)
         else:
             with atomic_folder(a.out) as tmp:
                 (tmp / "figures").mkdir()
-                text = render(a.paths, tmp, metrics, a.reference)
+                text = render(a.paths, tmp, metrics, a.reference, a.delta)
     except (rb.RobustnessError, FileNotFoundError, ValueError) as e:
         print(f"robustness: error: {one_line(e)}", file=sys.stderr)
         return 2

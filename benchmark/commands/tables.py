@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from benchmark.harness.store import METRICS, Job, iter_metric_files, safe_name
+from benchmark.reports.sweep_jobs import partial_sweep_lines
 from benchmark.reports.tables import TABLES, load_rows, render
 from envs.atomic import atomic_folder
 
@@ -41,6 +42,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                   f"({', '.join(where)[:200]})", file=sys.stderr)
             if rows[name].attrs["set_aside"]:
                 print(f"run {name!r}: {rows[name].attrs['set_aside']}", file=sys.stderr)
+            for line in partial_sweep_lines(files):  # a sweep whose jobs did not all finish: never read silently
+                print(f"run {name!r}: {line}", file=sys.stderr)
 
         def make(out: Path | None) -> str:
             if len(runs) == 1:

@@ -142,8 +142,9 @@ class Grid:
     """A table ready to print.
 
     ``row_keys`` name the label columns; ``rows`` hold one tuple of label words per row;
-    ``columns`` the numeric columns; ``cells[i][j]`` is (mean, std, n, n_failed) of row i,
-    column j (scaled: percent when the table is), or None where no row exists; ``notes``
+    ``columns`` the numeric columns; ``cells[i][j]`` is (mean, std, n, n_failed, lo, hi) of row
+    i, column j, lo and hi the bounds of its 95 % interval (scaled: percent when the table is),
+    or None where no row exists; ``notes``
     are lines printed under the table.
     """
 
@@ -151,7 +152,7 @@ class Grid:
     row_keys: list[str]
     rows: list[tuple[str, ...]]
     columns: list[Column]
-    cells: list[list[tuple[float, float, int, int] | None]]
+    cells: list[list[tuple | None]]
     unit: str = "percent"
     notes: list[str] = field(default_factory=list)
     houses: list[list[str]] = field(default_factory=list)
@@ -163,6 +164,13 @@ class Grid:
     def over(self) -> str:
         """What the mean and std run over: houses, or (pooled tables) maps."""
         return "maps (house x configuration)" if self.pooled else "houses"
+
+    @property
+    def legend(self) -> str:
+        """What a cell shows, for the line under the table: ``Mean [95 % CI] over houses (...)``."""
+        from benchmark.reports.stats import METHOD_WORDS
+
+        return f"Mean [95 % interval] over {self.over} ({METHOD_WORDS})"
 
     @property
     def grouped(self) -> bool:
@@ -214,8 +222,10 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
                 line.append(None)
                 continue
             mean, std = rec.get(f"{col.metric}_mean", np.nan), rec.get(f"{col.metric}_std", np.nan)
+            lo, hi = rec.get(f"{col.metric}_lo", np.nan), rec.get(f"{col.metric}_hi", np.nan)
             s = col_scale.get(col.metric, scale)
-            line.append((float(mean) * s, float(std) * s, int(rec.get("n", 0)), int(rec.get("n_failed", 0))))
+            line.append((float(mean) * s, float(std) * s, int(rec.get("n", 0)), int(rec.get("n_failed", 0)),
+                         float(lo) * s, float(hi) * s))
         cells.append(line)
         houses.append([f"{int(index[(rv, c)]['n'])}" + (f" ({int(index[(rv, c)]['n_failed'])} failed)"
                                                        if index[(rv, c)].get("n_failed") else "")
@@ -235,14 +245,40 @@ def build_grid(summary: pd.DataFrame, rows: Sequence[str], cols: Sequence[str], 
     return grid
 
 
+def _interval(cell: tuple) -> tuple[float, float] | None:
+    """A cell's 95 % interval (lo, hi), or None when it has none (one house, an old summary)."""
+    if len(cell) < 6 or not (math.isfinite(cell[4]) and math.isfinite(cell[5])):
+        return None
+    return cell[4], cell[5]
+
+
 def fmt_cell(cell: tuple | None, decimals: int, std: bool = True) -> str:
-    """``mean ± std`` with ``decimals`` decimals; ``mean`` alone when std is missing; a dash
-    when the mean is missing (never 0 for a missing number)."""
+    """``mean [lo, hi]`` (its 95 % interval over houses) with ``decimals`` decimals, or
+    ``mean ± std`` for a cell without interval bounds (a summary without ``_lo``/``_hi``
+    columns); ``mean`` alone when the
+    spread is missing (one house) or ``std`` is False; a dash when the mean is missing (never 0
+    for a missing number)."""
     if cell is None or math.isnan(cell[0]):
         return DASH
+    ci = _interval(cell)
+    if std and ci is not None:
+        return f"{cell[0]:.{decimals}f} [{ci[0]:.{decimals}f}, {ci[1]:.{decimals}f}]"
     if not std or math.isnan(cell[1]):
         return f"{cell[0]:.{decimals}f}"
     return f"{cell[0]:.{decimals}f} ± {cell[1]:.{decimals}f}"
+
+
+def error_bars(frame: pd.DataFrame, metric: str, scale: float = 100.0) -> np.ndarray:
+    """Matplotlib ``yerr`` for a summary's ``<metric>_mean``: (2, n) distances down to
+    ``<metric>_lo`` and up to ``<metric>_hi`` (its 95 % interval), times ``scale``; the std
+    either side for a summary without bounds; 0 where a bound is missing (one house)."""
+    mean = frame[f"{metric}_mean"].to_numpy(float)
+    if f"{metric}_lo" in frame and f"{metric}_hi" in frame:
+        down = mean - frame[f"{metric}_lo"].to_numpy(float)
+        up = frame[f"{metric}_hi"].to_numpy(float) - mean
+    else:
+        down = up = frame[f"{metric}_std"].to_numpy(float)
+    return scale * np.nan_to_num(np.clip(np.vstack([down, up]), 0.0, None))
 
 
 def _md_escape(text: str) -> str:
@@ -360,27 +396,44 @@ def _latex_layout(grid: Grid):
     return [c.sub for c in grid.columns] + grid.house_labels, (top if grid.grouped else []), [("", body)]
 
 
-def _tex_cell(c, decimals: int, std: bool = True) -> str:
+def _tex_cell(c, decimals: int, std: bool = True, stacked: bool = False) -> str:
     if isinstance(c, str):
         return tex_escape(c)
     if c is None or math.isnan(c[0]):
         return "--"
+    ci = _interval(c)
+    if std and ci is not None:
+        if stacked:  # the interval under the mean, in the same column
+            return f"\\shortstack[r]{{${c[0]:.{decimals}f}$\\\\{{}}[${ci[0]:.{decimals}f}$, ${ci[1]:.{decimals}f}$]}}"
+        return f"${c[0]:.{decimals}f}$ [${ci[0]:.{decimals}f}$, ${ci[1]:.{decimals}f}$]"
     if not std or math.isnan(c[1]):
         return f"${c[0]:.{decimals}f}$"
     return f"${c[0]:.{decimals}f} \\pm {c[1]:.{decimals}f}$"
 
 
 #: LaTeX styles tried in order until the table fits: (font size command, its size relative
-#: to \\footnotesize, \\tabcolsep in pt, whether cells show the std).
-LATEX_STYLES = (("\\footnotesize", 1.0, TABCOLSEP_PT, True), ("\\scriptsize", 0.875, 2.0, True),
-                ("\\scriptsize", 0.875, 2.0, False))
+#: to \\footnotesize, \\tabcolsep in pt, whether cells show the interval (or std), whether the
+#: interval stands under the mean rather than beside it).
+LATEX_STYLES = (("\\footnotesize", 1.0, TABCOLSEP_PT, True, False), ("\\scriptsize", 0.875, 2.0, True, False),
+                ("\\scriptsize", 0.875, 2.0, True, True),
+                ("\\scriptsize", 0.875, 2.0, False, False))
 
 
 def estimate_width(grid: Grid, decimals: int = 1, scale: float = 1.0, tabcolsep: float = TABCOLSEP_PT,
-                   std: bool = True) -> float:
+                   std: bool = True, stacked: bool = False) -> float:
     """Estimated width (pt) of :func:`to_latex`'s tabular: text at \\footnotesize times
-    ``scale``, ``tabcolsep`` pt either side of each column, cells with or without the std
-    (pdflatex's measure is within about 10 %: tests/test_tables_format.py)."""
+    ``scale``, ``tabcolsep`` pt either side of each column, cells with or without the
+    interval, beside the mean or (``stacked``) under it (pdflatex's measure is within about
+    10 %: tests/test_tables_format.py)."""
+
+    def cell_width(c) -> float:
+        if isinstance(c, str):
+            return _text_width(c)
+        text = fmt_cell(c, decimals, std)
+        if stacked and " [" in text:
+            return max(_text_width(x) for x in text.replace(" [", "\n[").split("\n"))
+        return _text_width(text)
+
     heads, _, blocks = _latex_layout(grid)
     widths = []
     for i, key in enumerate(grid.row_keys):
@@ -388,13 +441,13 @@ def estimate_width(grid: Grid, decimals: int = 1, scale: float = 1.0, tabcolsep:
     for j, h in enumerate(heads):
         cells = [row[j] for _, b in blocks for row in b]
         widths.append(max([_text_width(x) for x in _header_lines(h)] +
-                          [_text_width(c if isinstance(c, str) else fmt_cell(c, decimals, std)) for c in cells]))
+                          [cell_width(c) for c in cells]))
     return scale * sum(widths) + 2 * tabcolsep * len(widths)
 
 
 def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
     """A booktabs table: first line says what it needs and which width it fits; caption and
-    label; label columns left, numbers right with ``decimals`` decimals (mean $\\pm$ std);
+    label; label columns left, numbers right with ``decimals`` decimals (mean [95 % interval]);
     headers with ``+`` broken over two lines; a by-metric grid as one block of rows per metric.
 
     The first of :data:`LATEX_STYLES` with the std that fits one column (\\columnwidth of a
@@ -405,12 +458,12 @@ def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
     Returns:
         LaTeX source of the float.
     """
-    styles = [(st, estimate_width(grid, decimals, st[1], st[2], st[3])) for st in LATEX_STYLES]
+    styles = [(st, estimate_width(grid, decimals, st[1], st[2], st[3], st[4])) for st in LATEX_STYLES]
     order = [(st, w, env) for keep_std in (True, False) for env, limit in (("table", COLUMN_WIDTH_PT),
                                                                             ("table*", PAGE_WIDTH_PT))
              for st, w in styles if st[3] == keep_std and w <= limit]
     pick = order[0] if order else (*styles[-1], "table*")
-    (size, _, sep, std), width, env = pick
+    (size, _, sep, std, stacked), width, env = pick
     if env == "table":
         where = "fits one column of a two-column article (\\columnwidth)"
     elif width <= PAGE_WIDTH_PT:
@@ -419,7 +472,7 @@ def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
         where = (f"wider than a page (\\textwidth {PAGE_WIDTH_PT:.0f} pt): drop columns, or use a "
                  "sidewaystable (package rotating)")
     if not std:
-        caption = caption.rstrip() + " Means only; the standard deviations are in the .csv file."
+        caption = caption.rstrip() + " Means only; the intervals (lo, hi) and standard deviations are in the .csv file."
     heads, top, blocks = _latex_layout(grid)
     nrk, ncols = len(grid.row_keys), len(heads)
     lines = [f"% Needs \\usepackage{{booktabs}} in the preamble. Width: {where}, estimated {width:.0f} pt.",
@@ -441,7 +494,7 @@ def to_latex(grid: Grid, label: str, caption: str, decimals: int = 1) -> str:
         if name:
             lines.append(f"\\multicolumn{{{nrk + ncols}}}{{l}}{{\\emph{{{tex_escape(name)}}}}} \\\\")
         for lab, row in zip(grid.rows, body):
-            lines.append(" & ".join([tex_escape(x) for x in lab] + [_tex_cell(c, decimals, std) for c in row])
+            lines.append(" & ".join([tex_escape(x) for x in lab] + [_tex_cell(c, decimals, std, stacked) for c in row])
                          + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", f"\\end{{{env}}}", ""]
     return "\n".join(lines)

@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.reports import formatting
+from benchmark.reports.stats import bootstrap_ci
 
 #: metric columns shown (those the run has), as fractions in the rows -> percent on the page.
 METRICS = ("iou", "precision", "recall", "accuracy", "matched_iou", "room_iou", "pq", "pq_semantic", "class_iou",
@@ -185,10 +186,29 @@ def _config_rows(jobs) -> tuple[list[str], list[dict]]:
                 v = pd.to_numeric(ok[m], errors="coerce")
                 if v.notna().any():
                     rec[m] = float(v.mean())
+                    rec[f"{m} ci"] = bootstrap_ci(v.dropna().to_numpy())
                     present.add(m)
         out.append(rec)
     cols = [m for m in (*METRICS, *COUNTS) if m in present]
     return cols, out
+
+
+def _ci_words(ci: tuple[float, float] | None, scale: float) -> str:
+    """The 95 % interval under a cell's mean (small, muted, one decimal, so that the table keeps
+    its width), or "" without one (one house)."""
+    if ci is None or not all(np.isfinite(ci)):
+        return ""
+    return f'<br><small class="muted">[{scale * ci[0]:.1f}, {scale * ci[1]:.1f}]</small>'
+
+
+def _partial_lines(run_dirs) -> list[str]:
+    """One line per sweep under ``run_dirs`` whose jobs did not all finish."""
+    from benchmark.reports.sweep_jobs import partial_sweep_lines
+
+    try:
+        return partial_sweep_lines(list(run_dirs))
+    except ValueError as e:  # an unreadable multirun.yaml: say so rather than guess
+        return [str(e)]
 
 
 def _configs_table(cols: list[str], rows: list[dict]) -> str:
@@ -214,9 +234,9 @@ def _configs_table(cols: list[str], rows: list[dict]) -> str:
             if v is None:
                 line += '<td class="num" data-v="">–</td>'
             elif m in COUNTS:
-                line += f'<td class="num" data-v="{v:.6g}">{v:.2f}</td>'
+                line += f'<td class="num" data-v="{v:.6g}">{v:.2f}{_ci_words(r.get(f"{m} ci"), 1.0)}</td>'
             else:
-                line += f'<td class="num" data-v="{v:.6g}">{100 * v:.2f}</td>'
+                line += f'<td class="num" data-v="{v:.6g}">{100 * v:.2f}{_ci_words(r.get(f"{m} ci"), 100.0)}</td>'
         line += f'<td class="num" data-v="{r["n_ok"]}">{r["n_ok"]} / {r["n"]}</td>'
         line += f'<td class="num" data-v="{r["n_failed"]}">{r["n_failed"]}</td>'
         wall = r["wall"]
@@ -356,11 +376,20 @@ def _house_section(hid: str, jobs) -> str:
     return "".join(out)
 
 
+def _robust_cell(table: pd.DataFrame, m: str, c: str) -> str:
+    """One cell of the robustness table: the number and its 95 % interval (a dash when missing)."""
+    v, lo, hi = (table.loc[m, k] if k in table else float("nan") for k in (c, f"{c} lo", f"{c} hi"))
+    if pd.isna(v):
+        return '<td class="num">–</td>'
+    iv = "" if pd.isna(lo) or pd.isna(hi) else f'<br><small class="muted">[{lo:.1f}, {hi:.1f}]</small>'
+    return f'<td class="num" data-v="{v:.6g}">{v:.1f}{iv}</td>'
+
+
 def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
     """A robustness run's summary (``experiment=robustness``; rows with ``corruption``): per
-    dataset, IoU under each robot condition (mean over its severities), mCE and mean drop
-    against the Voronoi reference, and a figure per condition (IoU vs severity, one line per
-    method). Empty for a run without robot conditions (told from ``jobs``' rows, so that an
+    dataset, matched IoU under each robot condition (mean over its severities) with its 95 %
+    interval, mCE, relative mCE and mean drop against a reference every family degrades, and a
+    figure per condition (matched IoU vs severity, one line per method). Empty for a run without robot conditions (told from ``jobs``' rows, so that an
     ordinary run's metrics are not read a second time)."""
     import tempfile
 
@@ -378,25 +407,23 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
     if not (rows["corruption"].astype(str) != "clean").any():  # every run is clean: nothing to compare
         return ""
     rows["severity"] = pd.to_numeric(rows["severity"]).astype(int)
-    methods = set(rows["method"])
-    reference = rb.REFERENCE if rb.REFERENCE in methods else sorted(methods)[0]
     out = ['<h2 id="robustness">Robustness to robot conditions</h2>',
-           f'<p class="muted">IoU in percent under each robot condition (mean over its severities 1-5), mCE '
-           f"(corruption error relative to {_esc(reference)}; 100 = as robust, lower is better) and the mean drop "
-           "from the clean score; the full tables (matched IoU, PQ, CE and drop per condition) are written by "
-           "<code>python -m benchmark.commands.robustness</code>.</p>"]
+           '<p class="muted">Matched IoU in percent under each robot condition (mean over its severities 1-5) with '
+           "its 95 % interval over houses, mCE and relative mCE (corruption error relative to a method every "
+           "family degrades, named below; 100 = as robust, lower is better; <code>realistic</code> apart, not in "
+           "the mean) and the mean drop from the clean score; the full tables (PQ, the paper's IoU, CE and drop "
+           "per condition, rankings, power) are written by <code>python -m benchmark.commands.robustness</code>.</p>"]
     try:
-        parts = rb.summarise(rows, ("iou",), reference)
+        parts = rb.summarise(rows, ("matched_iou",), "auto")
     except rb.RobustnessError as e:
         return "".join(out) + f'<p class="muted">No robustness table for this run: {_esc(e)}</p>'
     for (dataset, _), part in parts.items():
         table = part["table"]
-        cols = ["clean", *[f for f in rb.FAMILIES if f in table], "mCE", "mean drop"]
+        cols = ["clean", *[f for f in rb.FAMILIES if f in table], "mCE", "rel mCE", "mean drop"]
         words = {f: rb.FAMILY_WORDS[f] for f in rb.FAMILIES}
         head = "".join(f'<th class="num">{_esc(words.get(c, c))}</th>' for c in cols)
-        body = "".join(f"<tr><td>{_esc(m)}</td>" + "".join(
-            f'<td class="num">{"–" if pd.isna(v) else f"{v:.1f}"}</td>' for v in table.loc[m, cols]) + "</tr>"
-            for m in table.index)
+        body = "".join(f"<tr><td>{_esc(m)}</td>" + "".join(_robust_cell(table, m, c) for c in cols) + "</tr>"
+                       for m in table.index)
         dropped = f"; left out (failed under some condition): {', '.join(part['dropped'])}" if part["dropped"] else ""
         out += [f"<h3>{_esc(formatting.value_label('dataset', dataset))}</h3>",
                 f'<p class="muted">{part["houses"]} houses per cell{_esc(dropped)}.</p>',
@@ -406,10 +433,11 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
             for family in rb.FAMILIES:
                 if family not in set(part["cells"]["corruption"]):
                     continue
-                png = rb.family_figure(part["cells"], family, Path(tmp) / family, metric_words("iou"),
+                png = rb.family_figure(part["cells"], family, Path(tmp) / family, metric_words("matched_iou"),
                                        f"{dataset}: {rb.FAMILY_WORDS[family]}")[0]
                 uri = "data:image/png;base64," + base64.b64encode(png.read_bytes()).decode("ascii")
-                out.append(f'<img src="{uri}" alt="{_esc(dataset)} IoU vs severity: {_esc(rb.FAMILY_WORDS[family])}">')
+                out.append(f'<img src="{uri}" alt="{_esc(dataset)} matched IoU vs severity: '
+                           f'{_esc(rb.FAMILY_WORDS[family])}">')
         out.append("</div>")
     return "".join(out)
 
@@ -455,8 +483,10 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
         f"<title>roomseg-bench report: {_esc(name)}</title><style>{_CSS}</style></head><body>",
         f"<h1>Sweep report: {_esc(name)}</h1>",
+        *(f'<p class="err">Partial sweep: {_esc(line)}.</p>' for line in _partial_lines(run_dirs)),
         f'<p class="muted">{len(jobs)} configurations, {n_rows} (house, configuration) rows, {n_failed} failed. '
-        "Metrics are means over each configuration's successful houses, in percent. "
+        "Metrics are means over each configuration's successful houses, in percent, with their 95 % interval "
+        "(percentile bootstrap over houses, 2000 resamples, seed 0). "
         + (_esc("Metrics: " + "; ".join(notes) + ".") if notes else "")
         + " Click a column header to sort; hover over a dataset for the job folder.</p>",
         "<h2>Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows), "</div>",

@@ -192,6 +192,7 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         format_cells,
         load_rows,
         metric_notes,
+        split_rank_notes,
         summarise,
         why_empty,
     )
@@ -220,37 +221,54 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         return f"({spec.title}: no rows, {reason}.)\n"
     grid = format_cells(summ, spec, True, block.table)
     notes = metric_notes(df)
-    return (formatting.to_markdown(grid) + "\n\n" + f"Mean ± std over {grid.over}, in percent. " + " ".join(grid.notes)
-            + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n")
+    text, ranks = split_rank_notes(grid.notes)
+    return (formatting.to_markdown(grid) + "\n\n" + f"{grid.legend}, in percent. " + text
+            + (" Metrics: " + "; ".join(notes) + "." if notes else "") + " " + _source_line(root, block.sources) + "\n"
+            + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
 
 
 def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str]) -> str:
-    """Per dataset: matched IoU clean and under each condition (mean over its severities),
-    the corruption error against the reference for matched IoU and for the paper's IoU, and
-    what the table shows in words (who leads clean and under each condition; whether the best
-    view-based method and the best geometric one change places)."""
+    """Per dataset: matched IoU clean and under each condition (mean over its severities) with
+    its 95 % interval, mCE and relative mCE against a reference every family degrades
+    (``realistic`` apart), and what the intervals support in words (rankings in groups no
+    paired interval separates; where the best view-based and the best geometric method are
+    ahead, tied or change places); the curves that rise with severity beyond chance; the power
+    report (how many houses 3 points need; the smallest difference this run detects)."""
     from benchmark.reports import robustness as rb
+    from benchmark.reports.stats import METHOD_WORDS
     from benchmark.reports.tables import load_rows
 
     df = load_rows(paths)
     df["severity"] = df["severity"].astype(int)
-    out = []
-    for dataset, d in df.groupby("dataset"):
-        d = d[~d["house_id"].astype(str).isin(set(d.loc[d["status"] != "ok", "house_id"].astype(str)))]
-        cells = {m: rb.cell_means(d, m) for m in ("matched_iou", "iou")}
-        tables = {m: rb.summary_table(c, rb.REFERENCE) for m, c in cells.items()}
-        t = tables["matched_iou"]
-        fams = [f for f in rb.FAMILIES if f in t.columns]
-        show = t.loc[[m for m in t.index if m not in rb.SANITY], ["clean", *fams, "mCE"]].copy()  # sanity rows: docs
-        show["mCE (paper IoU)"] = tables["iou"]["mCE"]
-        show = show.rename(columns={f: rb.FAMILY_WORDS[f] for f in fams})
-        n = int(cells["matched_iou"]["n"].iloc[0])
-        ranked = [m for m in t.index if m not in rb.SANITY]
-        sane = cells["matched_iou"][cells["matched_iou"]["method"].isin(ranked)]
-        notes = rb.rank_notes(t.loc[ranked], rb.GEOMETRIC, sane)
-        out += [f"**{formatting.value_label('dataset', dataset)}** ({n} houses per cell; matched IoU in percent, "
-                f"conditions averaged over their severities 1-5; mCE relative to {rb.REFERENCE}, lower is better):",
-                "", rb.to_markdown(show).rstrip(), "", *[f"- {x}" for x in notes], ""]
+    parts = rb.summarise(df, ("matched_iou", "pq"), "auto")
+    out, power = [], []
+    for dataset in sorted({d for d, _ in parts}):
+        p, pq = parts[(dataset, "matched_iou")], parts[(dataset, "pq")]
+        t = p["table"]
+        ranked = [m for m in t.index if m not in rb.SANITY]  # sanity rows: docs
+        fams = [f for f in rb.FAMILIES if f in t.columns and f not in rb.COMPOSITE]
+        comp = [f for f in rb.FAMILIES if f in t.columns and f in rb.COMPOSITE]
+        cols = ["clean", *fams, "mCE", "rel mCE", *comp]
+        labels = {**{f: rb.FAMILY_WORDS[f] for f in fams}, **{f: f"{f} (apart)" for f in comp}}
+        ref = p["reference"]
+        pq_lines = [n for n in pq["notes"] if n.startswith(("mCE", "rel mCE"))]
+        sig = p["curves"][p["curves"]["significant"]] if len(p["curves"]) else p["curves"]
+        n_rise = p["curves"][["method", "family"]].drop_duplicates().shape[0] if len(p["curves"]) else 0
+        out += [f"**{formatting.value_label('dataset', dataset)}** ({p['houses']} houses per cell; matched IoU in "
+                f"percent, mean [95 % interval], conditions averaged over their severities 1-5; mCE and relative "
+                f"mCE relative to {ref or 'no method (none is degraded by every family)'}, lower is better; "
+                f"`realistic` combines the others and is in neither mean):",
+                "", rb.to_markdown(t.loc[ranked], columns=cols, labels=labels).rstrip(), "",
+                *[f"- {x}" for x in p["notes"]], *[f"- PQ {x}" for x in pq_lines],
+                f"- Curves that rise with severity: {n_rise} of {len(ranked) * len(fams + comp)} method x condition "
+                f"curves rise somewhere; "
+                + (f"{len(sig)} step(s) with a paired interval above zero: " + "; ".join(
+                    f"{r.method} / {rb.FAMILY_WORDS.get(r.family, r.family)} {r.step} +{r.rise:.1f} "
+                    f"[{r.lo:+.1f}, {r.hi:+.1f}]" for r in sig.itertuples()) if len(sig) else "none beyond noise")
+                + ".", ""]
+        power += rb.power_lines(formatting.value_label("dataset", dataset), p["power"], "matched IoU")
+    out += ["**How many houses** (paired differences of two methods under one condition; "
+            f"{METHOD_WORDS}):", "", *[f"- {x}" for x in power], ""]
     return "\n".join(out) + _source_line(root, sources) + "\n"
 
 

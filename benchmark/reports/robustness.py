@@ -1,38 +1,52 @@
 """The robustness benchmark's summary: every method's score under each robot condition
-(corruption family) at five severities, and its corruption error against a reference method,
-the way ImageNet-C summarises image classifiers (Hendrycks and Dietterich, ICLR 2019).
+(corruption family) at five severities, with 95 % intervals over houses, rankings in groups that
+no paired interval separates, and corruption errors against a reference method, the way
+ImageNet-C summarises image classifiers (Hendrycks and Dietterich, ICLR 2019).
 
 Rows come from ``experiment=robustness`` (``make robustness``): each carries ``corruption``
 (the family: ``clean``, ``scan``, ``pose``, ``explore``, ``classifier``, ``realistic``) and
-``severity`` (0 clean, 1..5). For a metric m in percent (the paper's IoU, matched IoU, PQ):
+``severity`` (0 clean, 1..5). For a metric m in percent (matched IoU and PQ rank; the paper's IoU
+is shown but builds no mCE, since it rewards maps that shrink):
 
 * error E = 100 - m, per (method, family, severity), averaged over the dataset's houses;
 * corruption error of method M on family f, relative to the reference method R:
   CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R), over the severities s = 1..5;
-* mCE(M) = the mean of CE_f(M) over the families (100 = as robust as the reference; lower is
-  better);
-* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M): how much of its clean score the method loses
-  (negative: the condition helped it).
+  relative CE_f(M) = 100 x sum_s (E_{s,f}(M) - E_clean(M)) / sum_s (E_{s,f}(R) - E_clean(R))
+  (the method's own clean error cancels);
+* mCE and relative mCE (M) = their mean over the families but ``realistic`` (the composite of
+  the others, reported apart): 100 = as robust as the reference, lower is better;
+* R is a method that every family degrades (by default chosen so: :func:`pick_reference`); a
+  family that leaves the reference untouched gets no CE (it would measure clean accuracy);
+* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M) (negative: the condition helped it).
 
-A table cell never mixes house sets: every (method, family, severity) of one dataset must hold
-the same houses, or the table is refused with one line naming the cells that differ.
+Every number that ranks has a 95 % bootstrap interval over houses (:mod:`benchmark.reports.stats`,
+houses resampled alike in every cell, so differences are paired). A table cell never mixes house
+sets, and a family whose severities are not all there for every method is left out with a line
+saying so (:func:`complete_families`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from benchmark.reports import stats
+
 #: the corruption families in table order (``clean`` is severity 0 of every family).
 FAMILIES = ("scan", "pose", "explore", "classifier", "realistic")
-#: the metrics summarised (fractions in the rows, percent in the tables).
+#: the metrics summarised (fractions in the rows, percent in the tables); matched IoU and PQ
+#: rank methods and build mCE; the paper's IoU rewards shrinking maps and builds none.
 METRICS = ("iou", "matched_iou", "pq")
-#: the method corruption errors are relative to by default: the classic geometric baseline
-#: (Voronoi segmentation), which no view, pose or label reaches.
-REFERENCE = "voronoi"
+RANKED = ("matched_iou", "pq")
+#: families that combine the others: reported apart, never in mCE or the mean drop.
+COMPOSITE = ("realistic",)
+#: the method corruption errors are relative to by default: ``auto``, a method every family
+#: degrades (:func:`pick_reference`). The classic geometric baseline (Voronoi segmentation) is
+#: untouched by poses, labels and views, so CE against it measured clean accuracy there.
+REFERENCE = "auto"
 #: the geometric segmenters and the sanity rows among the methods (the sanity rows are shown,
 #: not ranked).
 GEOMETRIC = ("distance", "morphological", "voronoi")
@@ -83,118 +97,392 @@ def cell_means(rows: pd.DataFrame, metric: str) -> pd.DataFrame:
     return out
 
 
-def summary_table(cells: pd.DataFrame, reference: str, families: Sequence[str] = FAMILIES) -> pd.DataFrame:
-    """Per method: clean score, each family's mean over its severities, CE per family, mCE,
-    each family's drop and the mean drop.
+def house_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str, int], np.ndarray]:
+    """Per (method, corruption, severity), the metric of every house in percent, houses in
+    sorted order (the same houses in every cell: :func:`cell_means` checks it first)."""
+    out = {}
+    for key, g in rows.sort_values("house_id", kind="stable").groupby(["method", "corruption", "severity"]):
+        out[(str(key[0]), str(key[1]), int(key[2]))] = 100.0 * g[metric].to_numpy(dtype=float)
+    return out
+
+
+def complete_families(cells: pd.DataFrame, expected: Mapping[str, Sequence[int]] | None = None,
+                      families: Sequence[str] = FAMILIES) -> tuple[list[str], list[str]]:
+    """The families whose every expected severity holds rows for every method, and one line per
+    family left out saying which severities lack rows (for every method, or for which).
 
     Args:
-        cells: :func:`cell_means` of one dataset and metric.
-        reference: the method the corruption errors are relative to (a ``method`` value).
+        cells: :func:`cell_means` of one dataset.
+        expected: family -> the severities the sweep asked for (default: 1 up to the highest
+            severity with rows, so a severity missing in the middle is caught; a family's top
+            severities missing for every method are caught only with ``expected``)."""
+    methods = sorted(cells["method"].unique())
+    have = cells.groupby(["corruption", "severity"])["method"].agg(set)
+    kept, notes = [], []
+    for f in families:
+        present = sorted(int(s) for (c, s) in have.index if c == f)
+        if not present and not (expected and f in expected):
+            continue
+        want = sorted({int(s) for s in expected[f]}) if expected and f in expected else list(range(1, max(present) + 1))
+        gaps = []
+        for s in want:
+            got = have.get((f, s), set())
+            if not got:
+                gaps.append(f"severity {s} has no rows for any method")
+            elif len(got) < len(methods):
+                lack = [m for m in methods if m not in got]
+                gaps.append(f"severity {s} has no rows for {', '.join(lack[:3])}"
+                            + (f" and {len(lack) - 3} more" if len(lack) > 3 else ""))
+        if gaps:
+            notes.append(f"{FAMILY_WORDS.get(f, f)} left out of the summary: {'; '.join(gaps)} "
+                         f"(a mean over the other severities would not compare)")
+        else:
+            kept.append(f)
+    return kept, notes
+
+
+def _means(values: Mapping[tuple[str, str, int], np.ndarray], n_boot: int) -> dict[tuple[str, str, int], np.ndarray]:
+    """Per cell: its mean (index 0) and ``n_boot`` bootstrap means (1..), houses resampled
+    alike in every cell (paired)."""
+    n = len(next(iter(values.values())))
+    idx = stats.resample_indices(n, n_boot) if n_boot and n >= 2 else np.zeros((0, n), int)
+    return {k: np.concatenate([[v.mean()], v[idx].mean(axis=1)]) for k, v in values.items()}
+
+
+def _measures(means: Mapping, methods: Sequence[str], fams: Sequence[str], reference: str | None,
+              ref_ok: Mapping[str, bool]) -> dict[str, dict[str, np.ndarray]]:
+    """Every column of the summary per method, each an array (point estimate first, then the
+    bootstrap draws). CE and relative CE of a family whose drop for the reference is not shown
+    above zero (``ref_ok``) are NaN, and such a family is left out of mCE."""
+    out: dict[str, dict[str, np.ndarray]] = {"clean": {m: means[(m, "clean", 0)] for m in methods}}
+    sev = {f: sorted(s for (m, c, s) in means if c == f and m == methods[0]) for f in fams}
+    for f in fams:
+        out[f] = {m: np.mean([means[(m, f, s)] for s in sev[f]], axis=0) for m in methods}
+        out[f"drop {f}"] = {m: out["clean"][m] - out[f][m] for m in methods}
+    nan = np.full_like(out["clean"][methods[0]], np.nan)
+    for f in fams:
+        err = {m: np.sum([100.0 - means[(m, f, s)] for s in sev[f]], axis=0) for m in methods}
+        rel = {m: len(sev[f]) * out[f"drop {f}"][m] for m in methods}
+        ok = reference is not None and ref_ok.get(f, False)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[f"CE {f}"] = {m: 100.0 * err[m] / err[reference] if ok else nan for m in methods}
+            out[f"rel CE {f}"] = {m: 100.0 * rel[m] / rel[reference] if ok else nan for m in methods}
+    core = [f for f in fams if f not in COMPOSITE and reference is not None and ref_ok.get(f, False)]
+    for name, pre in (("mCE", "CE "), ("rel mCE", "rel CE ")):
+        out[name] = {m: np.mean([out[pre + f][m] for f in core], axis=0) if core else nan for m in methods}
+    plain = [f for f in fams if f not in COMPOSITE]
+    out["mean drop"] = {m: np.mean([out[f"drop {f}"][m] for f in plain], axis=0) if plain else nan for m in methods}
+    return out
+
+
+def pick_reference(means: Mapping, methods: Sequence[str], fams: Sequence[str]) -> tuple[str | None, str]:
+    """The method corruption errors are relative to: among the methods that every family
+    (but the composite ``realistic``) degrades, the lower end of each family's drop interval
+    above zero, the one whose smallest such lower end is largest (the denominators of its CE
+    are farthest from zero, so its CE is the steadiest). Returns (method or None, why)."""
+    plain = [f for f in fams if f not in COMPOSITE]
+    best, score = None, -np.inf
+    for m in methods:
+        lows = []
+        for f in plain:
+            sev = sorted(s for (mm, c, s) in means if c == f and mm == m)
+            drop = means[(m, "clean", 0)] - np.mean([means[(m, f, s)] for s in sev], axis=0)
+            lows.append(_interval(drop)[0])
+        low = min(lows) if lows else -np.inf
+        if np.isfinite(low) and low > 0 and low > score:
+            best, score = m, low
+    if best is None:
+        return None, "no method is degraded by every family (each family's drop interval above zero): no CE"
+    return best, (f"{best}: every family degrades it (the smallest lower end of a family's drop interval, "
+                  f"{score:.1f} points, is the largest of any method)")
+
+
+def _interval(draws: np.ndarray, level: float = stats.LEVEL) -> tuple[float, float]:
+    b = np.asarray(draws, float)[1:]
+    b = b[np.isfinite(b)]
+    if b.size < 2:
+        return float("nan"), float("nan")
+    a = (1.0 - level) / 2.0
+    lo, hi = np.quantile(b, [a, 1.0 - a])
+    return float(lo), float(hi)
+
+
+def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence[str] = FAMILIES,
+                  values: Mapping[tuple[str, str, int], np.ndarray] | None = None,
+                  n_boot: int = stats.N_BOOT) -> pd.DataFrame:
+    """Per method: clean score, each family's mean over its severities, CE and relative CE per
+    family, mCE and relative mCE (over the families but ``realistic``, which is reported apart),
+    each family's drop and the mean drop; with ``values`` (:func:`house_values`), a 95 %
+    bootstrap interval for every column (``<column> lo``, ``<column> hi``).
+
+    CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R); relative CE_f(M) = 100 x sum_s
+    (E_{s,f}(M) - E_clean(M)) / sum_s (E_{s,f}(R) - E_clean(R)) (Hendrycks and Dietterich): the
+    method's own clean error cancels. A family that does not degrade the reference R (its drop
+    interval not above zero; without ``values``, its drop not above zero) gets no CE: it would
+    measure clean accuracy, not robustness.
+
+    Args:
+        cells: :func:`cell_means` of one dataset and metric, families already complete
+            (:func:`complete_families`).
+        reference: the method CE is relative to, or None (``auto``: :func:`pick_reference`).
         families: families to report (those with rows).
 
     Returns:
-        One row per method, sorted by mCE (then clean score); columns ``clean``, ``<family>``,
-        ``CE <family>``, ``mCE``, ``drop <family>``, ``mean drop``.
+        One row per method, sorted by mCE (then clean score); ``attrs["reference"]`` the
+        reference used and ``attrs["notes"]`` lines about it.
 
     Raises:
-        RobustnessError: no clean rows, the reference absent, or a family without all five
-            severities for some method.
+        RobustnessError: no clean rows, the reference absent, or a family without the same
+            severities for every method.
     """
     methods = sorted(cells["method"].unique())
-    if reference not in methods:
+    if reference is not None and reference not in methods:
         raise RobustnessError(f"reference method {reference!r} is not among the rows' methods {methods}")
-    v = cells.set_index(["method", "corruption", "severity"])["value"]
     fams = [f for f in families if f in set(cells["corruption"])]
-    out = pd.DataFrame(index=methods)
-    try:
-        out["clean"] = [v[(m, "clean", 0)] for m in methods]
-    except KeyError as e:
-        raise RobustnessError(f"no clean (severity 0) rows for {e.args[0][0]}") from None
+    for m in methods:
+        if not ((cells["method"] == m) & (cells["corruption"] == "clean")).any():
+            raise RobustnessError(f"no clean (severity 0) rows for {m}")
     for f in fams:
         sev = sorted(cells.loc[cells["corruption"] == f, "severity"].unique())
         for m in methods:
-            have = [s for s in sev if (m, f, s) in v.index]
+            have = sorted(cells.loc[(cells["corruption"] == f) & (cells["method"] == m), "severity"].unique())
             if have != sev:
                 raise RobustnessError(f"{m}: family {f} has severities {have}, others {sev}")
-        err = {m: float(np.sum([100.0 - v[(m, f, s)] for s in sev])) for m in methods}
-        out[f] = [float(np.mean([v[(m, f, s)] for s in sev])) for m in methods]
-        ref = err[reference]
-        out[f"CE {f}"] = [100.0 * err[m] / ref if ref > 0 else np.nan for m in methods]
-        out[f"drop {f}"] = out["clean"] - out[f]
-    ce = [f"CE {f}" for f in fams]
-    out["mCE"] = out[ce].mean(axis=1) if ce else np.nan
-    out["mean drop"] = out[[f"drop {f}" for f in fams]].mean(axis=1) if fams else np.nan
-    order = ["clean", *fams, *ce, "mCE", *[f"drop {f}" for f in fams], "mean drop"]
-    out = out[order]
+    if values is not None:
+        means = _means(values, n_boot)
+    else:
+        means = {(r.method, r.corruption, int(r.severity)): np.array([r.value])
+                 for r in cells.itertuples(index=False)}
+    notes = []
+    if reference is None:
+        reference, why = pick_reference(means, [m for m in methods if m not in SANITY], fams)
+        notes.append(f"Reference: {why}.")
+    ref_ok = {}
+    for f in fams:
+        sev = sorted(s for (m, c, s) in means if c == f and m == reference) if reference else []
+        if not reference:
+            continue
+        drop = means[(reference, "clean", 0)] - np.mean([means[(reference, f, s)] for s in sev], axis=0)
+        lo = _interval(drop)[0] if values is not None else drop[0]
+        ref_ok[f] = bool(np.isfinite(lo) and lo > 0)
+        if not ref_ok[f]:
+            notes.append(f"No CE for {FAMILY_WORDS.get(f, f)}: it does not degrade the reference {reference} "
+                         f"(drop {drop[0]:+.1f}); a CE there would measure clean accuracy, not robustness.")
+    cols = _measures(means, methods, fams, reference, ref_ok)
+    plain = [f for f in fams if f not in COMPOSITE]
+    comp = [f for f in fams if f in COMPOSITE]
+    order = ["clean", *plain, *[f"CE {f}" for f in plain], "mCE", *[f"rel CE {f}" for f in plain], "rel mCE",
+             *[f"drop {f}" for f in plain], "mean drop",
+             *[c for f in comp for c in (f, f"CE {f}", f"rel CE {f}", f"drop {f}")]]
+    out = pd.DataFrame(index=methods)
+    for c in order:
+        out[c] = [float(cols[c][m][0]) for m in methods]
+        if values is not None:
+            iv = [_interval(cols[c][m]) for m in methods]
+            out[f"{c} lo"], out[f"{c} hi"] = [x[0] for x in iv], [x[1] for x in iv]
     out.index.name = "method"
-    return out.sort_values(["mCE", "clean"], ascending=[True, False], na_position="last")
+    out = out.sort_values(["mCE", "clean"], ascending=[True, False], na_position="last")
+    out.attrs.update(reference=reference, notes=notes, draws={c: cols[c] for c in ("clean", *fams, "mCE", "rel mCE")})
+    return out
 
 
-def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFrame | None = None) -> list[str]:
-    """One sentence per condition: which method ranks first, and whether the best view-based
-    method or the best geometric one is ahead; with ``cells`` (:func:`cell_means`), also at
-    which severities each is ahead, so a flip with severity shows."""
+def numbers(table: pd.DataFrame) -> list[str]:
+    """The table's value columns (those without a `` lo`` / `` hi`` bound beside them)."""
+    return [c for c in table.columns if not (c.endswith(" lo") or c.endswith(" hi"))]
+
+
+def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFrame | None = None,
+               values: Mapping[tuple[str, str, int], np.ndarray] | None = None) -> list[str]:
+    """One sentence per condition: the ranking (groups that no paired interval separates, with
+    ``values``; else who is first), and how the best view-based method and the best geometric
+    one compare at each severity (paired interval: "ahead" only where it excludes zero; "change
+    places" only between two such leads); then the ranking on mCE and relative mCE."""
     notes = []
     fams = [c for c in table.columns if c in FAMILIES]
-    geo = [m for m in table.index if m in set(geometric)]
-    view = [m for m in table.index if m not in set(geometric)]
+    methods = list(table.index)
+    geo = [m for m in methods if m in set(geometric)]
+    view = [m for m in methods if m not in set(geometric)]
     for col in ("clean", *fams):
-        first = table[col].idxmax()
         words = FAMILY_WORDS.get(col, col)
-        line = f"{words}: {first} first ({table.loc[first, col]:.1f})"
+        if values is not None:
+            per = {m: _per_house(values, m, col) for m in methods}
+            line = f"{words}: {stats.group_words(stats.groups(per))}"
+        else:
+            first = table[col].idxmax()
+            line = f"{words}: {first} first ({table.loc[first, col]:.1f})"
         if geo and view:
-            g, w = table.loc[geo, col].max(), table.loc[view, col].max()
-            line += f"; best view-based {w:.1f}, best geometric {g:.1f}"
-            flip = _flip(cells, col, geo, view) if cells is not None and col != "clean" else ""
-            line += flip or f" ({'view-based ahead' if w > g else 'geometric ahead' if g > w else 'tied'})"
+            if values is not None and cells is not None:
+                line += "; " + _flip_words(values, cells, col, geo, view)
+            else:
+                g, w = table.loc[geo, col].max(), table.loc[view, col].max()
+                line += (f"; best view-based {w:.1f}, best geometric {g:.1f} "
+                         f"({'view-based ahead' if w > g else 'geometric ahead' if g > w else 'tied'})")
         notes.append(line)
+    draws = table.attrs.get("draws", {})
+    for name in ("mCE", "rel mCE"):
+        d = {m: draws[name][m] for m in methods} if name in draws else {}
+        if d and all(np.isfinite(v[0]) for v in d.values()) and len(next(iter(d.values()))) > 2:
+            notes.append(f"{name} (lower is better): {stats.group_words(_groups_from_draws(d))}")
     return notes
 
 
-def _flip(cells: pd.DataFrame, family: str, geo: Sequence[str], view: Sequence[str]) -> str:
-    """" (view-based ahead at severities 0-2, geometric ahead at severities 3-5)" (or "" when
-    one side leads at every severity)."""
-    v = cells.set_index(["method", "corruption", "severity"])["value"]
-    sev = [0, *sorted(cells.loc[cells["corruption"] == family, "severity"].unique())]
-    ahead = []
+def _per_house(values: Mapping, m: str, col: str) -> np.ndarray:
+    """A method's per-house score under a condition: clean, or the mean over a family's severities."""
+    if col == "clean":
+        return values[(m, "clean", 0)]
+    return np.mean([v for (mm, c, s), v in values.items() if mm == m and c == col], axis=0)
+
+
+def _groups_from_draws(draws: Mapping[str, np.ndarray]) -> list[list[str]]:
+    """:func:`stats.groups` for a lower-is-better number known by paired bootstrap draws
+    (index 0 the estimate): a method joins the group of the best one left while the interval of
+    their difference includes zero."""
+    left = sorted(draws, key=lambda m: (float(draws[m][0]), m))
+    out = []
+    while left:
+        lead = left[0]
+        grp = [lead] + [m for m in left[1:] if not stats.separated(*_interval(draws[m] - draws[lead]))]
+        out.append(grp)
+        left = [m for m in left if m not in grp]
+    return out
+
+
+def _flip_words(values: Mapping, cells: pd.DataFrame, family: str, geo: Sequence[str], view: Sequence[str]) -> str:
+    """Best view-based minus best geometric (by mean) at each severity, with its paired interval;
+    "ahead" only where the interval excludes zero, "change places at severity s" only where a
+    lead the interval supports turns into one for the other side."""
+    sev = [0] if family == "clean" else [0, *sorted(cells.loc[cells["corruption"] == family, "severity"].unique())]
+    parts, leads = [], []
     for s in sev:
         c = "clean" if s == 0 else family
-        g = max(v.get((m, c, s), -1.0) for m in geo)
-        w = max(v.get((m, c, s), -1.0) for m in view)
-        ahead.append("view-based" if w > g else "geometric" if g > w else "tied")
-    if len(set(ahead)) == 1:
-        return ""
-    runs, start = [], 0
-    for i in range(1, len(sev) + 1):
-        if i == len(sev) or ahead[i] != ahead[start]:
-            span = f"{sev[start]}" if i - 1 == start else f"{sev[start]}-{sev[i - 1]}"
-            runs.append(f"{ahead[start]} ahead at severit{'y' if i - 1 == start else 'ies'} {span}")
-            start = i
-    return " (" + ", ".join(runs) + ")"
+        w = max(view, key=lambda m: values[(m, c, s)].mean())
+        g = max(geo, key=lambda m: values[(m, c, s)].mean())
+        d, lo, hi = stats.paired_ci(values[(w, c, s)], values[(g, c, s)])
+        side = ("view-based ahead" if d > 0 else "geometric ahead") if stats.separated(lo, hi) else "tied"
+        leads.append(side)
+        parts.append(f"{s}: {side} {d:+.1f} [{lo:+.1f}, {hi:+.1f}]")
+    if family == "clean":
+        return f"best view-based minus best geometric: {parts[0][3:]}"
+    sure = [(s, x) for s, x in zip(sev, leads) if x != "tied"]
+    flips = [b[0] for a, b in zip(sure, sure[1:]) if a[1] != b[1]]
+    verdict = (f"they change places at severit{'y' if len(flips) == 1 else 'ies'} {', '.join(map(str, flips))}"
+               if flips else "no change of places that the intervals support")
+    return f"best view-based minus best geometric by severity (paired 95 % interval): {'; '.join(parts)}; {verdict}"
 
 
-def to_markdown(table: pd.DataFrame, decimals: int = 1) -> str:
-    """The table in Markdown (numbers with ``decimals``; missing values as a dash)."""
-    header = ["method", *table.columns]
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---", *["---:"] * len(table.columns)]) + "|"]
+def rising_curves(values: Mapping[tuple[str, str, int], np.ndarray], families: Sequence[str]) -> pd.DataFrame:
+    """Every step of a method's curve (clean, severity 1, ..., 5) where its mean rises with
+    severity, with the paired interval of the rise and whether it excludes zero.
+
+    Returns:
+        Columns method, family, step (``"2->3"``), rise, lo, hi (points), significant."""
+    rows = []
+    methods = sorted({m for (m, _, _) in values})
+    for f in families:
+        for m in methods:
+            sev = sorted(s for (mm, c, s) in values if mm == m and c == f)
+            curve = [values[(m, "clean", 0)], *[values[(m, f, s)] for s in sev]]
+            xs = [0, *sev]
+            for i in range(1, len(curve)):
+                d, lo, hi = stats.paired_ci(curve[i], curve[i - 1])
+                if d > 0:
+                    rows.append({"method": m, "family": f, "step": f"{xs[i - 1]}->{xs[i]}", "rise": d, "lo": lo,
+                                 "hi": hi, "significant": bool(stats.separated(lo, hi))})
+    return pd.DataFrame(rows, columns=["method", "family", "step", "rise", "lo", "hi", "significant"])
+
+
+#: the difference a cell should detect by default (points of matched IoU) and the power.
+DELTA, POWER = 3.0, 0.8
+
+
+def power_report(values: Mapping[tuple[str, str, int], np.ndarray], methods: Sequence[str], delta: float = DELTA,
+                 power: float = POWER) -> dict:
+    """How many houses a cell needs: from the spread (standard deviation over houses) of the
+    paired difference between every two ``methods`` under every condition, the houses a paired
+    t-test needs to detect ``delta`` points at ``power`` (two-sided, 5 %), at the median spread
+    and at the 90th percentile; and the smallest difference the run's own houses detect at the
+    median spread.
+
+    Returns:
+        dict: n (houses now), pairs (comparisons), sd_median, sd_p90, need_median, need_p90,
+        detectable (points), delta, power."""
+    sds = []
+    conds = sorted({(c, s) for (_, c, s) in values})
+    for c, s in conds:
+        ms = [m for m in methods if (m, c, s) in values]
+        for i, a in enumerate(ms):
+            for b in ms[i + 1:]:
+                d = values[(a, c, s)] - values[(b, c, s)]
+                if d.size >= 2:
+                    sds.append(float(np.std(d, ddof=1)))
+    n = len(next(iter(values.values()))) if values else 0
+    if not sds:
+        return {"n": n, "pairs": 0}
+    med, p90 = float(np.median(sds)), float(np.quantile(sds, 0.9))
+    return {"n": n, "pairs": len(sds), "sd_median": med, "sd_p90": p90, "delta": delta, "power": power,
+            "need_median": stats.houses_needed(med, delta, power), "need_p90": stats.houses_needed(p90, delta, power),
+            "detectable": stats.detectable_difference(med, n, power) if n >= 2 else float("nan")}
+
+
+#: the shared ProcTHOR houses (data/procthor): a ProcTHOR cell can hold no more.
+PROCTHOR_SHARED_HOUSES = 150
+
+
+def power_lines(dataset: str, p: dict, metric_words: str) -> list[str]:
+    """The power report of one dataset in words (and, for ProcTHOR, whether its 150 shared
+    houses are enough)."""
+    if not p.get("pairs"):
+        return [f"{dataset}: no paired comparison to size (fewer than two methods)."]
+    lines = [f"{dataset}: the paired difference of two methods under one condition spreads by "
+             f"{p['sd_median']:.1f} points over houses (median of {p['pairs']} comparisons; 90th percentile "
+             f"{p['sd_p90']:.1f}). To detect {p['delta']:g} points of {metric_words} at {p['power']:.0%} power "
+             f"(paired t-test, two-sided 5 %) a cell needs {p['need_median']} houses at the median spread, "
+             f"{p['need_p90']} at the 90th percentile. With its {p['n']} houses this run detects "
+             f"{p['detectable']:.1f} points at the median spread."]
+    if dataset.lower().startswith("procthor") and p["need_median"] > PROCTHOR_SHARED_HOUSES:
+        lines.append(f"{dataset}: the {PROCTHOR_SHARED_HOUSES} shared ProcTHOR houses are too few for a "
+                     f"{p['delta']:g}-point claim at the median spread; at {PROCTHOR_SHARED_HOUSES} houses the "
+                     f"smallest detectable difference is "
+                     f"{stats.detectable_difference(p['sd_median'], PROCTHOR_SHARED_HOUSES):.1f} points.")
+    return lines
+
+
+def _cell_text(row: pd.Series, c: str, decimals: int) -> str:
+    x = row[c]
+    if not np.isfinite(x):
+        return "–"
+    lo, hi = row.get(f"{c} lo", np.nan), row.get(f"{c} hi", np.nan)
+    if np.isfinite(lo) and np.isfinite(hi):
+        return f"{x:.{decimals}f} [{lo:.{decimals}f}, {hi:.{decimals}f}]"
+    return f"{x:.{decimals}f}"
+
+
+def to_markdown(table: pd.DataFrame, decimals: int = 1, columns: Sequence[str] | None = None,
+                labels: Mapping[str, str] | None = None) -> str:
+    """The table in Markdown: each number with its 95 % interval beside it where the table has
+    one (``mean [lo, hi]``), ``decimals`` decimals, a missing value as a dash. ``columns``: the
+    value columns to show (default all); ``labels``: header words for some of them."""
+    cols = list(columns) if columns is not None else numbers(table)
+    header = ["method", *[(labels or {}).get(c, c) for c in cols]]
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---", *["---:"] * len(cols)]) + "|"]
     for m, row in table.iterrows():
-        cells = ["–" if not np.isfinite(x) else f"{x:.{decimals}f}" for x in row.to_numpy(dtype=float)]
+        cells = [_cell_text(row, c, decimals) for c in cols]
         lines.append("| " + " | ".join([str(m).replace("|", "\\|"), *cells]) + " |")
     return "\n".join(lines) + "\n"
 
 
 def to_latex(table: pd.DataFrame, caption: str, label: str, decimals: int = 1) -> str:
-    """The table as a booktabs ``table`` environment."""
+    """The table as a booktabs ``table*`` environment (each number with its interval beside it)."""
     from benchmark.reports.formatting import tex_escape
 
-    cols = "l" + "r" * len(table.columns)
-    head = " & ".join(["method", *[tex_escape(c) for c in table.columns]]) + r" \\"
-    body = [" & ".join([tex_escape(str(m)), *["--" if not np.isfinite(x) else f"{x:.{decimals}f}"
-                                              for x in row.to_numpy(dtype=float)]]) + r" \\"
+    cols = numbers(table)
+    spec = "l" + "r" * len(cols)
+    head = " & ".join(["method", *[tex_escape(c) for c in cols]]) + r" \\"
+    body = [" & ".join([tex_escape(str(m)), *[tex_escape(_cell_text(row, c, decimals)) for c in cols]]) + r" \\"
             for m, row in table.iterrows()]
-    return "\n".join([r"\begin{table}[t]", r"\centering", r"\scriptsize", rf"\begin{{tabular}}{{{cols}}}",
+    return "\n".join([r"\begin{table*}[t]", r"\centering", r"\scriptsize", rf"\begin{{tabular}}{{{spec}}}",
                       r"\toprule", head, r"\midrule", *body, r"\bottomrule", r"\end{tabular}",
-                      rf"\caption{{{tex_escape(caption)}}}", rf"\label{{{label}}}", r"\end{table}", ""])
+                      rf"\caption{{{tex_escape(caption)}}}", rf"\label{{{label}}}", r"\end{table*}", ""])
 
 
 def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
@@ -203,18 +491,43 @@ def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return rows[~rows["house_id"].astype(str).isin(bad)], bad
 
 
-def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str) -> dict:
-    """Per dataset and metric: the summary table, its cells, and notes. Raises RobustnessError."""
+def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None = None,
+              expected: Mapping[str, Sequence[int]] | None = None, n_boot: int = stats.N_BOOT,
+              delta: float = DELTA) -> dict:
+    """Per dataset and metric: the summary table (CE and mCE for the ranked metrics only), its
+    cells, the notes (rankings, reference, families left out), the rising curves and the power
+    report. ``reference`` None or ``"auto"``: :func:`pick_reference`. ``expected``: family ->
+    severities the sweep asked for (:func:`complete_families`). Raises RobustnessError."""
+    if reference == "auto":
+        reference = None
     out = {}
     for dataset, d in rows.groupby("dataset"):
         d, dropped = drop_failed_houses(d)
         for metric in metrics:
             cells = cell_means(d, metric)
-            table = summary_table(cells, reference)
-            out[(dataset, metric)] = {"table": table, "cells": cells, "dropped": dropped,
-                                      "houses": int(cells["n"].iloc[0]) if len(cells) else 0,
-                                      "notes": rank_notes(table.drop(index=[m for m in SANITY if m in table.index]),
-                                                          GEOMETRIC, cells)}
+            kept, left = complete_families(cells, expected)
+            keep = cells["corruption"].isin(["clean", *kept])
+            cells = cells[keep].reset_index(drop=True)
+            sub = d[d["corruption"].isin(["clean", *kept])]
+            values = house_values(sub, metric)
+            ranked = metric in RANKED
+            table = summary_table(cells, reference, kept, values, n_boot)
+            if not ranked:
+                table = table.drop(columns=[c for c in table.columns if "CE" in c]).sort_values("clean", ascending=False)
+            methods = [m for m in table.index if m not in SANITY]
+            notes = list(left)
+            if ranked:
+                notes += table.attrs["notes"]
+            else:
+                notes.append("The paper's IoU rewards maps that shrink (a missing room costs it nothing): shown, "
+                             "not ranked, and no mCE is built on it.")
+            notes += rank_notes(table.loc[methods], GEOMETRIC, cells, values) if ranked else []
+            out[(dataset, metric)] = {"table": table, "cells": cells, "dropped": dropped, "left_out": left,
+                                      "houses": int(cells["n"].iloc[0]) if len(cells) else 0, "notes": notes,
+                                      "reference": table.attrs.get("reference") if ranked else None,
+                                      "curves": rising_curves({k: v for k, v in values.items() if k[0] in methods},
+                                                              [f for f in kept]),
+                                      "power": power_report(values, methods, delta) if ranked else None}
     return out
 
 
@@ -253,6 +566,6 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
     return save(fig, path.with_suffix(".png"), formats=("png", "pdf"))
 
 
-__all__ = ["FAMILIES", "METRICS", "RobustnessError", "cell_means", "drop_failed_houses", "summarise", "summary_table",
-           "rank_notes", "to_markdown",
-           "to_latex", "family_figure"]
+__all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "RobustnessError", "cell_means", "complete_families",
+           "drop_failed_houses", "house_values", "numbers", "pick_reference", "power_lines", "power_report",
+           "rank_notes", "rising_curves", "summarise", "summary_table", "to_markdown", "to_latex", "family_figure"]

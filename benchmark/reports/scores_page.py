@@ -52,7 +52,7 @@ def build_scores_page(summary: pd.DataFrame, failed: pd.DataFrame, gt: dict[str,
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              '<meta name="viewport" content="width=device-width, initial-scale=1">',
              f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body>", f"<h1>{_esc(title)}</h1>",
-             '<p class="muted">Mean ± std over maps, percent; segments and count error (segments - rooms) are '
+             '<p class="muted">Mean [95 % interval] over maps (percentile bootstrap, 2000 resamples, seed 0), percent; segments and count error (segments - rooms) are '
              f"means. Click a column header to sort. {_esc(note)}</p>",
              '<div id="configs-wrap" style="overflow-x:auto">', _table(summary, "configs"), "</div>",
              "<h2>Failed or missing maps</h2>"]

@@ -11,14 +11,14 @@ NOISE_TITLES = {"oracle": "independent", "oracle_room": "per room", "oracle_hous
 
 
 def _curves(ax, part, metric: str) -> None:
-    from benchmark.reports.formatting import combo_label  # noqa: PLC0415
+    from benchmark.reports.formatting import combo_label, error_bars  # noqa: PLC0415
 
     keys = [c for c in ("aggregator", "postprocess") if c in part]
     for key, g in part.groupby(keys):
         g = g.sort_values("oracle_accuracy")
         key = key if isinstance(key, tuple) else (key,)
         label = combo_label(keys, key)
-        ax.errorbar(g["oracle_accuracy"] * 100, g[f"{metric}_mean"] * 100, yerr=g[f"{metric}_std"] * 100,
+        ax.errorbar(g["oracle_accuracy"] * 100, g[f"{metric}_mean"] * 100, yerr=error_bars(g, metric),
                     marker="o", capsize=3, label=label, linestyle="--" if "none" in key else "-")
     ax.set_ylim(0, 100)
     ax.grid(alpha=0.3)
@@ -27,7 +27,7 @@ def _curves(ax, part, metric: str) -> None:
 def plot_sensitivity_per_noise(summary, out_dir: str | Path) -> list[Path]:
     """Sensitivity plots when several noise models (oracle classifier configs) were swept:
     ``sensitivity_<classifier>.png`` per model (IoU and pixel accuracy against the configured
-    accuracy, one curve per aggregator x post-processing, mean ± std over houses) and
+    accuracy, one curve per aggregator x post-processing, mean and 95 % interval over houses) and
     ``sensitivity.png``, the IoU (top) and pixel-accuracy (bottom) panels of every model side
     by side on one scale.
 

@@ -38,7 +38,7 @@ import pandas as pd
 
 from benchmark.harness.cache import atomic_write_text
 from benchmark.harness.store import METRICS, SELECTION_KEYS, Job, iter_metric_files, read_metrics
-from benchmark.reports import formatting
+from benchmark.reports import formatting, stats
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,13 @@ class TableSpec:
     #: config groups a cell averages over on purpose (their settings and names may differ
     #: inside a cell); every other difference splits the cell (see the module doc).
     pools: tuple[str, ...] = ()
+    #: metrics the table ranks its rows by, per dataset, in groups that a paired interval
+    #: cannot separate (a line each under the table: :func:`rank_lines`).
+    rank: tuple[str, ...] = ()
+    #: with ``rank``: the columns whose values are ranked against each other, once per
+    #: combination of the other row and column keys (Table II: the viewpoint strategies of
+    #: each classifier x aggregator); empty: every row of a dataset is ranked together.
+    rank_within: tuple[str, ...] = ()
 
 
 #: the sanity segmenters (benchmark/segmenters/sanity.py), shown in comparison tables.
@@ -76,16 +83,19 @@ ROBUST_METRICS = ("matched_iou", "pq", "room_iou", "ipa_recall", "ipa_precision"
 TABLES: dict[str, TableSpec] = {
     "table2": TableSpec("Table II: viewpoint strategies (no post-processing)",
                         rows=("dataset", "classifier", "aggregator"), cols=("viewpoints",),
-                        where={"postprocess": "none"}, exclude={"segmenter_row": True}),
+                        where={"postprocess": "none"}, exclude={"segmenter_row": True},
+                        rank=("iou",), rank_within=("viewpoints",)),
     "table3": TableSpec("Table III: post-processing, mean over all classifier x aggregator combinations",
                         rows=("dataset",), cols=("postprocess",), exclude={"segmenter_row": True},
-                        pools=("classifier", "aggregator")),
+                        pools=("classifier", "aggregator"), rank=("iou",)),
     "table4": TableSpec("Table IV: classifier x aggregator per dataset (with post-processing)",
                         rows=("classifier", "aggregator"), cols=("dataset",),
                         metrics=("iou", "matched_iou", "pq", "accuracy"),
-                        exclude={"postprocess": "none", "segmenter_row": True}, sanity=True),
+                        exclude={"postprocess": "none", "segmenter_row": True}, sanity=True,
+                        rank=("matched_iou", "pq")),
     "table5": TableSpec("Table V: comparison with baselines", rows=("dataset", "method"),
-                        metrics=("iou", "precision", "recall", *ROBUST_METRICS, "accuracy")),
+                        metrics=("iou", "precision", "recall", *ROBUST_METRICS, "accuracy"),
+                        rank=("matched_iou", "pq")),
     "sensitivity": TableSpec("Sensitivity to classifier accuracy (oracle; classifier = noise model)",
                              rows=("classifier", "oracle_accuracy"), cols=("aggregator", "postprocess"),
                              metrics=("iou", "accuracy", "view_accuracy_seen"),
@@ -364,19 +374,88 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
             notes.append(f"Note: rows of different settings that would share a cell are kept apart, labelled by "
                          f"{', '.join(shown)}.")
     ok = sel[sel["status"] == "ok"]
+    if "house_id" in ok:  # a cell's houses in a fixed order: its seeded interval does not follow file order
+        ok = ok.sort_values("house_id", kind="stable")
     metrics = [m for m in spec.metrics if m in ok]
     g = ok.groupby(keys, dropna=False)[metrics]
-    out = pd.concat({"mean": g.mean(), "std": g.std(ddof=1), }, axis=1)
+    # a pooled cell (several configurations per house) is resampled by house: its mean over maps
+    # is the mean of its per-house means when every house has the same configurations
+    per = ok.groupby([*keys, "house_id"], dropna=False)[metrics].mean() if spec.pools and "house_id" in ok else None
+    ci_of = per.groupby(level=list(range(len(keys))), dropna=False) if per is not None else g
+    ci = ci_of.agg(lambda s: stats.bootstrap_ci(pd.to_numeric(s, errors="coerce").dropna().to_numpy()))
+    out = pd.concat({"mean": g.mean(), "std": g.std(ddof=1),
+                     "lo": ci.map(lambda t: t[0]), "hi": ci.map(lambda t: t[1])}, axis=1)
     out.columns = [f"{m}_{s}" for s, m in out.columns]
+    out = out[[f"{m}_{s}" for m in metrics for s in ("mean", "std", "lo", "hi")]]
     out["n"] = ok.groupby(keys, dropna=False).size()
     out["n_failed"] = sel[sel["status"] != "ok"].groupby(keys, dropna=False).size()
     out["n_failed"] = out["n_failed"].fillna(0).astype(int)
     houses = house_set_note(ok, keys)
     if houses:
         notes.append(houses)
+    if spec.rank and spec.rank_within:
+        outer = [k for k in keys if k != "dataset" and k not in spec.rank_within]
+        inner = [k for k in keys if k in spec.rank_within]
+        for key, part in (ok.groupby(outer, dropna=False) if outer and inner else []):
+            key = key if isinstance(key, tuple) else (key,)
+            what = " + ".join(formatting.value_label(k, v) for k, v in zip(outer, key) if str(v))
+            notes += [line.replace("Ranking on ", f"Ranking of {what} on ", 1)
+                      for line in rank_lines(part, inner, spec.rank)]
+    elif spec.rank:
+        notes += rank_lines(ok, [k for k in keys if k != "dataset"], spec.rank)
     out = out.reset_index()
     out.attrs["notes"] = notes
     return out
+
+
+def rank_lines(ok: pd.DataFrame, keys: Sequence[str], metrics: Sequence[str]) -> list[str]:
+    """Per dataset and metric, one line ranking the table's rows (grouped by ``keys``) in groups
+    that cannot be separated (:func:`benchmark.reports.stats.groups`: paired by house, 95 %
+    bootstrap interval of the difference against the group's best), over the houses every row
+    holds (a house's mean where a pooled table holds several configurations per house); rows of
+    the sanity segmenters are left out (they are checks, not methods)."""
+    out = []
+    if "house_id" not in ok or not keys or ok.empty:
+        return out
+    parts = ok.groupby("dataset") if "dataset" in ok else [("", ok)]
+    for ds, d in parts:
+        d = d[~d.get("segmenter", pd.Series("", index=d.index)).isin(SANITY_SEGMENTERS)]
+        if "classifier" in d:
+            d = d[d["classifier"] != "sanity"]
+        for metric in metrics:
+            if metric not in d:
+                continue
+            v = d.dropna(subset=[metric])
+            wide = v.pivot_table(index="house_id", columns=list(keys), values=metric, aggfunc="mean")
+            if wide.shape[1] < 2:
+                continue
+            n_all = len(wide)
+            wide = wide.dropna()
+            if len(wide) < 2:
+                continue
+            labels = {}
+            for col in wide.columns:
+                col = col if isinstance(col, tuple) else (col,)
+                labels[col] = " + ".join(formatting.value_label(k, x) for k, x in zip(keys, col) if str(x))
+            values = {labels[c if isinstance(c, tuple) else (c,)]: 100.0 * wide[c].to_numpy(dtype=float)
+                      for c in wide.columns}
+            where = f"{formatting.value_label('dataset', ds)}, " if ds else ""
+            lost = f", leaving out {n_all - len(wide)} houses some rows lack" if len(wide) < n_all else ""
+            if len(values) == 2:  # one difference: say it with its paired interval
+                (a, va), (b, vb) = sorted(values.items(), key=lambda kv: -float(np.mean(kv[1])))
+                out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses"
+                           f"{lost}): {stats.verdict(a, b, *stats.paired_ci(va, vb))}.")
+                continue
+            out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses{lost}; "
+                       f"braces hold rows no paired 95 % interval separates): "
+                       f"{stats.group_words(stats.groups(values))}.")
+    return out
+
+
+def split_rank_notes(notes: Sequence[str]) -> tuple[str, list[str]]:
+    """(the notes but the ranking lines, joined by spaces; the ranking lines of :func:`rank_lines`)."""
+    ranks = [n for n in notes if n.startswith("Ranking on ")]
+    return " ".join(n for n in notes if n not in ranks), ranks
 
 
 #: tables that compare values of one column: printed only when that column takes >= 2
@@ -452,11 +531,12 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
         grid = format_cells(summ, spec, percent, name)
         notes = metric_notes(df)
         unit = "in percent" if percent else "as fractions"
-        caption = f"{spec.title}. Mean ± std over {grid.over}, {unit}. " + " ".join(grid.notes)
+        caption = f"{spec.title}. {grid.legend}, {unit}. " + " ".join(grid.notes)
+        text, ranks = split_rank_notes(grid.notes)
         md = (f"### {spec.title}\n\n" + formatting.to_markdown(grid) + "\n\n" +
-              f"Mean ± std over {grid.over}, {unit}. " + " ".join(grid.notes) +
+              f"{grid.legend}, {unit}. " + text +
               (" Metrics: " + "; ".join(notes) + "." if notes else "") +
-              (f" Note: {reason}." if reason else "") + "\n")
+              (f" Note: {reason}." if reason else "") + "\n" + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
         chunks.append(md)
         if out_dir is not None:
             out_dir.mkdir(parents=True, exist_ok=True)
@@ -473,6 +553,9 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
                 plot_sensitivity(summ, out_dir / "sensitivity.png")
     if skipped:
         chunks.append("\n".join(skipped) + "\n")
+    from benchmark.reports.sweep_jobs import partial_sweep_lines
+
+    chunks += [f"Note: {line}.\n" for line in partial_sweep_lines(paths)]
     failed = df[df["status"] != "ok"]
     if len(failed):
         reasons = failed["error"].fillna("").str.split(":").str[0].value_counts()
@@ -482,7 +565,7 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
 
 
 def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] | None = None) -> list[Path]:
-    """IoU and pixel accuracy (mean ± std over houses) against the oracle's accuracy: one
+    """IoU and pixel accuracy (mean and 95 % interval over houses) against the oracle's accuracy: one
     line per aggregator x post-processing, a fixed colour per aggregator (Okabe-Ito) and a
     solid (post-processed) or dashed (raw) line, labelled in words.
 
@@ -508,7 +591,7 @@ def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] |
             label += " (raw)"
         style = "--" if vals.get("postprocess") == "none" else "-"
         for ax, m in zip(axes, ("iou", "accuracy")):
-            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=g[f"{m}_std"] * 100, marker="o",
+            ax.errorbar(g["oracle_accuracy"] * 100, g[f"{m}_mean"] * 100, yerr=formatting.error_bars(g, m), marker="o",
                         ms=4, capsize=3, ls=style, color=colours.get(vals.get("aggregator", ""), None), label=label)
     for ax, m in zip(axes, ("IoU (%)", "pixel accuracy (%)")):
         ax.set_xlabel("oracle classifier accuracy (%)")
@@ -516,6 +599,6 @@ def plot_sensitivity(summary: pd.DataFrame, path: Path, formats: Sequence[str] |
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     n = int(summary["n"].max()) if "n" in summary and len(summary) else 0
-    fig.suptitle(f"Segmentation quality against classifier accuracy (mean ± std over {n} houses)", fontsize=10)
+    fig.suptitle(f"Segmentation quality against classifier accuracy (mean and 95 % interval over {n} houses)", fontsize=10)
     fig.tight_layout()
     return save(fig, path, formats)

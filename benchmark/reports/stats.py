@@ -1,0 +1,200 @@
+"""Verdicts with error bars: intervals over houses, paired differences, ties, groups, power.
+
+Every table the harness writes ranks methods by a mean over houses. This module says how far
+such a mean can be trusted and when two of them differ:
+
+* :func:`bootstrap_ci`: a 95 % percentile bootstrap interval of a mean over houses (the houses
+  are resampled with replacement, :data:`N_BOOT` times, from a fixed seed, so the same rows give
+  the same interval on every machine);
+* :func:`paired_ci`: the same for the mean of a per-house difference ``a - b`` between two
+  methods (or two conditions) scored on the same houses: the spread of the houses, which both
+  share, cancels, so a paired interval is much narrower than two unpaired ones;
+* :func:`verdict`: words that follow a paired interval: "ahead" only where it excludes zero,
+  otherwise "tied" with the interval;
+* :func:`groups`: a ranking in groups of methods that cannot be separated;
+* :func:`houses_needed` and :func:`detectable_difference`: the power of a two-sided paired
+  t-test (noncentral t, as G*Power computes it): how many houses detect a difference of a
+  given size at 80 % power from the observed spread of the per-house differences, and the
+  smallest difference a given number of houses detects.
+
+Everything here is a plain function over arrays of per-house values (any unit; the tables pass
+percent). A house missing from one side of a pair is a caller's error (the tables only pair
+cells that hold the same houses).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+#: bootstrap resamples, seed and confidence level used by every table.
+N_BOOT = 2000
+SEED = 0
+LEVEL = 0.95
+#: the words under a table that name the method.
+METHOD_WORDS = (f"95 % intervals: percentile bootstrap over houses ({N_BOOT} resamples, seed {SEED}); "
+                "differences paired by house")
+
+
+def resample_indices(n: int, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray:
+    """Bootstrap resamples of ``n`` houses: int array (n_boot, n) of indices into 0..n-1.
+
+    They depend on ``n`` and ``seed`` only, so two cells over the same sorted houses are
+    resampled alike (a paired comparison of their intervals is consistent)."""
+    rng = np.random.default_rng(seed)
+    return rng.integers(0, n, size=(n_boot, n))
+
+
+def bootstrap_means(x: np.ndarray, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray:
+    """Bootstrap distribution of the mean of ``x`` over its last axis (houses).
+
+    Args:
+        x: (..., n) finite values, n >= 1.
+
+    Returns:
+        (..., n_boot) means of resampled houses."""
+    x = np.asarray(x, dtype=float)
+    idx = resample_indices(x.shape[-1], n_boot, seed)
+    return x[..., idx].mean(axis=-1)
+
+
+def bootstrap_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL, n_boot: int = N_BOOT,
+                 seed: int = SEED) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of ``x`` (per-house values, 1-D).
+
+    Returns:
+        (lo, hi) in the unit of ``x``; (nan, nan) for fewer than two values or a NaN among
+        them (an interval from one house, or over a missing number, would be made up)."""
+    x = np.asarray(x, dtype=float).ravel()
+    if x.size < 2 or not np.all(np.isfinite(x)):
+        return float("nan"), float("nan")
+    m = bootstrap_means(x, n_boot, seed)
+    a = (1.0 - level) / 2.0
+    lo, hi = np.quantile(m, [a, 1.0 - a])
+    return float(lo), float(hi)
+
+
+def paired_ci(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray, level: float = LEVEL,
+              n_boot: int = N_BOOT, seed: int = SEED) -> tuple[float, float, float]:
+    """Mean of the per-house difference ``a - b`` and its bootstrap interval.
+
+    Args:
+        a, b: (n,) values of the same houses in the same order.
+
+    Returns:
+        (mean difference, lo, hi).
+
+    Raises:
+        ValueError: ``a`` and ``b`` of different lengths."""
+    a, b = np.asarray(a, dtype=float).ravel(), np.asarray(b, dtype=float).ravel()
+    if a.shape != b.shape:
+        raise ValueError(f"a paired difference needs the same houses on both sides; got {a.size} and {b.size}")
+    d = a - b
+    lo, hi = bootstrap_ci(d, level, n_boot, seed)
+    return float(d.mean()) if d.size else float("nan"), lo, hi
+
+
+def separated(lo: float, hi: float) -> bool:
+    """Whether an interval of a difference excludes zero (a NaN interval separates nothing)."""
+    return bool(np.isfinite(lo) and np.isfinite(hi) and (lo > 0 or hi < 0))
+
+
+def interval_words(lo: float, hi: float, decimals: int = 1) -> str:
+    """``95 % CI -9.1 to +10.6`` (signed: these are differences)."""
+    return f"95 % CI {lo:+.{decimals}f} to {hi:+.{decimals}f}"
+
+
+def verdict(name_a: str, name_b: str, diff: float, lo: float, hi: float, decimals: int = 1) -> str:
+    """Words for a paired difference ``a - b``: ``A ahead of B by +2.1 (95 % CI +0.4 to +3.9)``
+    where the interval excludes zero, ``B ahead of A by ...`` where it is below zero, else
+    ``A and B tied (+0.8, 95 % CI -9.1 to +10.6)``."""
+    ci = interval_words(lo, hi, decimals)
+    if separated(lo, hi):
+        first, second = (name_a, name_b) if diff > 0 else (name_b, name_a)
+        return f"{first} ahead of {second} by {abs(diff):.{decimals}f} ({ci} for {name_a} - {name_b})"
+    return f"{name_a} and {name_b} tied ({diff:+.{decimals}f}, {ci})"
+
+
+def groups(values: Mapping[str, np.ndarray], level: float = LEVEL, n_boot: int = N_BOOT,
+           seed: int = SEED) -> list[list[str]]:
+    """A ranking in groups of methods that cannot be separated.
+
+    Methods are taken best first (highest mean). The best method left opens a group; every
+    method left whose paired interval against it includes zero joins that group; repeat with
+    the methods not yet placed. So a group is "the best remaining method and all it cannot be
+    told from", and group 1 holds every method not shown worse than the leader.
+
+    Args:
+        values: method -> (n,) per-house values, the same houses in the same order for all.
+
+    Returns:
+        Groups, best first, each best first."""
+    names = sorted(values, key=lambda m: (-float(np.mean(values[m])), m))
+    out: list[list[str]] = []
+    left = list(names)
+    while left:
+        lead = left[0]
+        grp = [lead] + [m for m in left[1:]
+                        if not separated(*paired_ci(values[lead], values[m], level, n_boot, seed)[1:])]
+        out.append(grp)
+        left = [m for m in left if m not in grp]
+    return out
+
+
+def group_words(grps: Sequence[Sequence[str]]) -> str:
+    """``{a, b} > {c} > {d, e}``: a ranking whose braces hold methods that cannot be separated."""
+    return " > ".join("{" + ", ".join(g) + "}" for g in grps)
+
+
+def power_paired(n: int, delta: float, sd: float, alpha: float = 1.0 - LEVEL) -> float:
+    """Power of a two-sided paired t-test on ``n`` houses to detect a mean difference
+    ``delta`` when the per-house differences have standard deviation ``sd`` (noncentral t with
+    n - 1 degrees of freedom and noncentrality delta / sd x sqrt(n))."""
+    from scipy import stats
+
+    if n < 2 or sd <= 0:
+        return float("nan") if sd <= 0 and delta == 0 else (1.0 if sd <= 0 else 0.0)
+    df = n - 1
+    t = stats.t.ppf(1.0 - alpha / 2.0, df)
+    nc = delta / sd * np.sqrt(n)
+    p = float(stats.nct.sf(t, df, nc) + stats.nct.cdf(-t, df, nc))
+    if not np.isfinite(p):  # SciPy's noncentral t gives up far in the tail: the normal limit there
+        p = float(stats.norm.sf(t - nc) + stats.norm.cdf(-t - nc))
+    return p
+
+
+def houses_needed(sd: float, delta: float, power: float = 0.8, alpha: float = 1.0 - LEVEL,
+                  most: int = 100_000) -> int:
+    """The smallest number of houses at which a two-sided paired t-test detects a mean
+    difference ``delta`` with ``power``, given per-house differences of standard deviation
+    ``sd`` (same unit as ``delta``). Returns ``most + 1`` when even ``most`` houses do not."""
+    if delta <= 0:
+        raise ValueError(f"the difference to detect must be > 0, got {delta}")
+    if not np.isfinite(sd) or sd <= 0:
+        return 2
+    z = 1.959963984540054 + 0.8416212335729143  # normal approximation: a starting point below the answer
+    n = max(2, int(np.floor((z * sd / delta) ** 2)) - 1)
+    while n <= most and power_paired(n, delta, sd, alpha) < power:
+        n += 1
+    return n
+
+
+def detectable_difference(sd: float, n: int, power: float = 0.8, alpha: float = 1.0 - LEVEL) -> float:
+    """The smallest mean difference a two-sided paired t-test on ``n`` houses detects with
+    ``power``, per-house differences of standard deviation ``sd`` (same unit)."""
+    from scipy.optimize import brentq
+
+    if n < 2 or not np.isfinite(sd):
+        return float("nan")
+    if sd <= 0:
+        return 0.0
+    hi = sd
+    while power_paired(n, hi, sd, alpha) < power:
+        hi *= 2.0
+    return float(brentq(lambda d: power_paired(n, d, sd, alpha) - power, 1e-12 * sd, hi, xtol=1e-9 * sd))
+
+
+__all__ = ["N_BOOT", "SEED", "LEVEL", "METHOD_WORDS", "resample_indices", "bootstrap_means", "bootstrap_ci",
+           "paired_ci", "separated", "interval_words", "verdict", "groups", "group_words", "power_paired",
+           "houses_needed", "detectable_difference"]
