@@ -56,12 +56,12 @@ def test_batch_render_equals_per_pose_view():
 
 
 def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
-    """Slow renderer: Python rays (tests/test_raycast.py's reference) over blockers built
+    """Slow renderer: Python rays (tests/test_rays.py's reference) over blockers built
     from the scene's fields; visible floor share per class and each object type's share of
     rays (children with their parent)."""
-    from test_raycast import reference_ray
+    from test_rays import reference_ray
 
-    from envs.render.raycast import cone_thetas
+    from envs.maps.rays import cone_thetas
 
     g = scene.grid
     h, w = g.shape

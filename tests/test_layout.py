@@ -228,3 +228,39 @@ def test_the_compose_rule_catches_a_composing_stage():
         assert ("benchmark.aggregators._layout_probe_tmp", "benchmark.config.compose") in composing_algorithms()
     finally:
         fake.unlink(missing_ok=True)
+
+
+#: the layers of ``envs``, lowest first: a module imports only its own layer and those below.
+ENVS_LAYERS = (("envs.atomic", "envs.digest", "envs.npz"), ("envs.world",), ("envs.maps",), ("envs.render",),
+               ("envs.datasets", "envs.bags"))
+
+
+def envs_layer(name: str) -> int | None:
+    for i, layer in enumerate(ENVS_LAYERS):
+        if any(name == p or name.startswith(p + ".") for p in layer):
+            return i
+    return None
+
+
+def envs_breaches(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    out = []
+    for m, imps in graph.items():
+        lm = envs_layer(m)
+        if lm is None:
+            continue
+        out += [(m, i) for i in imps if (li := envs_layer(i)) is not None and li > lm]
+    return sorted(out)
+
+
+def test_no_layering_breach_inside_envs(graph):
+    """world < maps < render < datasets/bags: the grid geometry (envs.maps.rays) sits with the map,
+    so a map never imports the renderer."""
+    assert all(envs_layer(m) is not None for m in graph if m.startswith("envs.") and m != "envs"), \
+        [m for m in graph if m.startswith("envs.") and envs_layer(m) is None]
+    bad = envs_breaches(graph)
+    assert not bad, f"envs modules importing a layer above their own: {bad}"
+
+
+def test_the_envs_rule_catches_a_map_importing_the_renderer():
+    graph = {"envs.maps.scan": {"envs.render.floorplan"}, "envs.render.floorplan": {"envs.maps.rays"}}
+    assert envs_breaches(graph) == [("envs.maps.scan", "envs.render.floorplan")]

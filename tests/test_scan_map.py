@@ -345,7 +345,7 @@ def test_fast_equals_reference_random_maps_large_noise():
 
 
 def test_walk_beam_is_trace_ray_then_the_same_line_beyond():
-    from envs.render.raycast import trace_ray, walk_beam
+    from envs.maps.rays import trace_ray, walk_beam
 
     rng = np.random.default_rng(1)
     blocked = rng.random((40, 50)) < 0.08

@@ -1,4 +1,4 @@
-"""benchmark.reports.stats against known answers: a closed-form normal interval, hand-made
+"""benchmark.stats against known answers: a closed-form normal interval, hand-made
 paired tables whose verdict is known, and the textbook sample size of a paired t-test."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmark.reports import stats
+from benchmark import stats
 
 
 def test_bootstrap_interval_matches_the_normal_closed_form():

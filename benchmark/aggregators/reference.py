@@ -19,7 +19,7 @@ from benchmark.aggregators.common import view_cells
 from benchmark.aggregators.graph_knn import neighbour_offsets
 from benchmark.aggregators.vision_cone import window_mode
 from envs.maps.gridmap import GridMap
-from envs.render.raycast import cone_thetas
+from envs.maps.rays import cone_thetas
 
 
 def vote_reference(nbr: np.ndarray, proba: np.ndarray, weighting: str) -> np.ndarray:
@@ -121,7 +121,7 @@ def digital_line(r0: int, c0: int, r1: int, c1: int) -> list[tuple[int, int]]:
     One cell per step along the major axis; on the minor axis the integer nearest the exact
     line, a tie (exactly half-way) going to the cell nearer the start. Computed in closed
     form with integer arithmetic, not with Bresenham's error term: an independent check of
-    the ray-casting kernel (``envs.render.raycast.trace_ray``), which must visit these cells.
+    the ray-casting kernel (``envs.maps.rays.trace_ray``), which must visit these cells.
 
     Returns:
         list of (row, col) pairs, ``max(|r1 - r0|, |c1 - c0|) + 1`` of them.

@@ -2,7 +2,7 @@
 
 A view is dropped when its short forward ray (``blocked_ray_m`` metres along its heading)
 meets an obstacle. Every other view casts rays over its ``fov`` cone up to ``max_range_m``
-metres (the shared routine of :mod:`envs.render.raycast`; obstacles are the non-walkable cells),
+metres (the shared routine of :mod:`envs.maps.rays`; obstacles are the non-walkable cells),
 and every walkable cell a ray reaches with clear line of sight gets one vote from that view
 (its top class, or with ``vote="probability"`` its probability vector); a cell reached by
 several rays of one view still gets one vote. The label of a cell is the class with the
@@ -21,7 +21,7 @@ from numba import njit
 from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
-from envs.render.raycast import cone_thetas, ray_end, trace_ray
+from envs.maps.rays import cone_thetas, ray_end, trace_ray
 
 
 @njit(cache=True)

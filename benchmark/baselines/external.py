@@ -396,10 +396,10 @@ SUMMARY_METRICS = ("iou", "precision", "recall", "matched_iou", "pq", "room_iou"
 
 def summary_table(df: pd.DataFrame, metrics: tuple[str, ...] = SUMMARY_METRICS) -> pd.DataFrame:
     """Table V-style summary: per method, the mean over its successful maps with its 95 %
-    interval (``mean [lo, hi]``, percentile bootstrap over maps, :mod:`benchmark.reports.stats`),
+    interval (``mean [lo, hi]``, percentile bootstrap over maps, :mod:`benchmark.stats`),
     in percent, then the mean segment count, count error and reader counts, the maps scored and
     failed."""
-    from benchmark.reports.stats import bootstrap_ci  # noqa: PLC0415
+    from benchmark.stats import bootstrap_ci  # noqa: PLC0415
 
     ok = df[df["status"] == "ok"]
     methods = list(dict.fromkeys(df["method"]))

@@ -86,8 +86,8 @@ SHOWN = ("clean", *rb.FAMILIES, "mCE", "rel mCE", "mean drop")
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
            delta: float = rb.DELTA) -> str:
     """The Markdown of every table (and, with ``out``, the files). Raises RobustnessError."""
-    from benchmark.reports.stats import METHOD_WORDS
     from benchmark.reports.sweep_jobs import partial_sweep_lines
+    from benchmark.stats import METHOD_WORDS
 
     rows = load_rows(paths)
     if rows.attrs.get("set_aside"):

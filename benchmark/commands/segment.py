@@ -448,7 +448,8 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
             from benchmark.commands.segment_bag import bag_source, classify_bag_views  # noqa: PLC0415
 
             m = build(cfg, *bag_source(bag_views))
-            views, classes, counts = classify_bag_views(cfg, m, bag_views, timings)
+            views, classes, counts = classify_bag_views(cfg, m, bag_views, timings, _is_labels_classifier(cfg),
+                                                        lambda: _classes_or_default(cfg))
             summary.update(counts)
         else:
             t = time.perf_counter()

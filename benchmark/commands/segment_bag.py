@@ -98,10 +98,14 @@ def bag_source(views) -> tuple[str, str]:
     return (f"{views.path} {views.topics['views'].name}", f"bag ({views.map_frame} <- {views.camera_frame})")
 
 
-def classify_bag_views(cfg, method, views, timings: dict):
+def classify_bag_views(cfg, method, views, timings: dict, labels_classifier: bool, default_classes):
     """The kept views of the bag, classified: per-view labels as a labels file's rows are
     (:func:`benchmark.classifiers.labels_file.table_probabilities`), images by the Method's
     own classify step in chunks of ``bag_options.chunk`` decoded images.
+
+    Args:
+        labels_classifier: ``classifier=labels`` is chosen (the views must be labels then).
+        default_classes: fills ``classes`` for an image classifier when the config has none.
 
     Returns:
         (:class:`benchmark.method.Classified` of the K kept views (world poses), the classes,
@@ -109,7 +113,6 @@ def classify_bag_views(cfg, method, views, timings: dict):
     from omegaconf import OmegaConf  # noqa: PLC0415
 
     from benchmark.classifiers.labels_file import table_probabilities  # noqa: PLC0415
-    from benchmark.commands.segment import _classes_or_default, _is_labels_classifier  # noqa: PLC0415
     from benchmark.method import Classified  # noqa: PLC0415
     from envs.bags.read import iter_images  # noqa: PLC0415
     from envs.render.observation import Observation  # noqa: PLC0415
@@ -119,17 +122,17 @@ def classify_bag_views(cfg, method, views, timings: dict):
     poses = views.poses
     t = time.perf_counter()
     if views.kind == "labels":
-        if not _is_labels_classifier(cfg):
+        if not labels_classifier:
             raise ValueError(f"{where}: the views are labels ({views.view_type}); use classifier=labels (got "
                              f"{cfg.classifier._target_}), or bag.view_topic=<an image topic>")
         given = tuple(str(c) for c in cfg.classes) if cfg.get("classes") is not None else None
         proba, classes = table_probabilities(_label_table(views.labels, given), where, given)
         timings["t_read_views"] = time.perf_counter() - t
     else:
-        if _is_labels_classifier(cfg):
+        if labels_classifier:
             raise ValueError(f"{where}: the views are images ({views.view_type}); choose an image classifier: "
                              f"classifier=cnn|dinov2|vlm")
-        _classes_or_default(cfg)
+        default_classes()
         if bool(cfg.bag_options.fov_from_camera_info) and views.hfov_deg is not None and "fov" in cfg.aggregator:
             OmegaConf.update(cfg, "aggregator.fov", round(float(views.hfov_deg), 6))
         classes = tuple(method.classifier.classes)

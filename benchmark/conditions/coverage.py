@@ -1,6 +1,6 @@
 """What the robot's views covered: shares of the ground truth inside at least one view's cone.
 
-A view sees the cells its cone's rays visit (:func:`envs.render.raycast.mark_visible`: rays
+A view sees the cells its cone's rays visit (:func:`envs.maps.rays.mark_visible`: rays
 from the view's cell spanning ``fov`` degrees around its yaw, up to ``max_range`` metres,
 stopping before the first ``blocked`` cell; rays spaced at most a quarter pixel apart at
 the range: at half a pixel, as the vision-cone aggregator casts them, a fan of digital lines
@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
+from envs.maps.rays import cone_thetas, mark_visible
 from envs.maps.scene import Scene
-from envs.render.raycast import cone_thetas, mark_visible
 
 #: rays per pixel of arc at the range (see the module docstring).
 RAY_OVERSAMPLE = 4.0

@@ -23,7 +23,7 @@ leg; the start's own yaw at the start). A view is a pose at the centre of the ro
   frontier is reachable.
 * :class:`RandomWalk`: straight runs: a heading drawn uniformly in [0, 360) degrees and a run
   length uniformly in [``min_run``, ``max_run``] metres; the robot drives the digital line of
-  that run (:func:`envs.render.raycast.trace_ray` over the non-walkable cells) and stops
+  that run (:func:`envs.maps.rays.trace_ray` over the non-walkable cells) and stops
   before the first non-walkable cell. A run that cannot move at all is drawn again; 1000 such
   runs in a row end the walk.
 
@@ -44,10 +44,10 @@ from scipy import ndimage
 
 from benchmark.classifiers.noise import text_key
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
+from envs.maps.rays import ray_end, trace_ray
 from envs.maps.scan import ReferenceScanMapper, ScanMap, ScanMapper, ScanSettings, scan_obstacles
 from envs.maps.scene import Scene
 from envs.maps.trajectory import shortest_path
-from envs.render.raycast import ray_end, trace_ray
 
 #: metres behind and ahead on the path that set the direction of motion of a view.
 MOTION_BASE = 0.25

@@ -168,7 +168,7 @@ class Grid:
     @property
     def legend(self) -> str:
         """What a cell shows, for the line under the table: ``Mean [95 % CI] over houses (...)``."""
-        from benchmark.reports.stats import METHOD_WORDS
+        from benchmark.stats import METHOD_WORDS
 
         return f"Mean [95 % interval] over {self.over} ({METHOD_WORDS})"
 

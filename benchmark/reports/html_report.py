@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.reports import formatting
-from benchmark.reports.stats import bootstrap_ci
+from benchmark.stats import bootstrap_ci
 
 #: metric columns shown (those the run has), as fractions in the rows -> percent on the page.
 METRICS = ("iou", "precision", "recall", "accuracy", "matched_iou", "room_iou", "pq", "pq_semantic", "class_iou",

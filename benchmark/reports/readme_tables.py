@@ -235,8 +235,8 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str])
     ahead, tied or change places); the curves that rise with severity beyond chance; the power
     report (how many houses 3 points need; the smallest difference this run detects)."""
     from benchmark.reports import robustness as rb
-    from benchmark.reports.stats import METHOD_WORDS
     from benchmark.reports.tables import load_rows
+    from benchmark.stats import METHOD_WORDS
 
     df = load_rows(paths)
     df["severity"] = df["severity"].astype(int)

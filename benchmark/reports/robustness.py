@@ -19,7 +19,7 @@ is shown but builds no mCE, since it rewards maps that shrink):
   family that leaves the reference untouched gets no CE (it would measure clean accuracy);
 * drop_f(M) = m_clean(M) - mean_s m_{s,f}(M) (negative: the condition helped it).
 
-Every number that ranks has a 95 % bootstrap interval over houses (:mod:`benchmark.reports.stats`,
+Every number that ranks has a 95 % bootstrap interval over houses (:mod:`benchmark.stats`,
 houses resampled alike in every cell, so differences are paired). A table cell never mixes house
 sets, and a family whose severities are not all there for every method is left out with a line
 saying so (:func:`complete_families`).
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmark.reports import stats
+from benchmark import stats
 
 #: the corruption families in table order (``clean`` is severity 0 of every family).
 FAMILIES = ("scan", "pose", "explore", "classifier", "realistic")

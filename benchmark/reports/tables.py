@@ -36,9 +36,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from benchmark import stats
 from benchmark.harness.cache import atomic_write_text
 from benchmark.harness.store import METRICS, SELECTION_KEYS, Job, iter_metric_files, read_metrics
-from benchmark.reports import formatting, stats
+from benchmark.reports import formatting
 
 
 @dataclass(frozen=True)
@@ -410,7 +411,7 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
 
 def rank_lines(ok: pd.DataFrame, keys: Sequence[str], metrics: Sequence[str]) -> list[str]:
     """Per dataset and metric, one line ranking the table's rows (grouped by ``keys``) in groups
-    that cannot be separated (:func:`benchmark.reports.stats.groups`: paired by house, 95 %
+    that cannot be separated (:func:`benchmark.stats.groups`: paired by house, 95 %
     bootstrap interval of the difference against the group's best), over the houses every row
     holds (a house's mean where a pooled table holds several configurations per house); rows of
     the sanity segmenters are left out (they are checks, not methods)."""

@@ -10,7 +10,7 @@ What it models (issue #25, item 1):
   plane does not (the scan passes under it; table legs are not modelled).
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
-  A beam is the digital (Bresenham) line of :mod:`envs.render.raycast` from that cell to the
+  A beam is the digital (Bresenham) line of :mod:`envs.maps.rays` from that cell to the
   cell ``max_range`` metres away; its true range is the distance between the centres of the
   start cell and of the first obstacle cell on the line. Beams of one scan are drawn
   independently: with share ``dropout`` a beam returns nothing and adds nothing; otherwise
@@ -38,7 +38,7 @@ poses; pose error is a separate option applied to the views), beam width and inc
 glass and mirrors, moving people, the scanner's own height above a sloped floor, table legs,
 and the time a scan takes (all beams of a scan share one pose).
 
-The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.render.raycast.walk_beam`,
+The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.maps.rays.walk_beam`,
 incremental: exploration adds scans as it drives); :func:`scan_map_reference` is a slow
 pure-Python version with its own line walk, used by the tests and ``make perf``.
 """
@@ -54,10 +54,10 @@ import numpy as np
 from numba import njit
 
 from envs.maps.gridmap import GridMap
+from envs.maps.rays import ray_end, walk_beam
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map
 from envs.maps.scene import Scene
 from envs.maps.trajectory import trajectory
-from envs.render.raycast import ray_end, walk_beam
 
 #: Wall height of generated houses (metres); ProcTHOR's walls carry their own (2.51-5.38 m in
 #: the 150 shared houses): :func:`house_wall_height`.

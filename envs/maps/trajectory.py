@@ -1,7 +1,7 @@
 """The path a robot drives through its views, and shortest paths on the grid.
 
 :func:`route` joins consecutive views (in capture order): by the straight segment between
-their cells when every cell of its digital line (:func:`envs.render.raycast.trace_ray`) is
+their cells when every cell of its digital line (:func:`envs.maps.rays.trace_ray`) is
 walkable, else by the shortest **8-connected** walkable path (:func:`shortest_path`: steps
 cost 1 and sqrt(2) cells, a diagonal step only where both cells beside it are walkable: no
 corner cutting; paths are not smoothed, so a path is up to 8 % longer than the taut string).
@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from envs.maps.gridmap import GridMap
-from envs.render.raycast import trace_ray
+from envs.maps.rays import trace_ray
 
 SQRT2 = math.sqrt(2.0)
 #: 8-neighbour offsets (d_row, d_col) and step costs (cells), in the order paths are relaxed.

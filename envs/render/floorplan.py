@@ -1,7 +1,7 @@
 """The floorplan renderer: what a camera at a pose would see, from the house's floor plan.
 
 For each pose, rays spanning the camera's horizontal field of view are cast over the map
-with the shared routine (:mod:`envs.render.raycast`). Rays stop at walls, at the edge of the
+with the shared routine (:mod:`envs.maps.rays`). Rays stop at walls, at the edge of the
 floor, and at objects whose top is at least ``occluder_height`` metres (tall furniture);
 lower objects are seen and the rays pass over them. The observation lists every object
 type seen with the share of rays that touched it (objects resting on a seen object count
@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from envs.maps.rays import cast_rays, cone_thetas, ray_end, trace_ray
 from envs.maps.scene import Scene
 from envs.render.base import Renderer
 from envs.render.observation import Observation, poses_array
-from envs.render.raycast import cast_rays, cone_thetas, ray_end, trace_ray
 
 
 @dataclass

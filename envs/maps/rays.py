@@ -1,4 +1,5 @@
-"""The one ray-casting routine: Bresenham rays over a blocking grid, compiled with numba.
+"""Digital lines on a grid: the one ray walk (Bresenham rays over a blocking grid, compiled with
+numba), on the world side beside the grid map, so that maps, render and the aggregators all call it.
 
 Used by the floorplan renderer (what a camera sees), the vision-cone aggregator (which
 cells a view votes for), scan maps (:mod:`envs.maps.scan`: where laser beams end) and view

@@ -1,4 +1,4 @@
-"""envs.render.raycast against a slow reference written from the definition of a digital line.
+"""envs.maps.rays (the one ray walk: renderer, vision cone, scan maps, coverage) against a slow reference written from the definition of a digital line.
 
 The reference does not share code or the error-term loop with the kernel: on every step
 along the line's major axis it takes the cell nearest the exact line (exact rational
@@ -13,7 +13,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from envs.render.raycast import cast_rays, cone_thetas, ray_end, trace_ray
+from envs.maps.rays import cast_rays, cone_thetas, ray_end, trace_ray
 
 
 def _nearest(exact: Fraction, step: int) -> int:
@@ -146,7 +146,7 @@ def test_cone_reference_line_agrees_with_the_exact_definition():
 def test_mark_visible_equals_the_union_of_reference_rays(seed):
     """mark_visible skips a ray whose end cell repeats the ray before's (the same digital line);
     its union equals every reference ray's cells, with dense cones where most rays repeat."""
-    from envs.render.raycast import mark_visible
+    from envs.maps.rays import mark_visible
 
     rng = np.random.default_rng(100 + seed)
     h, w = int(rng.integers(30, 70)), int(rng.integers(30, 70))
