@@ -38,7 +38,7 @@ def test_readme_is_at_most_15_kb():
 
 def test_every_number_in_the_readme_is_generated():
     text = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert set(rt.blocks_in(text)) >= {"bench-timing", "bench-table4", "bench-table3"}
+    assert set(rt.blocks_in(text)) >= {"bench-timing", "bench-table4", "robustness-timing", "robustness-power"}
     assert hand_typed_numbers(text) == []
 
 

@@ -2,7 +2,7 @@
 (:mod:`benchmark.reports.readme_tables`).
 
     python -m benchmark.commands.readme_tables publish results/runs/bench --name bench [--time FILE]
-    python -m benchmark.commands.readme_tables write     # rewrite README.md's blocks
+    python -m benchmark.commands.readme_tables write     # rewrite the blocks of README.md and the docs pages
     python -m benchmark.commands.readme_tables check     # exit 1 and name the blocks that differ
 """
 
@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from benchmark.reports.readme_tables import check, publish, write
+from benchmark.reports.readme_tables import BLOCK_FILES, check, publish, write
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -30,7 +30,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, text in (("write", "rewrite the README's generated blocks"),
                        ("check", "exit 1 when a README block differs from what write would write")):
         q = sub.add_parser(name, help=text)
-        q.add_argument("--readme", type=Path, default=Path("README.md"))
+        q.add_argument("--readme", type=Path, action="append", default=None,
+                       help="a file with generated blocks (repeatable); default: " + ", ".join(BLOCK_FILES))
     a = ap.parse_args(argv)
     try:
         if a.cmd == "publish":
@@ -39,15 +40,21 @@ def main(argv: Sequence[str] | None = None) -> int:
             columns = ROBUSTNESS_COLUMNS if a.columns == "robustness" else (a.columns.split(",") if a.columns else None)
             print(publish(a.run_dir, a.name, ".", a.time, a.command, columns))
         elif a.cmd == "write":
-            changed = write(a.readme, ".")
-            print(f"{a.readme}: " + (f"rewrote {', '.join(changed)}" if changed else "every block up to date"))
+            for f in a.readme or [Path(f) for f in BLOCK_FILES]:
+                changed = write(f, ".")
+                print(f"{f}: " + (f"rewrote {', '.join(changed)}" if changed else "every block up to date"))
         else:
-            changed = check(a.readme, ".")
-            if changed:
-                print(f"{a.readme}: block(s) {', '.join(changed)} differ from the published runs; "
-                      "run `make readme-tables`", file=sys.stderr)
+            stale = 0
+            for f in a.readme or [Path(f) for f in BLOCK_FILES]:
+                changed = check(f, ".")
+                if changed:
+                    print(f"{f}: block(s) {', '.join(changed)} differ from the published runs; "
+                          "run `make readme-tables`", file=sys.stderr)
+                    stale += 1
+                else:
+                    print(f"{f}: every block up to date")
+            if stale:
                 return 1
-            print(f"{a.readme}: every block up to date")
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

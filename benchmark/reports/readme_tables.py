@@ -56,7 +56,12 @@ BLOCKS: dict[str, Block] = {b.name: b for b in (
     Block("bench-table3", ("bench",), "table3"),
     Block("robustness-timing", ("robustness",)),
     Block("robustness", ("robustness",), "robustness"),
+    Block("robustness-power", ("robustness",), "robustness-power"),
 )}
+#: the files whose generated blocks ``make readme-tables`` writes: the README (timings, bench
+#: tables, the robustness run's power report) and the robustness page (its full tables, too
+#: long for the README).
+BLOCK_FILES = ("README.md", "docs/index.md", "docs/robustness.md")
 
 #: the columns a published robustness run keeps (one ``metrics.csv`` of every job's rows: 12,480
 #: rows for 20 houses per dataset; the rest of each row is in the run's own folders).
@@ -211,8 +216,8 @@ def render_block(block: Block, root: str | Path = ".") -> str:
     paths = [root / PUBLISHED / s for s in block.sources]
     for s in block.sources:
         provenance(root, s)  # a missing published run: one line saying how to publish it
-    if block.table == "robustness":
-        return _robustness_block(root, paths, block.sources)
+    if block.table in ("robustness", "robustness-power"):
+        return _robustness_block(root, paths, block.sources, power_only=block.table == "robustness-power")
     df = load_rows(paths)
     spec = TABLES[block.table]
     summ = summarise(df, spec)
@@ -227,13 +232,14 @@ def render_block(block: Block, root: str | Path = ".") -> str:
             + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
 
 
-def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str]) -> str:
+def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str], power_only: bool = False) -> str:
     """Per dataset: matched IoU clean and under each condition (mean over its severities) with
     its 95 % interval, mCE and relative mCE against a reference every family degrades
     (``realistic`` apart), and what the intervals support in words (rankings in groups no
     paired interval separates; where the best view-based and the best geometric method are
     ahead, tied or change places); the curves that rise with severity beyond chance; the power
-    report (how many houses 3 points need; the smallest difference this run detects)."""
+    report (how many houses 3 points need; the smallest difference this run detects); with
+    ``power_only``, the power report alone (the README's block)."""
     from benchmark.reports import robustness as rb
     from benchmark.reports.tables import load_rows
     from benchmark.stats import METHOD_WORDS
@@ -267,8 +273,9 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str])
                     f"[{r.lo:+.1f}, {r.hi:+.1f}]" for r in sig.itertuples()) if len(sig) else "none beyond noise")
                 + ".", ""]
         power += rb.power_lines(formatting.value_label("dataset", dataset), p["power"], "matched IoU")
-    out += ["**How many houses** (paired differences of two methods under one condition; "
-            f"{METHOD_WORDS}):", "", *[f"- {x}" for x in power], ""]
+    houses = ["**How many houses** (paired differences of two methods under one condition; "
+              f"{METHOD_WORDS}):", "", *[f"- {x}" for x in power], ""]
+    out = houses if power_only else out + houses
     return "\n".join(out) + _source_line(root, sources) + "\n"
 
 
