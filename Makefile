@@ -50,7 +50,7 @@ BENCH_OUT ?= results/bench
 RESULTS ?= results
 
 bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables, figures, report.html -> results/bench
-	@$(if $(findstring procthor_shared,$(BENCH_ENVS)),,echo "make bench: the shared ProcTHOR houses are absent ($(SHARED)/procthor): generated houses only; get them with: $(PY) -m benchmark.commands.data fetch procthor_shared --root $(SHARED)")
+	@$(if $(findstring procthor_shared,$(BENCH_ENVS)),,echo "make bench: the shared ProcTHOR houses are absent ($(SHARED)/procthor): generated houses only; get them with: $(PY) -m benchmark.commands.data fetch procthor_shared --root $(SHARED)" >&2)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
 	@# the figures, and the tables then the report, read the finished run side by side; any failing fails bench
 	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --out $(BENCH_OUT)/figures & fig=$$!; \

@@ -79,8 +79,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     data = a.data or default_selros_dir()
     if not data.is_dir():
-        print(f"error: the SeLRoS release is not at {data}: get it with `python -m benchmark.commands.data fetch "
-              f"selros` (or give --data DIR)", file=sys.stderr)
+        from benchmark.harness.hints import fetch_command
+
+        root = data.parent if a.data and data.name == "selros" else (None if a.data else default_selros_dir().parent)
+        print(f"error: the SeLRoS release is not at {data}: get it with: {fetch_command('selros', root)} "
+              f"(or give --data DIR)", file=sys.stderr)
         return 2
     try:
         common = [f"external.gt_dir={_quote(data / GT_FOLDER)}", f"external.gt_pattern={_quote(a.gt_pattern)}", *rest]

@@ -173,7 +173,15 @@ def _environment(node: DictConfig) -> tuple[Any, str]:
     if key not in _ENVS:
         if len(_ENVS) >= 4:
             _ENVS.pop(next(iter(_ENVS)))
-        _ENVS[key] = instantiate(node)
+        try:
+            _ENVS[key] = instantiate(node)
+        except Exception as e:  # a dataset that is absent: one line with the command that fetches it
+            from benchmark.harness.hints import missing_data
+
+            hint = missing_data(e)
+            if hint is None:
+                raise
+            raise ConfigError(f"env: {hint}") from None
     return _ENVS[key], key
 
 
