@@ -54,8 +54,8 @@ bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
 	@# the figures, and the tables then the report, read the finished run side by side; any failing fails bench
 	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --out $(BENCH_OUT)/figures & fig=$$!; \
-	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all \
-	  && $(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --out $(BENCH_OUT)/report.html; rep=$$?; \
+	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT) --table table3 --table table4 --table all \
+	  && $(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT)/report.html; rep=$$?; \
 	wait $$fig && exit $$rep
 
 report: setup  ## a sweep as one HTML page: RUN=results/runs/<name> (default bench) -> RUN's folder/report.html
@@ -124,7 +124,7 @@ ROBUST_HOUSES ?= 20
 ROBUST_OUT ?= results/robustness
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS)
-	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --out $(ROBUST_OUT)
+	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
 sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity (+ docs/figures)
 	$(PY) -m benchmark.commands.bench experiment=sensitivity env=synthetic run.limit=20

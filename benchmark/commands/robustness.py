@@ -15,12 +15,12 @@ The output folder is written as a whole (an interrupted command leaves the old s
 
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.commands.errors import one_line
 from benchmark.paths import CONF_DIR
 from benchmark.reports import robustness as rb
@@ -51,9 +51,16 @@ def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], 
     return out
 
 
-def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str) -> str:
-    """The Markdown of every table (and, with ``out``, the files). Raises RobustnessError."""
-    rows = load_rows(paths)
+def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
+           last_sweep: bool = False) -> str:
+    """The Markdown of every table (and, with ``out``, the files). ``last_sweep``: only the jobs
+    of the last multirun into each folder. Raises RobustnessError."""
+    from benchmark.harness.store import sweep_scope
+
+    scope = sweep_scope(paths, last_sweep)
+    if scope.note:
+        print(f"robustness: note: {scope.note}", file=sys.stderr)
+    rows = load_rows(scope.files)
     if rows.attrs.get("set_aside"):
         print(f"robustness: {rows.attrs['set_aside']}", file=sys.stderr)
     missing = [c for c in ("corruption", "severity") if c not in rows]
@@ -67,7 +74,8 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     md = ["# Robustness to robot conditions", "",
           f"Corruption error (CE) and mCE relative to **{reference}** (100 = as robust as it; lower is better); "
           "error = 100 - metric; drop = clean - mean over the family's severities. Metrics in percent, mean over "
-          "houses; every cell of a dataset holds the same houses.", ""]
+          "houses; every cell of a dataset holds the same houses."
+          + (f" Runs read: {scope.note}." if scope.note else ""), ""]
     for (dataset, metric), p in parts.items():
         words = metric_words(metric)
         md += [f"## {dataset}: {words}", "", f"{p['houses']} houses per cell"
@@ -94,21 +102,23 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.robustness",
+    ap = cli.ArgumentParser(prog="python -m benchmark.commands.robustness",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("paths", nargs="+", help="the robustness run's folder(s)")
     ap.add_argument("--out", type=Path, default=None, help="folder for the tables and figures (written as a whole)")
     ap.add_argument("--reference", default=DEFAULT_REFERENCE, help="the method CE is relative to (a method label)")
     ap.add_argument("--metric", action="append", choices=rb.METRICS, help="metric(s) (default: all three)")
+    ap.add_argument("--last-sweep", action="store_true",
+                    help="only the jobs of the last multirun into each folder (its last_sweep.json)")
     a = ap.parse_args(argv)
     metrics = a.metric or list(rb.METRICS)
     try:
         if a.out is None:
-            text = render(a.paths, None, metrics, a.reference)
+            text = render(a.paths, None, metrics, a.reference, a.last_sweep)
         else:
             with atomic_folder(a.out) as tmp:
                 (tmp / "figures").mkdir()
-                text = render(a.paths, tmp, metrics, a.reference)
+                text = render(a.paths, tmp, metrics, a.reference, a.last_sweep)
     except (rb.RobustnessError, FileNotFoundError, ValueError) as e:
         print(f"robustness: error: {one_line(e)}", file=sys.stderr)
         return 2

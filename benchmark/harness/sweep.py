@@ -105,6 +105,12 @@ def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
           f"{n_failed} failed; metrics in percent over each job's successful houses.\n")
     atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.csv", table.to_csv(index=False))
     atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.md", md)
+    if since is not None:  # the jobs this multirun ran: tables and the report can read them alone
+        import sys
+
+        from benchmark.harness.store import write_last_sweep
+
+        write_last_sweep(sweep_dir, jobs, since, sys.argv[1:])
     return table
 
 
