@@ -22,6 +22,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.harness.hints import fetch_command
 from envs.datasets.download import (
     CATALOGUE,
@@ -100,7 +101,7 @@ def _fetch(names: Sequence[str], root: Path, catalogue: Path, progress: bool, ti
 def parser() -> argparse.ArgumentParser:
     """The command line of ``data`` (``--root`` before or after the subcommand)."""
     root_help = "data root (default $ROOMSEG_SHARED_DATA or ../shared/data)"
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.data", description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(prog="python -m benchmark.commands.data", description=__doc__.split("\n\n")[0])
     ap.add_argument("--root", type=Path, default=None, help=root_help)
     ap.add_argument("--catalogue", type=Path, default=CATALOGUE, help=argparse.SUPPRESS)  # tests: a local server's
     sub = ap.add_subparsers(dest="cmd", required=True)

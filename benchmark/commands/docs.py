@@ -42,6 +42,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
+from benchmark.commands import cli
+
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 REFERENCE = DOCS / "reference"
@@ -349,7 +351,7 @@ def _pair(text: str, what: str) -> tuple[str, str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.docs", description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(prog="python -m benchmark.commands.docs", description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="action", required=True)
     sub.add_parser("reference", help="write the generated pages")
     sub.add_parser("check", help="exit 1 naming every stale generated page")

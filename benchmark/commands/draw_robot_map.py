@@ -9,10 +9,10 @@ Example (the figure in ``docs/robot-conditions.md``)::
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.commands.errors import cli_errors, one_line
 from benchmark.paths import procthor_houses
 
@@ -50,7 +50,7 @@ def draw(houses: Path, index: int, budget: float, out: Path) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=Path, default=procthor_houses(), help=".json/.jsonl/.jsonl.gz house file")
     ap.add_argument("--house", type=int, default=3, help="index of the house in the file")
     ap.add_argument("--budget", type=float, default=40.0, help="frontier path-length budget, metres")

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.reports.figures import fig3, fig4, from_run, house_figures
 from benchmark.reports.plotting import parse_formats
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
+    ap = cli.ArgumentParser(description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
     sub = ap.add_subparsers(dest="cmd", required=True)
     helps = {"fig3": "ground truth | raw | post-processed for one house",
              "fig4": "ground truth + viewpoints | graph KNN | vision cone for one house",

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import pandas as pd
 
+from benchmark.commands import cli
 from benchmark.paths import procthor_houses
 from benchmark.reports.house_stats import grid_figure, stats
 from envs.datasets.house_files import load_houses
@@ -17,7 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     from envs.datasets.synthetic import generate_house
 
     default = procthor_houses()
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--synthetic", type=int, default=200, help="number of generated houses (seeds 0..N-1)")
     ap.add_argument("--procthor", type=Path, default=default)
     ap.add_argument("--figure", type=Path, default=None)

@@ -13,12 +13,12 @@ Prints the means over houses as Markdown tables.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import pandas as pd
 
+from benchmark.commands import cli
 from benchmark.commands.errors import cli_errors, one_line
 from benchmark.paths import procthor_houses
 
@@ -85,7 +85,7 @@ def run(houses: list, budgets: list[float]) -> tuple[pd.DataFrame, pd.DataFrame]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=Path, default=procthor_houses(), help=".json/.jsonl/.jsonl.gz house file")
     ap.add_argument("--n", type=int, default=20, help="first N houses")
     ap.add_argument("--synthetic", action="store_true", help="generated houses instead of the file")

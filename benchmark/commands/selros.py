@@ -19,12 +19,13 @@ Map ids come from the ground-truth file names by the rule ``--gt-pattern`` (defa
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
 
 import pandas as pd
+
+from benchmark.commands import cli
 
 
 def compose_score(overrides: list[str]):
@@ -52,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         geometric_rows,
     )
 
-    ap = argparse.ArgumentParser(prog="python -m benchmark.commands.selros", description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(prog="python -m benchmark.commands.selros", description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=None, help="the SeLRoS release folder (default: shared data)")
     ap.add_argument("--resolution", type=float, default=None, help="metres per pixel (default: the presets', 0.02)")
     ap.add_argument("--gt-pattern", default=GT_PATTERN, help="ground-truth file rule with {id}")
