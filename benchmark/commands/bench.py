@@ -116,6 +116,12 @@ def main() -> int:
     if any(a in ("--help", "-h") for a in sys.argv[1:]):
         print(app_help())  # only the groups this app accepts (Hydra's own lists every folder of conf/)
         return 0
+    from benchmark.harness.hints import outside_root
+
+    where = outside_root(PROG)  # results/ and ../shared/data are relative to the checkout's root
+    if where is not None:
+        print(where, file=sys.stderr)
+        return 2
     try:
         from benchmark.config import quote_braces
 

@@ -59,11 +59,28 @@ class ArgumentParser(argparse.ArgumentParser):
     """``argparse.ArgumentParser`` with the typed program name and plain-text help (the
     sub-command parsers it makes are of this class too)."""
 
-    def __init__(self, *args, prog: str | None = None, **kwargs) -> None:
-        if prog is None and not args:
-            prog = prog_name()
+    def __init__(self, *args, prog: str | None = None, from_root: bool = False, **kwargs) -> None:
+        if prog is None and not args:  # the command module that builds the parser, as typed
+            caller = sys._getframe(1).f_globals
+            spec = caller.get("__spec__")
+            module = getattr(spec, "name", None) or caller.get("__name__", "")
+            prog = f"python -m {module}" if module.startswith("benchmark.commands.") else prog_name()
         kwargs.setdefault("formatter_class", _PlainFormatter)
         super().__init__(*args, prog=prog, **kwargs)
+        self.from_root = from_root
+
+    def parse_known_args(self, args=None, namespace=None):  # noqa: ANN001 - argparse's signature
+        """``from_root``: a command whose defaults are paths relative to the checkout's root
+        (``results/``, ``../shared/data``) refuses to run from a subfolder
+        of the checkout, in one line that says where to run it (exit 2), before it reads or
+        writes anything."""
+        if getattr(self, "from_root", False):
+            from benchmark.harness.hints import outside_root
+
+            where = outside_root(self.prog)
+            if where is not None:
+                self.exit(2, where + "\n")
+        return super().parse_known_args(args, namespace)
 
 
 def one_line_warnings(prog: str | None = None) -> None:

@@ -18,7 +18,7 @@ def main(argv: list[str] | None = None) -> int:
     from envs.maps.scene import rasterise_house
 
     default = procthor_houses()
-    ap = cli.ArgumentParser(description="autotrace room coverage on a house file")
+    ap = cli.ArgumentParser(from_root=True, description="autotrace room coverage on a house file")
     ap.add_argument("--houses", type=Path, default=default)
     ap.add_argument("--range", default="0:150", help="house index range a:b")
     ap.add_argument("--offset", type=float, default=0.5, help="metres")

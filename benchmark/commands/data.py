@@ -123,6 +123,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     from benchmark.paths import data_dir
 
     a = parser().parse_args(argv)
+    if a.root is None and not data_dir().is_absolute():  # ../shared/data: relative to the checkout's root
+        from benchmark.harness.hints import outside_root
+
+        where = outside_root("python -m benchmark.commands.data")
+        if where is not None:
+            print(where.replace("): cd", ", or give --root DIR): cd"), file=sys.stderr)
+            return 2
     root = a.root or data_dir()
     try:
         if a.cmd == "list":

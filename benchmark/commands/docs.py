@@ -206,6 +206,64 @@ def _commands(code: str) -> list[str]:
     return out
 
 
+#: a command that needs the project's environment: python, the console scripts, the tools it installs.
+_NEEDS_VENV = re.compile(r"^(?:[A-Z_][A-Z0-9_]*=\S*\s+)*(?:python3?|roomseg[\w-]*|mkdocs|pytest|ruff)(?:\s|$)")
+#: a command that makes the project's environment the shell's (or names it: ``.venv/bin/...``).
+_ACTIVATES = re.compile(r"^(?:source|\.)\s+\S*\.venv[^/\s]*/bin/activate\b|^conda activate\s")
+#: development notes that do not belong on a user's page: issue numbers, branch names, commits.
+_DEV_NOTE = re.compile(r"\b(?:issues?|pull requests?|PR) ?#\d+|\bproject issues?\b|\bthe issue's\b|"
+                       r"\bthis branch\b|\bbranch's parent\b|\bon (?:the|this) branch\b", re.I)
+
+
+def page_problems(text: str, tracked: Sequence[str] = ()) -> list[str]:
+    """What keeps a docs page from being typed as it is in a new shell, one line each:
+
+    * a command that needs the project's environment (``python``, ``roomseg-*``, ``mkdocs``,
+      ``pytest``, ``ruff``) before any ``source .venv/bin/activate`` (or ``conda activate``)
+      on the page: a new shell has no ``python`` with the project (``ModuleNotFoundError``);
+    * a command whose ``--out`` is a tracked file or folder (``tracked``: paths relative to
+      the checkout): a docs command never overwrites the project's own files;
+    * a development note in the page's text (an issue number, a branch, a commit of the
+      project's history).
+    """
+    out: list[str] = []
+    activated = False
+    for b in blocks(text, lang=None):
+        if b.lang not in ("bash", "sh", "shell", "console", ""):  # "": a block of commands and their output
+            continue
+        at = b.line
+        for cmd in _commands(b.code):
+            where, at = at, at + cmd.count("\n") + 1
+            line = cmd.split(" #", 1)[0].strip()
+            if not line or line.startswith("#"):
+                continue
+            if _ACTIVATES.match(line):
+                activated = True
+                continue
+            if _NEEDS_VENV.match(line) and not activated:
+                out.append(f"line {where}: `{line[:60]}` needs the project's environment: run `source .venv/bin/activate` "
+                           f"on the page before it (a new shell has no python with the project)")
+            m = re.search(r"--out[ =](\S+)", line)
+            if m and tracked:
+                target = m.group(1).strip("'\"").rstrip("/")
+                hit = [t for t in tracked if t == target or t.startswith(target + "/")]
+                if hit:
+                    out.append(f"line {where}: `{line[:60]}` writes over the tracked {hit[0]}; "
+                               f"write to results/ instead")
+    in_code = {i for b in blocks(text, lang=None) for i in range(b.line - 1, b.line + b.code.count(chr(10)) + 1)}
+    for i, line in enumerate(text.splitlines(), 1):
+        for m in _DEV_NOTE.finditer(line) if i not in in_code else ():
+            out.append(f"line {i}: development note {m.group(0)!r}: a page says what the project does, not "
+                       f"where it was discussed")
+    return out
+
+
+def tracked_files(root: Path = ROOT) -> list[str]:
+    """The checkout's tracked files (paths relative to ``root``)."""
+    r = subprocess.run(["git", "ls-files", "-z"], cwd=root, capture_output=True, check=True)
+    return [p for p in r.stdout.decode("utf-8").split("\0") if p]
+
+
 def session_script(page_blocks: Sequence[Block], skips: Sequence[tuple[str, str]], status_file: Path) -> str:
     """One bash script running the blocks in order, ``set -e``: each block first appends
     ``<index> <time>`` to ``status_file``; a command line matching a skip pattern becomes an
@@ -260,6 +318,14 @@ def light_venv(copy: Path, python: str) -> Path:
     info = subprocess.run([python, "-c", "import site, sys; print(sys.prefix); print(*site.getsitepackages(), sep='\\n')"],
                           check=True, capture_output=True, text=True).stdout.split("\n")
     parent_bin, site_dirs = Path(info[0]) / "bin", [d for d in info[1:] if d]
+    # another environment's package folders that python's .pth files add (a venv layered over
+    # a shared one), not the source folders of editable installs
+    for d in list(site_dirs):
+        for pth in sorted(Path(d).glob("*.pth")):
+            for line in pth.read_text(encoding="utf-8", errors="replace").splitlines():
+                extra = line.strip()
+                if extra.endswith("-packages") and Path(extra).is_dir() and extra not in site_dirs:
+                    site_dirs.append(extra)
     (own_site,) = venv.glob("lib/python*/site-packages")
     (own_site / "_roomseg_light_venv.pth").write_text("\n".join([str(copy), *site_dirs]) + "\n", encoding="utf-8")
     scripts = _console_scripts(copy / "pyproject.toml")

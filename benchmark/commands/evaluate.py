@@ -24,7 +24,7 @@ from benchmark.reports.confusion import confusion_figure
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0],
                                  epilog="extra key=value arguments override conf/classifier/<model>.yaml")
     ap.add_argument("--model", required=True, choices=MODELS)
     ap.add_argument("--data", type=Path, help="Places365 root / image folder, or an ImageFolder of class folders")

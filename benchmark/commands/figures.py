@@ -10,7 +10,7 @@ from benchmark.reports.plotting import parse_formats
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = cli.ArgumentParser(description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
+    ap = cli.ArgumentParser(from_root=True, description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
     sub = ap.add_subparsers(dest="cmd", required=True)
     helps = {"fig3": "ground truth | raw | post-processed for one house",
              "fig4": "ground truth + viewpoints | graph KNN | vision cone for one house",
@@ -20,7 +20,7 @@ def main(argv: list[str] | None = None) -> int:
         p = sub.add_parser(name, help=text, description=text + "; trailing key=value arguments are Hydra "
                            "overrides of conf/ (e.g. classifier=objects env.resolution=0.02 run.results_dir=...)")
         p.add_argument("--house-index", type=int, default=80, help="position of the house in the env")
-        default_out = "docs/figures" if name == "house" else f"results/figures/{name}.png"
+        default_out = "results/figures/house" if name == "house" else f"results/figures/{name}.png"
         p.add_argument("--out", type=Path, default=Path(default_out),
                        help="file path (its suffix is replaced by each --format); house: a folder")
         p.add_argument("--format", default=None, help=fmt_help)

@@ -17,7 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     from envs.datasets.synthetic import generate_house
 
     default = procthor_houses()
-    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--synthetic", type=int, default=200, help="number of generated houses (seeds 0..N-1)")
     ap.add_argument("--procthor", type=Path, default=default)
     ap.add_argument("--figure", type=Path, default=None)

@@ -17,7 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     from envs.render.floorplan import FloorplanRenderer
 
     default = procthor_houses()
-    ap = cli.ArgumentParser(description="objects classifier per-view accuracy vs the oracle's true label")
+    ap = cli.ArgumentParser(from_root=True, description="objects classifier per-view accuracy vs the oracle's true label")
     ap.add_argument("--houses", type=Path, default=default)
     ap.add_argument("--train", default="0:75", help="training index range a:b")
     ap.add_argument("--eval", default="75:150", help="evaluation index range a:b")

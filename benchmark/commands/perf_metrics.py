@@ -63,7 +63,7 @@ def _best(fn, *args, repeat: int) -> tuple[object, float]:
 def main(argv: list[str] | None = None) -> int:
     from envs.datasets.procthor import ProcTHOREnv
 
-    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=int, default=150)
     ap.add_argument("--resolution", type=float, default=0.05)
     ap.add_argument("--repeat", type=int, default=5)

@@ -169,7 +169,7 @@ def measure(n_houses: int, workers: int, overrides: list[str], work: Path, execu
 def main(argv: list[str] | None = None) -> int:
     from benchmark.harness.processes import available_cores
 
-    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                                  epilog="e.g. python -m benchmark.commands.scaling --houses 100 1000 --workers 1 2")
     ap.add_argument("--houses", type=int, nargs="+", default=[100], help="numbers of houses (default 100)")
     ap.add_argument("--workers", type=int, nargs="+", default=None,

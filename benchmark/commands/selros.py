@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         geometric_rows,
     )
 
-    ap = cli.ArgumentParser(prog="python -m benchmark.commands.selros", description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, prog="python -m benchmark.commands.selros", description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=None, help="the SeLRoS release folder (default: shared data)")
     ap.add_argument("--resolution", type=float, default=None, help="metres per pixel (default: the presets', 0.02)")
     ap.add_argument("--gt-pattern", default=GT_PATTERN, help="ground-truth file rule with {id}")
