@@ -45,6 +45,8 @@ register_resolvers()  # hydra.sweep.subdir's job_dir, before Hydra composes anyt
 def app(cfg: DictConfig) -> float:
     """One job: run the configuration, record its failed houses. Returns its mean IoU."""
     out_dir = Path(HydraConfig.get().runtime.output_dir)
+    if HydraConfig.get().mode == RunMode.MULTIRUN:
+        _console_warnings_only()  # a sweep's one progress line stands for its jobs; their lines go to bench.log
     sweep.clear_error(out_dir)
     try:
         df = run(cfg, out_dir)
@@ -61,6 +63,16 @@ def app(cfg: DictConfig) -> float:
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
     ok = df[df["status"] == "ok"] if "status" in df else df
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
+
+
+def _console_warnings_only() -> None:
+    """Raise the job's console log handlers (Hydra's ``job_logging`` console) to WARNING: the
+    job's INFO lines still go to its log file (``<job>/bench.log``)."""
+    import logging
+
+    for h in logging.getLogger().handlers:
+        if isinstance(h, logging.StreamHandler) and not isinstance(h, logging.FileHandler):
+            h.setLevel(max(h.level, logging.WARNING))
 
 
 def _finished_jobs() -> tuple[int, int]:

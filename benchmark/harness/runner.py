@@ -160,6 +160,10 @@ def _env_classes(env: Any, cfg: DictConfig) -> tuple[str, ...]:
     return ()
 
 
+#: the last job this process ran: ``houses`` scored, its folder ``dir`` and ``moved`` (the line
+#: saying why it wrote beside its folder, or ""); a sweep's launcher reads it after each job.
+LAST_RUN: dict[str, Any] = {}
+
 #: environments built in this process, by resolved config and input-file fingerprints: the
 #: jobs of a sweep that a worker runs one after another share one (a house file is read once).
 _ENVS: dict[str, Any] = {}
@@ -330,8 +334,10 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     except OSError as e:
         raise ConfigError(f"cannot write the job folder {getattr(e, 'filename', None) or out_dir} "
                           f"({e.strerror or e})") from None
-    if note:
-        log.warning(note)
+    LAST_RUN.clear()
+    LAST_RUN.update(houses=0, dir=str(out_dir), moved=note)
+    if note:  # a sweep's launcher says it once for all its jobs (this job's log file keeps it)
+        log.log(logging.INFO if _in_multirun() else logging.WARNING, note)
     job = Job(out_dir)
     atomic_write_text(job.config_path, OmegaConf.to_yaml(body, resolve=True))
     clf_cfg = cfg.get("classifier") if cfg.get("segmenter") is None else None
@@ -375,6 +381,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
              summary.get("mean_iou", float("nan")), summary["wall_time_s"])
     df.attrs["job_dir"] = str(out_dir)
     df.attrs["n_failed"] = len(failed)
+    LAST_RUN["houses"] = len(rows)
     return df
 
 

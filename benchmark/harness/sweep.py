@@ -129,6 +129,10 @@ def write_summary_after_failure() -> None:
         pass
 
 
+#: the longest job table a sweep prints at its end (longer ones: their file, and the totals).
+PRINTED_JOBS = 40
+
+
 class SweepSummary(Callback):
     """Hydra callback: at the end of a multirun, print and write the sweep's job table."""
 
@@ -147,7 +151,11 @@ class SweepSummary(Callback):
         OUTCOME["jobs"] = len(table)
         OUTCOME["n_failed"] = int(table["failed"].fillna(0).sum()) if len(table) else 0
         OUTCOME["allow_failures"] = bool(config.run.get("allow_failures", False))
-        print((sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8"), flush=True)
+        md = (sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8")
+        if len(table) <= PRINTED_JOBS:
+            print(md, flush=True)
+        else:  # a long sweep (make robustness: 624 jobs): its last line and where the table is
+            print(f"{md.rstrip().splitlines()[-1]} Per job: {sweep_dir / (SWEEP_SUMMARY + '.md')}", flush=True)
 
 
 __all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "clear_error", "record", "record_died", "record_error", "sweep_table",
