@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish robot-coverage-publish clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish robot-coverage-publish clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -137,7 +137,14 @@ sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 
 tables: setup  ## paper tables from every run under results/runs -> results/tables
 	$(PY) -m benchmark.commands.tables results/runs --out results/tables
 
-docs: setup-test  ## the docs site: generated reference pages (commands, config) + MkDocs build, strict -> site/
+# make docs needs the core and MkDocs only (no torch: every command's --help runs without it)
+setup-docs: $(VENV)/.installed-docs  ## add MkDocs (the docs extra) to the core .venv, no torch
+
+$(VENV)/.installed-docs: $(VENV)/.installed
+	$(PIP) install -q -e ".[docs]"
+	touch $@
+
+docs: setup-docs  ## the docs site: generated reference pages (commands, config) + MkDocs build, strict -> site/ (no torch needed)
 	$(PY) -m benchmark.commands.docs reference
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
