@@ -78,3 +78,24 @@ def test_scope_of_folders_without_a_sweep_record(tmp_path, capsys):
     (tmp_path / "runs" / LAST_SWEEP).write_text("{not json")
     assert tables([str(tmp_path / "runs")]) == 2
     assert "unreadable" in capsys.readouterr().err
+
+
+def test_sweeps_below_the_folder_read_are_scoped_each(tmp_path):
+    """``tables results/runs``: each run's sweep folder is scoped by its own record; a single
+    run beside them is read as it is."""
+    from benchmark.harness.store import Job, write_last_sweep
+
+    def job(path: Path) -> Path:
+        path.mkdir(parents=True)
+        (path / "metrics.csv").write_text("house_id,status,iou,precision,recall\nh0,ok,0.5,0.5,0.5\n")
+        return path / "metrics.csv"
+
+    runs = tmp_path / "runs"
+    new, old = job(runs / "a" / "j~new"), job(runs / "a" / "j")
+    single = job(runs / "single")
+    write_last_sweep(runs / "a", [Job(new.parent)], 0.0, ["-m"])
+    scope = sweep_scope([runs])
+    assert sorted(scope.files) == sorted([new, old, single]) and scope.n_other == 1
+    assert f"{runs / 'a'}: includes 1 job folder(s) of earlier runs" in scope.note
+    scope = sweep_scope([runs], last_only=True)
+    assert sorted(scope.files) == sorted([new, single]) and "left out 1 job folder(s)" in scope.note

@@ -534,9 +534,10 @@ class Scope:
 def sweep_scope(paths: Sequence[str | Path], last_only: bool = False) -> Scope:
     """The metrics files under ``paths``, scoped by the sweep folders' ``last_sweep.json``.
 
-    A sweep folder that holds job folders its last multirun did not run (an earlier sweep with
-    other houses or settings) is said so in ``note``; with ``last_only`` those are left out
-    and ``note`` says how many.
+    A sweep folder at or under a path (one holding ``last_sweep.json``) that also holds job
+    folders its last multirun did not run (an earlier sweep with other houses or settings) is
+    said so in ``note``; with ``last_only`` those are left out and ``note`` says how many. Jobs
+    under no sweep folder (single runs) are read as they are.
 
     Raises:
         FileNotFoundError: no metrics file under ``paths``.
@@ -549,34 +550,46 @@ def sweep_scope(paths: Sequence[str | Path], last_only: bool = False) -> Scope:
     notes: list[str] = []
     n_other = 0
     for p in map(Path, paths):
-        under = [f for f in files if p.is_dir() and (p.resolve() in f.resolve().parents)] if p.is_dir() else \
-            [f for f in files if f.resolve() == p.resolve()]
-        doc = last_sweep(p) if p.is_dir() else None
-        if doc is None:
+        if not p.is_dir():  # a metrics file named as such: read as it is
+            keep.extend(f for f in files if f.resolve() == p.resolve())
+            continue
+        under = [f for f in files if p.resolve() in f.resolve().parents]
+        # the sweep folders at or under p (results/runs holds one per run name)
+        sweeps = sorted({m.parent for m in p.rglob(LAST_SWEEP)}, key=lambda d: len(d.parts), reverse=True)
+        if not sweeps:
             if last_only:
                 raise ValueError(f"{p}: no {LAST_SWEEP} (a multirun writes it when it ends); without --last-sweep "
                                  f"every job under it is read")
             keep.extend(under)
             continue
-        mine = {(p / j).resolve() for j in doc["jobs"]}
-        ours = [f for f in under if f.parent.resolve() in mine]
-        other = [f for f in under if f.parent.resolve() not in mine]
-        gone = sorted(mine - {f.parent.resolve() for f in ours})
-        if last_only and gone:
-            raise ValueError(f"{p}: {len(gone)} job(s) of the last sweep have no {METRICS} (e.g. {gone[0]}); "
-                             f"run the sweep again")
-        when = doc.get("finished_at", "?")
-        if last_only:
-            keep.extend(ours)
-            if other:
-                notes.append(f"{p}: the last sweep only ({len(ours)} jobs, finished {when}); left out "
-                             f"{len(other)} job folder(s) of earlier runs in that folder")
-        else:
-            keep.extend(under)
-            n_other += len(other)
-            if other:
-                notes.append(f"{p}: includes {len(other)} job folder(s) of earlier runs beside the last sweep's "
-                             f"{len(ours)} (finished {when}); --last-sweep reads that sweep alone")
+        by_sweep: dict[Path, list[Path]] = {}
+        for f in under:  # each job belongs to the deepest sweep folder holding it, if any
+            d = next((d for d in sweeps if d.resolve() in f.resolve().parents), None)
+            if d is None:
+                keep.append(f)  # a single run beside the sweeps: read as it is
+            else:
+                by_sweep.setdefault(d, []).append(f)
+        for d in sorted(by_sweep):
+            doc = last_sweep(d) or {"jobs": []}
+            mine = {(d / j).resolve() for j in doc["jobs"]}
+            ours = [f for f in by_sweep[d] if f.parent.resolve() in mine]
+            other = [f for f in by_sweep[d] if f.parent.resolve() not in mine]
+            gone = sorted(mine - {f.parent.resolve() for f in ours})
+            if last_only and gone:
+                raise ValueError(f"{d}: {len(gone)} job(s) of the last sweep have no {METRICS} (e.g. {gone[0]}); "
+                                 f"run the sweep again")
+            when = doc.get("finished_at", "?")
+            if last_only:
+                keep.extend(ours)
+                if other:
+                    notes.append(f"{d}: the last sweep only ({len(ours)} jobs, finished {when}); left out "
+                                 f"{len(other)} job folder(s) of earlier runs in that folder")
+            else:
+                keep.extend(by_sweep[d])
+                n_other += len(other)
+                if other:
+                    notes.append(f"{d}: includes {len(other)} job folder(s) of earlier runs beside the last "
+                                 f"sweep's {len(ours)} (finished {when}); --last-sweep reads that sweep alone")
     seen: set[Path] = set()
     out = [f for f in keep if not (f.resolve() in seen or seen.add(f.resolve()))]
     if not out:
