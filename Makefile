@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish robot-coverage-publish clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -112,8 +112,11 @@ perf:  setup ## time aggregators and post-processing against their references (p
 perf-publish: setup  ## make perf's tables -> results/published/perf.md (included by docs/robot-conditions.md)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --robot-houses 10 --out results/published/perf.md
 
-robot-coverage-publish: setup  ## coverage, scan-map agreement, pose error on 20 shared houses -> results/published/robot_coverage.md (included by docs/robot-conditions.md)
+# the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
+# fails when it writes other numbers)
+docs-numbers: setup  ## robot coverage, house statistics -> results/published/{robot_coverage,house_stats}.md (included by the docs)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.house_stats --synthetic 500 --out results/published/house_stats.md
 
 # On a GPU workstation: the active environment's python (conda, README) unless .venv exists.
 GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)

@@ -58,25 +58,27 @@ def test_a_command_from_a_subfolder_says_where_to_run_it(monkeypatch, capsys):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not SHARED.is_dir(), reason="the shared ProcTHOR houses are absent")
-def test_the_published_robot_coverage_is_what_the_command_writes(tmp_path, monkeypatch, capsys):
-    """docs/robot-conditions.md includes results/published/robot_coverage.md; the command the
-    file names (the Makefile's robot-coverage-publish) writes it again byte for byte."""
-    from benchmark.commands import robot_coverage
+@pytest.mark.parametrize("name, page, typed", [("robot_coverage", "robot-conditions.md", r"\| frontier 40 m \|"),
+                                               ("house_stats", "houses.md", r"\| rooms per house +\|")])
+def test_the_published_docs_numbers_are_what_the_commands_write(name, page, typed, tmp_path, monkeypatch, capsys):
+    """A page includes results/published/<name>.md; the command the file names (a line of the
+    Makefile's docs-numbers) writes it again byte for byte, and the page types no copy of it."""
+    import importlib
 
-    published = ROOT / "results" / "published" / "robot_coverage.md"
-    page = (ROOT / "docs" / "robot-conditions.md").read_text(encoding="utf-8")
-    assert '--8<-- "results/published/robot_coverage.md"' in page
-    assert not re.search(r"\| frontier 40 m \|", page)  # no typed copy of the table beside the included one
+    published = ROOT / "results" / "published" / f"{name}.md"
+    text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+    assert f'--8<-- "results/published/{name}.md"' in text
+    assert not re.search(typed, text)  # no typed copy of the table beside the included one
     head = published.read_text(encoding="utf-8").splitlines()[0]
-    command = re.fullmatch(r"Written by `python -m benchmark.commands.robot_coverage (.*)`\.", head).group(1)
+    command = re.fullmatch(rf"Written by `python -m benchmark.commands.{name} (.*)`\.", head).group(1)
     assert command in (ROOT / "Makefile").read_text(encoding="utf-8")
     args = command.split()
-    out = tmp_path / "robot_coverage.md"
+    out = tmp_path / f"{name}.md"
     args[args.index("--out") + 1] = str(out)
     monkeypatch.setenv("ROOMSEG_SHARED_DATA", str(SHARED.parent))
-    assert robot_coverage.main(args) == 0
+    assert importlib.import_module(f"benchmark.commands.{name}").main(args) == 0
     capsys.readouterr()
-    assert out.read_text(encoding="utf-8").splitlines()[2:] == published.read_text(encoding="utf-8").splitlines()[2:]
+    assert out.read_text(encoding="utf-8").splitlines()[1:] == published.read_text(encoding="utf-8").splitlines()[1:]
 
 
 @pytest.mark.slow

@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budgets", type=float, nargs="+", default=[10.0, 20.0, 40.0], help="metres")
     ap.add_argument("--out", type=Path, default=None,
                     help="also write the tables to this Markdown file, headed by the command that made them "
-                         "(make robot-coverage-publish: results/published/robot_coverage.md, which "
+                         "(make docs-numbers: results/published/robot_coverage.md, which "
                          "docs/robot-conditions.md includes)")
     a = ap.parse_args(argv)
     try:
