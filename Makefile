@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish docs-numbers clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -132,9 +132,11 @@ robustness: setup  ## robustness benchmark: methods x robot conditions x severit
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS)
 	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
-sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity (+ docs/figures)
+sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity
 	$(PY) -m benchmark.commands.bench experiment=sensitivity env=synthetic run.limit=20
-	$(PY) -m benchmark.commands.tables results/runs/sensitivity --table sensitivity --out results/sensitivity
+	$(PY) -m benchmark.commands.tables results/runs/sensitivity --last-sweep --table sensitivity --out results/sensitivity
+
+sensitivity-publish: sensitivity  ## make sensitivity, then its plots -> docs/figures (the docs' copies, tracked)
 	mkdir -p docs/figures && cp results/sensitivity/sensitivity*.png docs/figures/
 
 tables: setup  ## paper tables from every run under results/runs -> results/tables
