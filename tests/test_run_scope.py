@@ -63,6 +63,14 @@ def test_a_smaller_sweep_after_a_larger_one(tmp_path, capsys):
     assert "4 configurations, 10 (house, configuration) rows" in page
     assert 'id="scope"' in page and "includes 2 job folder(s) of earlier runs" in page
 
+    from benchmark.commands.figures import main as figures
+
+    assert figures(["from-run", str(run), "--last-sweep", "--out", str(tmp_path / "f"), "--jobs", "1"]) == 0
+    drawn = sorted(p.name for p in (tmp_path / "f").rglob("*.png"))  # one figure per configuration of the sweep
+    assert drawn == ["fig3_synthetic-s000000_synthetic_oracle0.8_graph_knn_default.png",
+                     "fig3_synthetic-s000000_synthetic_oracle0.8_vision_cone_default.png",
+                     "fig4_synthetic-s000000_synthetic_oracle0.8_default.png"]
+
 
 def test_scope_of_folders_without_a_sweep_record(tmp_path, capsys):
     """A folder no multirun wrote (a single run, a copied table) is read whole and said nothing

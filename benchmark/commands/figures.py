@@ -33,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="house id to draw (repeatable; default: the first house every job scored)")
     r.add_argument("--out", type=Path, default=Path("results/figures"))
     r.add_argument("--format", default=None, help=fmt_help)
+    r.add_argument("--last-sweep", action="store_true",
+                   help="only the jobs of the last multirun into the folder (its last_sweep.json)")
     r.add_argument("--jobs", type=int, default=None,
                    help="figures drawn at once in worker processes (default ROOMSEG_JOBS, else the CPU count)")
     a = ap.parse_args(argv)
@@ -49,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
             from envs.atomic import atomic_folder
 
             with atomic_folder(a.out) as tmp:
-                paths = from_run(a.run_dir, tmp, a.house, formats, a.jobs)
+                paths = from_run(a.run_dir, tmp, a.house, formats, a.jobs, last_sweep=a.last_sweep)
                 if not paths:
                     raise FileNotFoundError(f"no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
             paths = [a.out / p.relative_to(tmp) for p in paths]
