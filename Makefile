@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-gpu test test-fast lint bench bench-publish perf sensitivity tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -50,12 +50,12 @@ BENCH_OUT ?= results/bench
 RESULTS ?= results
 
 bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables, figures, report.html -> results/bench
-	@$(if $(findstring procthor_shared,$(BENCH_ENVS)),,echo "make bench: the shared ProcTHOR houses are absent ($(SHARED)/procthor): generated houses only; get them with: $(PY) -m benchmark.commands.data fetch procthor_shared --root $(SHARED)")
+	@$(if $(findstring procthor_shared,$(BENCH_ENVS)),,echo "make bench: the shared ProcTHOR houses are absent ($(SHARED)/procthor): generated houses only; get them with: $(PY) -m benchmark.commands.data fetch procthor_shared --root $(SHARED)" >&2)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
 	@# the figures, and the tables then the report, read the finished run side by side; any failing fails bench
-	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --out $(BENCH_OUT)/figures & fig=$$!; \
-	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --out $(BENCH_OUT) --table table3 --table table4 --table all \
-	  && $(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --out $(BENCH_OUT)/report.html; rep=$$?; \
+	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT)/figures & fig=$$!; \
+	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT) --table table3 --table table4 --table all \
+	  && $(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT)/report.html; rep=$$?; \
 	wait $$fig && exit $$rep
 
 report: setup  ## a sweep as one HTML page: RUN=results/runs/<name> (default bench) -> RUN's folder/report.html
@@ -112,6 +112,12 @@ perf:  setup ## time aggregators and post-processing against their references (p
 perf-publish: setup  ## make perf's tables -> results/published/perf.md (included by docs/robot-conditions.md)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --robot-houses 10 --out results/published/perf.md
 
+# the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
+# fails when it writes other numbers)
+docs-numbers: setup  ## robot coverage, house statistics -> results/published/{robot_coverage,house_stats}.md (included by the docs)
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.house_stats --synthetic 500 --out results/published/house_stats.md
+
 # On a GPU workstation: the active environment's python (conda, README) unless .venv exists.
 GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)
 
@@ -127,17 +133,26 @@ ROBUST_HOUSES ?= 200
 ROBUST_OUT ?= results/robustness
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS)
-	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --out $(ROBUST_OUT)
+	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
-sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity (+ docs/figures)
+sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity
 	$(PY) -m benchmark.commands.bench experiment=sensitivity env=synthetic run.limit=20
-	$(PY) -m benchmark.commands.tables results/runs/sensitivity --table sensitivity --out results/sensitivity
+	$(PY) -m benchmark.commands.tables results/runs/sensitivity --last-sweep --table sensitivity --out results/sensitivity
+
+sensitivity-publish: sensitivity  ## make sensitivity, then its plots -> docs/figures (the docs' copies, tracked)
 	mkdir -p docs/figures && cp results/sensitivity/sensitivity*.png docs/figures/
 
 tables: setup  ## paper tables from every run under results/runs -> results/tables
 	$(PY) -m benchmark.commands.tables results/runs --out results/tables
 
-docs: setup-test  ## the docs site: generated reference pages (commands, config) + MkDocs build, strict -> site/
+# make docs needs the core and MkDocs only (no torch: every command's --help runs without it)
+setup-docs: $(VENV)/.installed-docs  ## add MkDocs (the docs extra) to the core .venv, no torch
+
+$(VENV)/.installed-docs: $(VENV)/.installed
+	$(PIP) install -q -e ".[docs]"
+	touch $@
+
+docs: setup-docs  ## the docs site: generated reference pages (commands, config) + MkDocs build, strict -> site/ (no torch needed)
 	$(PY) -m benchmark.commands.docs reference
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 

@@ -105,7 +105,9 @@ def test_a_good_fetch_lands_whole_and_verified(server, tmp_path, capsys):
     assert "already present, verified" in capsys.readouterr().out and len(server.ranges) == n
     # a damaged file is found by --verify and fetched again
     (folder / "b.txt").write_bytes(B[::-1])
-    assert run(tmp_path, cat, "list", "--verify") == 0 and "damaged (b.txt" in capsys.readouterr().out
+    assert run(tmp_path, cat, "list", "--verify") == 1
+    cap = capsys.readouterr()
+    assert "damaged (b.txt" in cap.out and "verify:  FAILED" in cap.out and "toy" in cap.err
     assert run(tmp_path, cat, "fetch", "toy", "--no-progress") == 0
     assert (folder / "b.txt").read_bytes() == B and len(server.ranges) == n + 1  # only the damaged file
 
@@ -195,3 +197,48 @@ def test_commands_say_how_to_get_absent_data(tmp_path, capsys):
     dry = subprocess.run(["make", "-n", "bench", f"SHARED={tmp_path / 'here'}"], cwd=root, capture_output=True,
                          text=True).stdout
     assert "data fetch" not in dry and "env=synthetic,procthor_shared" in dry
+
+
+def test_root_after_the_subcommand_and_verify_says_what_it_checked(server, tmp_path, capsys):
+    """``data fetch NAME --root DIR`` (as hints type it) works like ``data --root DIR fetch NAME``;
+    ``list --verify`` prints what it verified (not what ``list`` prints) and exits 1 on damage."""
+    cat = catalogue(tmp_path, server.url)
+    root = tmp_path / "elsewhere"
+    assert main(["--catalogue", str(cat), "fetch", "toy", "--root", str(root), "--no-progress"]) == 0
+    assert (root / "toy" / "b.txt").read_bytes() == B
+    assert main(["--catalogue", str(cat), "list", "--root", str(root)]) == 0
+    plain = capsys.readouterr().out
+    assert main(["--catalogue", str(cat), "list", "--verify", "--root", str(root)]) == 0
+    verified = capsys.readouterr().out
+    assert verified != plain and "verify:  2 of 2 files match" in verified and "verify:" not in plain
+    (root / "toy" / "sub" / "a.bin").write_bytes(A[:-1] + b"x")  # same size, other bytes
+    assert main(["--catalogue", str(cat), "list", "--root", str(root)]) == 0  # sizes only: not seen
+    assert main(["--catalogue", str(cat), "list", "--verify", "--root", str(root)]) == 1
+    cap = capsys.readouterr()
+    assert "damaged (sub/a.bin" in cap.out and len(cap.err.strip().splitlines()) == 1
+    (root / "toy" / "b.txt").unlink()
+    assert main(["--catalogue", str(cat), "list", "--verify", "--root", str(root)]) == 1  # partial
+    assert "partial (1 of 2 files)" in capsys.readouterr().out
+
+
+def test_an_absent_dataset_is_one_line_with_a_fetch_command_that_parses(tmp_path, capsys, monkeypatch):
+    """``env=procthor_shared`` with the houses absent: one line naming the file and the command
+    that fetches them, exit 2, nothing written; the command in the hint parses as typed."""
+    import shlex
+
+    from benchmark.commands import bench
+    from benchmark.commands.data import parser
+
+    monkeypatch.setenv("ROOMSEG_SHARED_DATA", str(tmp_path / "nowhere"))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("sys.argv", ["roomseg-bench", "env=procthor_shared", "run.limit=1",
+                                     f"run.results_dir={tmp_path / 'res'}", "run.name=t"])
+    assert bench.main() == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert "procthor-10k-uniform-hard-val.jsonl.gz is absent" in err[0] and "data fetch procthor_shared" in err[0]
+    assert not list((tmp_path / "res").rglob("metrics.csv"))
+    words = shlex.split(err[0].split("get it with: ")[1])
+    assert words[1:3] == ["-m", "benchmark.commands.data"]
+    a = parser().parse_args(words[3:])  # exits 2 on an unrecognized argument
+    assert a.cmd == "fetch" and a.names == ["procthor_shared"] and a.root == tmp_path / "nowhere"

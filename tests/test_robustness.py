@@ -58,7 +58,17 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
     from benchmark.reports.html_report import build_report
 
     page = build_report([results / "runs" / "robustness"])
-    section = page[page.index('id="robustness"'):page.index("<h2>Maps</h2>")]
+    # the page leads with the robustness summary; the configurations follow, with the robot
+    # condition and severity in columns of their own and selects that filter by them
+    assert page.index('id="robustness"') < page.index('id="configurations"') < page.index('id="configs"')
+    configs = page[page.index('id="config-filters"'):]
+    configs = configs[:configs.index("</table>")]
+    assert ">robot condition</th>" in configs and '<th class="num">severity</th>' in configs
+    for words in ("scan map", "pose error", "exploration budget", "classifier noise", "realistic (all combined)"):
+        assert f">{words}</option>" in configs and f"<td>{words}</td>" in configs
+    assert configs.count('data-condition="scan" data-severity="2"') == 4  # 4 methods at scan severity 2
+    assert configs.count("<tr data-condition=") == 44 and "44 of 44 configurations" in configs
+    section = page[page.index('id="robustness"'):page.index('id="configurations"')]
     assert section.count("<img ") == 5 and "IoU vs severity: scan map" in section
     t = pd.read_csv(out / "robustness_synthetic_matched_iou.csv", index_col="method")
     row = section[section.index("<td>voronoi</td>"):]

@@ -1,7 +1,16 @@
 """Commands: every ``python -m benchmark.commands.<name>`` (and console script) lives here,
 on top of the algorithms and the harness; nothing below imports this package."""
 
+import os as _os
 import sys as _sys
+
+# A command run by a user (``python -m benchmark.commands.<name>``: this package is imported
+# while ``sys.argv[0]`` is still ``-m``; or a ``roomseg*`` console script) prints a warning as
+# one line, ``<prog>: warning: <message>``, not Python's file, line number and source line.
+if _sys.argv[:1] == ["-m"] or (_sys.argv and _os.path.basename(_sys.argv[0]).startswith("roomseg")):
+    from benchmark.commands.cli import one_line_warnings as _one_line_warnings
+
+    _one_line_warnings()
 
 #: old module -> the ``roomseg`` subcommand that replaced it (benchmark/cli.py's list).
 _MOVED = {"tables": "tables", "report": "report", "figures": "figures", "robustness": "robustness",
@@ -25,9 +34,3 @@ def _say_what_replaced() -> None:
 
 
 _say_what_replaced()
-
-
-def prog(name: str) -> str:
-    """A command's name in its usage line: ``roomseg <name>`` (what ``roomseg`` set as
-    ``sys.argv[0]``, or the subcommand that replaced ``python -m benchmark.commands.<module>``)."""
-    return _sys.argv[0] if str(_sys.argv[0]).startswith("roomseg") else f"roomseg {name}"

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
+from benchmark.commands import cli
 from envs.maps.annotations import (
     MIN_ON_WALKABLE,
     MIN_WALKABLE_COVERED,
@@ -26,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     Returns:
         exit status.
     """
-    ap = argparse.ArgumentParser(description="room annotations in roomseg-bench's layout")
+    ap = cli.ArgumentParser(description="room annotations in roomseg-bench's layout")
     sub = ap.add_subparsers(dest="cmd", required=True)
     i = sub.add_parser("import", help="convert a colour-coded room map into an annotation folder")
     i.add_argument("--map", type=Path, required=True, help="colour-coded room map PNG (black = outside)")

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmark.commands import prog
+from benchmark.commands import cli
 
 
 def _match(a: argparse.Namespace) -> int:
@@ -49,7 +49,7 @@ def _match(a: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog=prog("baselines"), description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     sub.add_parser("table5", add_help=False, help="SeLRoS, VRF, geometric and sanity rows on the SeLRoS maps "
                    "(options: python -m benchmark.commands.selros --help)")

@@ -46,6 +46,8 @@ register_resolvers()  # hydra.sweep.subdir's job_dir, before Hydra composes anyt
 def app(cfg: DictConfig) -> float:
     """One job: run the configuration, record its failed houses. Returns its mean IoU."""
     out_dir = Path(HydraConfig.get().runtime.output_dir)
+    if HydraConfig.get().mode == RunMode.MULTIRUN:
+        _console_warnings_only()  # a sweep's one progress line stands for its jobs; their lines go to bench.log
     sweep.clear_error(out_dir)
     try:
         df = run(cfg, out_dir)
@@ -62,6 +64,16 @@ def app(cfg: DictConfig) -> float:
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
     ok = df[df["status"] == "ok"] if "status" in df else df
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
+
+
+def _console_warnings_only() -> None:
+    """Raise the job's console log handlers (Hydra's ``job_logging`` console) to WARNING: the
+    job's INFO lines still go to its log file (``<job>/bench.log``)."""
+    import logging
+
+    for h in logging.getLogger().handlers:
+        if isinstance(h, logging.StreamHandler) and not isinstance(h, logging.FileHandler):
+            h.setLevel(max(h.level, logging.WARNING))
 
 
 def _finished_jobs() -> tuple[int, int]:
@@ -117,6 +129,12 @@ def main() -> int:
     if any(a in ("--help", "-h") for a in sys.argv[1:]):
         print(app_help())  # only the groups this app accepts (Hydra's own lists every folder of conf/)
         return 0
+    from benchmark.harness.hints import outside_root
+
+    where = outside_root(PROG)  # results/ and ../shared/data are relative to the checkout's root
+    if where is not None:
+        print(where, file=sys.stderr)
+        return 2
     try:
         from benchmark.config import quote_braces
 

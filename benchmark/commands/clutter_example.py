@@ -23,13 +23,14 @@ tests (two rooms, a desk island in the second).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
+
+from benchmark.commands import cli
 
 #: Metres per pixel of every map written here.
 RESOLUTION = 0.05
@@ -233,7 +234,7 @@ def sweep_command(folder: Path, sub: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out", type=Path, help="folder to write (furnished/ and empty/ inside)")
     ap.add_argument("--maps", type=int, default=7, help="number of offices (default 7)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the first office (default 0)")

@@ -6,19 +6,19 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmark.commands import cli
 from benchmark.paths import procthor_houses
 from benchmark.viewpoints import Autotrace, room_coverage
 
 
 def main(argv: list[str] | None = None) -> int:
     """Autotrace on a house file: poses per house and how many rooms get at least one pose."""
-    import argparse
 
     from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
 
     default = procthor_houses()
-    ap = argparse.ArgumentParser(description="autotrace room coverage on a house file")
+    ap = cli.ArgumentParser(from_root=True, description="autotrace room coverage on a house file")
     ap.add_argument("--houses", type=Path, default=default)
     ap.add_argument("--range", default="0:150", help="house index range a:b")
     ap.add_argument("--offset", type=float, default=0.5, help="metres")

@@ -1,15 +1,18 @@
 """``python -m benchmark.commands.data``: the datasets the harness knows, and their download.
 
-    python -m benchmark.commands.data list [--verify]
+    python -m benchmark.commands.data list [--verify] [--root DIR]
     python -m benchmark.commands.data fetch NAME [NAME ...] [--root DIR]
 
 ``list`` shows each dataset (the shared ProcTHOR houses, the SeLRoS release, ProcTHOR-10k through
 ``prior``, ArchitecTHOR through ``ai2thor``): its public source, licence, size, target folder
-and whether it is present. ``fetch`` downloads one on a machine with internet access, with a
-progress bar, resumable, checked against the size and SHA-256 in ``envs/datasets/catalogue.yaml``
-and moved into place only once complete (:mod:`envs.datasets.download`). The data root is
-``$ROOMSEG_SHARED_DATA`` (default ``../shared/data``), or ``--root``. Exit 0 when done, 2 on a
-bad name or a failed download (one line naming the file and why).
+and whether it is present. ``list --verify`` also hashes every file of the datasets that are
+present, says per dataset how many files it checked, and exits 1 when one is damaged or
+partial. ``fetch`` downloads one on a machine with internet access, with a progress bar,
+resumable, checked against the size and SHA-256 in ``envs/datasets/catalogue.yaml`` and moved
+into place only once complete (envs.datasets.download). The data root is
+``$ROOMSEG_SHARED_DATA`` (default ``../shared/data``), or ``--root`` (before or after the
+subcommand). Exit 0 when done, 1 when ``--verify`` finds damage, 2 on a bad name or a failed
+download (one line naming the file and why).
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from benchmark.commands import prog
+from benchmark.commands import cli
+from benchmark.harness.hints import fetch_command
 from envs.datasets.download import (
     CATALOGUE,
     DownloadError,
@@ -40,13 +44,31 @@ def _size(ds) -> str:
 def _list(root: Path, catalogue: Path, verify: bool) -> int:
     cat = load_catalogue(catalogue)
     print(f"data root: {root} (ROOMSEG_SHARED_DATA, or --root)\n")
+    bad = []
     for ds in cat.values():
         where = root / ds.folder if ds.kind == "files" else "(the package's own cache)"
         files = f", {len(ds.files)} file{'' if len(ds.files) == 1 else 's'}" if ds.kind == "files" else ""
-        print(f"{ds.name}: {ds.title}\n  status:  {status(ds, root, verify)}\n  folder:  {where}\n"
+        state = status(ds, root, verify)
+        line = f"{ds.name}: {ds.title}\n  status:  {state}\n"
+        if verify and ds.kind == "files":
+            if state == "present":
+                line += f"  verify:  {len(ds.files)} of {len(ds.files)} files match their size and SHA-256\n"
+            elif state != "absent":
+                line += f"  verify:  FAILED: {state}; fetch it again: {fetch_command(ds.name, root)}\n"
+                bad.append(f"{ds.name} ({state})")
+            else:
+                line += "  verify:  nothing to verify (absent)\n"
+        print(f"{line}  folder:  {where}\n"
               f"  size:    {_size(ds)}{files}\n  source:  {ds.source}\n  licence: {ds.licence}\n"
               f"  used by: {ds.used_by}\n")
-    print("get one: python -m benchmark.commands.data fetch NAME (needs internet access)")
+    if verify:
+        checked = [ds for ds in cat.values() if ds.kind == "files" and status(ds, root) != "absent"]
+        if bad:
+            print(f"error: damaged or partial: {', '.join(bad)}", file=sys.stderr)
+            return 1
+        print("verified: every dataset present matches the catalogue's sizes and SHA-256" if checked
+              else "verified: no dataset is present under the data root")
+    print(f"get one (needs internet access): {fetch_command('NAME', root)}")
     return 0
 
 
@@ -76,20 +98,38 @@ def _fetch(names: Sequence[str], root: Path, catalogue: Path, progress: bool, ti
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from benchmark.paths import data_dir
-
-    ap = argparse.ArgumentParser(prog=prog("data"), description=__doc__.split("\n\n")[0])
-    ap.add_argument("--root", type=Path, default=None, help="data root (default $ROOMSEG_SHARED_DATA or ../shared/data)")
+def parser() -> argparse.ArgumentParser:
+    """The command line of ``data`` (``--root`` before or after the subcommand)."""
+    root_help = "data root (default $ROOMSEG_SHARED_DATA or ../shared/data)"
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--root", type=Path, default=None, help=root_help)
     ap.add_argument("--catalogue", type=Path, default=CATALOGUE, help=argparse.SUPPRESS)  # tests: a local server's
     sub = ap.add_subparsers(dest="cmd", required=True)
+    # --root after the subcommand too (data fetch NAME --root DIR, as hints type it); SUPPRESS
+    # keeps a --root given before the subcommand when none follows it
     ls = sub.add_parser("list", help="the datasets, their sources, licences, sizes and whether they are present")
-    ls.add_argument("--verify", action="store_true", help="also check every file's SHA-256 (slower)")
+    ls.add_argument("--root", type=Path, default=argparse.SUPPRESS, help=root_help)
+    ls.add_argument("--verify", action="store_true",
+                    help="also check every file's SHA-256 (slower); exit 1 when one is damaged or missing")
     f = sub.add_parser("fetch", help="download datasets (resumable, checksummed, moved into place when complete)")
+    f.add_argument("--root", type=Path, default=argparse.SUPPRESS, help=root_help)
     f.add_argument("names", nargs="+", metavar="NAME")
     f.add_argument("--no-progress", action="store_true", help="no progress bar")
     f.add_argument("--timeout", type=float, default=60.0, help="seconds to wait for the server (default 60)")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from benchmark.paths import data_dir
+
+    a = parser().parse_args(argv)
+    if a.root is None and not data_dir().is_absolute():  # ../shared/data: relative to the checkout's root
+        from benchmark.harness.hints import outside_root
+
+        where = outside_root("python -m benchmark.commands.data")
+        if where is not None:
+            print(where.replace("): cd", ", or give --root DIR): cd"), file=sys.stderr)
+            return 2
     root = a.root or data_dir()
     try:
         if a.cmd == "list":

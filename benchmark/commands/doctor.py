@@ -9,12 +9,12 @@ it need it), with one line of what to do. Exits 1 when a core piece is missing, 
 
 from __future__ import annotations
 
-import argparse
 import ctypes.util
 import importlib.util
 import os
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.paths import data_dir
 
 CORE = ("numpy", "scipy", "cv2", "skimage", "PIL", "shapely", "numba", "pandas", "matplotlib", "tqdm", "hydra",
@@ -107,7 +107,7 @@ def format_table(rows: list[tuple[str, str, str]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--hab-dataset", default=None, help="ai2thor-hab scene dataset config (default: $ROOMSEG_HAB_DATASET)")
     ap.add_argument("--annotations", default=None, help="ArchitecTHOR annotation root")
     ap.add_argument("--shared", default=None, help="shared data folder")

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.reports.draw_house import draw_scene
 from envs.datasets.house_files import load_houses
 from envs.maps.scene import rasterise_house
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="draw one house's map and ground truth")
+    ap = cli.ArgumentParser(description="draw one house's map and ground truth")
     ap.add_argument("--houses", type=Path, required=True, help=".json/.jsonl/.jsonl.gz house file")
     ap.add_argument("--index", type=int, default=0)
     ap.add_argument("--resolution", type=float, default=0.05, help="metres per pixel")

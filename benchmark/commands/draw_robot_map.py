@@ -4,15 +4,15 @@ with the path it drove and its views (:mod:`benchmark.reports.robot_map`).
 
 Example (the figure in ``docs/robot-conditions.md``)::
 
-    python -m benchmark.commands.draw_robot_map --house 3 --out docs/figures/robot_map.png
+    python -m benchmark.commands.draw_robot_map --house 3 --out results/figures/robot_map.png
 """
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.commands.errors import cli_errors, one_line
 from benchmark.paths import procthor_houses
 
@@ -50,11 +50,11 @@ def draw(houses: Path, index: int, budget: float, out: Path) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=Path, default=procthor_houses(), help=".json/.jsonl/.jsonl.gz house file")
     ap.add_argument("--house", type=int, default=3, help="index of the house in the file")
     ap.add_argument("--budget", type=float, default=40.0, help="frontier path-length budget, metres")
-    ap.add_argument("--out", type=Path, default=Path("docs/figures/robot_map.png"))
+    ap.add_argument("--out", type=Path, default=Path("results/figures/robot_map.png"))
     a = ap.parse_args(argv)
     try:
         print(draw(a.houses, a.house, a.budget, a.out))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -17,13 +16,14 @@ from benchmark.classifiers.evaluate import (
     throughput,
     write_table,
 )
+from benchmark.commands import cli
 from benchmark.commands.errors import cli_errors, one_line
 from benchmark.config import build_classifier, classifier_config
 from benchmark.reports.confusion import confusion_figure
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0],
                                  epilog="extra key=value arguments override conf/classifier/<model>.yaml")
     ap.add_argument("--model", required=True, choices=MODELS)
     ap.add_argument("--data", type=Path, help="Places365 root / image folder, or an ImageFolder of class folders")

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.reports.figures import fig3, fig4, from_run, house_figures
 from benchmark.reports.plotting import parse_formats
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
+    ap = cli.ArgumentParser(from_root=True, description="the paper's figures (Fig. 2, 3, 4) from the runner's caches")
     sub = ap.add_subparsers(dest="cmd", required=True)
     helps = {"fig3": "ground truth | raw | post-processed for one house",
              "fig4": "ground truth + viewpoints | graph KNN | vision cone for one house",
@@ -20,7 +20,7 @@ def main(argv: list[str] | None = None) -> int:
         p = sub.add_parser(name, help=text, description=text + "; trailing key=value arguments are Hydra "
                            "overrides of conf/ (e.g. classifier=objects env.resolution=0.02 run.results_dir=...)")
         p.add_argument("--house-index", type=int, default=80, help="position of the house in the env")
-        default_out = "docs/figures" if name == "house" else f"results/figures/{name}.png"
+        default_out = "results/figures/house" if name == "house" else f"results/figures/{name}.png"
         p.add_argument("--out", type=Path, default=Path(default_out),
                        help="file path (its suffix is replaced by each --format); house: a folder")
         p.add_argument("--format", default=None, help=fmt_help)
@@ -33,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="house id to draw (repeatable; default: the first house every job scored)")
     r.add_argument("--out", type=Path, default=Path("results/figures"))
     r.add_argument("--format", default=None, help=fmt_help)
+    r.add_argument("--last-sweep", action="store_true",
+                   help="only the jobs of the last multirun into the folder (its last_sweep.json)")
     r.add_argument("--jobs", type=int, default=None,
                    help="figures drawn at once in worker processes (default ROOMSEG_JOBS, else the CPU count)")
     a = ap.parse_args(argv)
@@ -49,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
             from envs.atomic import atomic_folder
 
             with atomic_folder(a.out) as tmp:
-                paths = from_run(a.run_dir, tmp, a.house, formats, a.jobs)
+                paths = from_run(a.run_dir, tmp, a.house, formats, a.jobs, last_sweep=a.last_sweep)
                 if not paths:
                     raise FileNotFoundError(f"no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
             paths = [a.out / p.relative_to(tmp) for p in paths]

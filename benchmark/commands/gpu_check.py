@@ -23,7 +23,6 @@ status is 0 only when every required check passed (all but the habitat-sim one).
 
 from __future__ import annotations
 
-import argparse
 import ctypes.util
 import importlib
 import os
@@ -33,6 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.commands.errors import one_line
 
 PASS, FAIL, SKIP = "pass", "FAIL", "skipped"
@@ -333,7 +333,7 @@ def format_rows(rows: list[Row]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the checks, print the table and a summary; exit 0 only if every required check passed."""
-    ap = argparse.ArgumentParser(description="check each real dependency of the paper's GPU runs, in order")
+    ap = cli.ArgumentParser(from_root=True, description="check each real dependency of the paper's GPU runs, in order")
     ap.add_argument("--house", default=None, help="a ProcTHOR house file (.json/.jsonl.gz) to render; default: the "
                                                   "shared ProcTHOR file, else prior's procthor-10k train[0]")
     ap.add_argument("--commit-id", default=None, help="AI2-THOR build (default: the one ai2thor pins)")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from benchmark.commands import cli
 from envs.render.habitat import DEFAULT_DATASET, HabitatRenderer, mirror_agreement
 
 
@@ -15,12 +16,11 @@ def main(argv: list[str] | None = None) -> int:
     ``python -m benchmark.commands.navmesh mirror --scene NAME --reachable POINTS.json``: the
     share of AI2-THOR's reachable positions (``python -m benchmark.commands.thor reachable``)
     on the navmesh for each ``mirror``."""
-    import argparse  # noqa: PLC0415
     import os  # noqa: PLC0415
 
     from envs.maps.annotations import write_walkable  # noqa: PLC0415
 
-    ap = argparse.ArgumentParser(description="navmesh top-down view of an ai2thor-hab scene")
+    ap = cli.ArgumentParser(description="navmesh top-down view of an ai2thor-hab scene")
     sub = ap.add_subparsers(dest="cmd", required=True)
     n = sub.add_parser("navmesh")
     n.add_argument("--scene", required=True)

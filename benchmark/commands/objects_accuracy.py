@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import argparse
-
 from benchmark.classifiers.objects import ObjectsClassifier
+from benchmark.commands import cli
 from benchmark.paths import procthor_houses
 from envs.maps.scene import rasterise_house
 
@@ -18,7 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     from envs.render.floorplan import FloorplanRenderer
 
     default = procthor_houses()
-    ap = argparse.ArgumentParser(description="objects classifier per-view accuracy vs the oracle's true label")
+    ap = cli.ArgumentParser(from_root=True, description="objects classifier per-view accuracy vs the oracle's true label")
     ap.add_argument("--houses", type=Path, default=default)
     ap.add_argument("--train", default="0:75", help="training index range a:b")
     ap.add_argument("--eval", default="75:150", help="evaluation index range a:b")

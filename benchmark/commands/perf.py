@@ -23,7 +23,6 @@ against its pure-Python reference on the whole exploration. Maps and poses must 
 
 from __future__ import annotations
 
-import argparse
 import time
 import tracemalloc
 from pathlib import Path
@@ -31,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmark.commands import cli
 from benchmark.paths import procthor_houses
 
 
@@ -176,7 +176,7 @@ def robot_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def main(argv: list[str] | None = None) -> int:
     default = procthor_houses()
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=int, default=5, help="shared ProcTHOR houses (0: none)")
     ap.add_argument("--synthetic", type=int, default=3, help="generated houses (0: none)")
     ap.add_argument("--resolutions", type=float, nargs="+", default=[0.05, 0.02])

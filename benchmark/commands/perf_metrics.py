@@ -12,7 +12,6 @@ timed. Prints per-house medians (milliseconds) and the ratios.
 
 from __future__ import annotations
 
-import argparse
 import time
 from functools import partial
 
@@ -20,6 +19,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from benchmark.commands import cli
 from benchmark.metrics import MetricParams, score_semantic, segments
 from benchmark.paths import procthor_houses
 
@@ -63,7 +63,7 @@ def _best(fn, *args, repeat: int) -> tuple[object, float]:
 def main(argv: list[str] | None = None) -> int:
     from envs.datasets.procthor import ProcTHOREnv
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=int, default=150)
     ap.add_argument("--resolution", type=float, default=0.05)
     ap.add_argument("--repeat", type=int, default=5)

@@ -3,12 +3,12 @@ ground truth of the shared ProcTHOR houses or on a runner job's cached raw maps.
 
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import numpy as np
 
+from benchmark.commands import cli
 from benchmark.paths import procthor_houses
 from benchmark.postprocess import PostProcess, noisy_ground_truth
 
@@ -73,7 +73,7 @@ def time_postprocess_job(job_dir: str | Path, repeat: int = 3) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     """``python -m benchmark.commands.perf_postprocess``: post-processing time per house."""
     default = procthor_houses()
-    ap = argparse.ArgumentParser(description="time the default post-processing per house: on noisy ground truth "
+    ap = cli.ArgumentParser(from_root=True, description="time the default post-processing per house: on noisy ground truth "
                                  "of the shared ProcTHOR houses, or on a runner job's cached raw maps (--job)")
     ap.add_argument("--data", type=Path, default=default)
     ap.add_argument("--houses", type=int, default=150)

@@ -8,16 +8,16 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmark.commands import cli
 from benchmark.reports.readme_tables import BLOCK_FILES, check, publish, write
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="README results blocks from published runs (results/published/)")
+    ap = cli.ArgumentParser(from_root=True, description="README results blocks from published runs (results/published/)")
     sub = ap.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("publish", help="copy a finished run's per-house metrics into results/published/<name>")
     p.add_argument("run_dir", type=Path)

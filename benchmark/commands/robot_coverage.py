@@ -13,12 +13,12 @@ Prints the means over houses as Markdown tables.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import pandas as pd
 
+from benchmark.commands import cli
 from benchmark.commands.errors import cli_errors, one_line
 from benchmark.paths import procthor_houses
 
@@ -84,34 +84,71 @@ def run(houses: list, budgets: list[float]) -> tuple[pd.DataFrame, pd.DataFrame]
     return pd.DataFrame(rows), pd.DataFrame(errors)
 
 
+def report(df: pd.DataFrame, errors: pd.DataFrame) -> str:
+    """The command's Markdown: the coverage table (means over houses) with its note, then the
+    pose-error table with its note."""
+    order = list(dict.fromkeys(df["strategy"]))
+    table = df.groupby("strategy", sort=False)[["views", "metres", "coverage_area", "coverage_rooms",
+                                               "stopped_early", "walkable_free", "free_walkable"]].mean().loc[order]
+    out = [table.reset_index().to_markdown(index=False, floatfmt=".2f"), "",
+           f"Means over {df['house'].nunique()} houses. Coverage: 90 degree cone, 6 m, objects 1.2 m tall block; "
+           f"rooms seen from inside with at least 10 % of their cells. Scan map: 0.25 m plane, 10 m range, 1 degree "
+           f"beams, no noise (frontier: the robot's own map). Autotrace metres: its route through the views. "
+           f"stopped_early: share of houses where the exploration ended before its budget (no reachable frontier, "
+           f"or a random walk stuck).", ""]
+    order = list(dict.fromkeys(errors["setting"]))
+    cols = ["route m", "pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg", "pose_off_walkable"]
+    out += [errors.groupby("setting", sort=False)[cols].mean().loc[order].reset_index().to_markdown(
+        index=False, floatfmt=".3f"), "", "Pose error of the autotrace views (means over houses), drift along the "
+            "autotrace route."]
+    return "\n".join(out) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--houses", type=Path, default=procthor_houses(), help=".json/.jsonl/.jsonl.gz house file")
     ap.add_argument("--n", type=int, default=20, help="first N houses")
     ap.add_argument("--synthetic", action="store_true", help="generated houses instead of the file")
     ap.add_argument("--budgets", type=float, nargs="+", default=[10.0, 20.0, 40.0], help="metres")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="also write the tables to this Markdown file, headed by the command that made them "
+                         "(make docs-numbers: results/published/robot_coverage.md, which "
+                         "docs/robot-conditions.md includes)")
     a = ap.parse_args(argv)
     try:
         if a.n < 1 or any(not b > 0 for b in a.budgets):
             raise ValueError(f"--n {a.n} / --budgets {a.budgets}: expected n >= 1 and budgets > 0 metres")
         df, errors = run(_houses(a.houses, a.n, a.synthetic), a.budgets)
+        text = report(df, errors)
     except cli_errors() as e:
         print(f"error: {one_line(e)}", file=sys.stderr)
         return 2
-    order = list(dict.fromkeys(df["strategy"]))
-    table = df.groupby("strategy", sort=False)[["views", "metres", "coverage_area", "coverage_rooms",
-                                               "stopped_early", "walkable_free", "free_walkable"]].mean().loc[order]
-    print(table.reset_index().to_markdown(index=False, floatfmt=".2f"))
-    print(f"\nMeans over {df['house'].nunique()} houses. Coverage: 90 degree cone, 6 m, objects 1.2 m tall block; "
-          f"rooms seen from inside with at least 10 % of their cells. Scan map: 0.25 m plane, 10 m range, 1 degree "
-          f"beams, no noise (frontier: the robot's own map). Autotrace metres: its route through the views. stopped_early: share of houses where the exploration "
-          f"ended before its budget (no reachable frontier, or a random walk stuck).\n")
-    order = list(dict.fromkeys(errors["setting"]))
-    cols = ["route m", "pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg", "pose_off_walkable"]
-    print(errors.groupby("setting", sort=False)[cols].mean().loc[order].reset_index().to_markdown(
-        index=False, floatfmt=".3f"))
-    print("\nPose error of the autotrace views (means over houses), drift along the autotrace route.")
+    if a.out is not None:
+        from envs.atomic import atomic_write_text
+
+        try:
+            atomic_write_text(a.out, f"Written by `{published_command(a)}`.\n\n" + text)
+        except OSError as e:  # a full disk, a read-only folder: one line naming the file
+            from benchmark.harness.write_errors import cannot_write
+
+            print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
+            return 2
+    print(text)
     return 0
+
+
+def published_command(a) -> str:  # noqa: ANN001 - the parsed arguments
+    """The command line that makes the published file (the defaults left out)."""
+    parts = ["python -m benchmark.commands.robot_coverage", f"--n {a.n}"]
+    if a.synthetic:
+        parts.append("--synthetic")
+    elif Path(a.houses) != procthor_houses():
+        parts.append(f"--houses {a.houses}")
+    if list(a.budgets) != [10.0, 20.0, 40.0]:
+        parts.append("--budgets " + " ".join(f"{b:g}" for b in a.budgets))
+    if a.out is not None:
+        parts.append(f"--out {a.out}")
+    return " ".join(parts)
 
 
 if __name__ == "__main__":

@@ -20,13 +20,12 @@ The output folder is written as a whole (an interrupted command leaves the old s
 
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from benchmark.commands import prog
+from benchmark.commands import cli
 from benchmark.commands.errors import one_line
 from benchmark.paths import CONF_DIR
 from benchmark.reports import robustness as rb
@@ -38,22 +37,25 @@ GEOMETRIC, SANITY, DEFAULT_REFERENCE = rb.GEOMETRIC, rb.SANITY, rb.REFERENCE
 
 
 def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], str]:
-    """(family, severity) -> its physical values, read from ``conf/corruption/<family>_<k>.yaml``
-    (each ``key: value  # unit`` line under a stage)."""
+    """(family, severity) -> the settings its ``conf/corruption/<family>_<k>.yaml`` chooses, as
+    the composed config has them: the keys the file sets (read as YAML), each with its value in
+    the config composed with ``corruption=<family>_<k>`` (units: the configuration reference)."""
+    from omegaconf import OmegaConf
+
+    from benchmark.config import compose
+    from benchmark.harness.store import flat_settings
+
     out = {}
     for p in sorted(Path(conf_dir, "corruption").glob("*_[1-9].yaml")):
         family, k = p.stem.rsplit("_", 1)
-        parts, stage = [], ""
-        for line in p.read_text(encoding="utf-8").splitlines():
-            top = re.match(r"^(\w+):\s*$", line)
-            if top:
-                stage = top.group(1)
-                continue
-            m = re.match(r"^\s+(\w+):\s*([^#\s]+)\s*(?:#\s*(.*))?$", line)
-            if m and stage != "robot":
-                unit = (m.group(3) or "").split("(")[0].strip()
-                parts.append(f"{stage}.{m.group(1)} {m.group(2)}{(' ' + unit) if unit else ''}")
-        out[(family, int(k))] = "; ".join(parts)
+        given = OmegaConf.to_container(OmegaConf.load(p))
+        keys = [key for key in flat_settings({g: v for g, v in given.items() if g not in ("defaults", "robot")})
+                if not key.endswith("_target_")]
+        cfg = compose("config", [f"corruption={p.stem}"])
+        values = [f"{key} {OmegaConf.select(cfg, key)}" for key in keys]
+        groups = [f"{g}={choice}" for d in given.get("defaults", []) if isinstance(d, dict)
+                  for g, choice in ((str(x).split("/")[-1], y) for x, y in d.items())]
+        out[(family, int(k))] = "; ".join([*groups, *values])
     return out
 
 
@@ -84,12 +86,17 @@ SHOWN = ("clean", *rb.FAMILIES, "mCE", "rel mCE", "mean drop")
 
 
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
-           delta: float = rb.DELTA) -> str:
-    """The Markdown of every table (and, with ``out``, the files). Raises RobustnessError."""
+           delta: float = rb.DELTA, last_sweep: bool = False) -> str:
+    """The Markdown of every table (and, with ``out``, the files). ``last_sweep``: only the jobs
+    of the last multirun into each folder. Raises RobustnessError."""
+    from benchmark.harness.store import sweep_scope
     from benchmark.reports.sweep_jobs import partial_sweep_lines
     from benchmark.stats import METHOD_WORDS
 
-    rows = load_rows(paths)
+    scope = sweep_scope(paths, last_sweep)
+    if scope.note:
+        print(f"robustness: note: {scope.note}", file=sys.stderr)
+    rows = load_rows(scope.files)
     if rows.attrs.get("set_aside"):
         print(f"robustness: {rows.attrs['set_aside']}", file=sys.stderr)
     partial = partial_sweep_lines(paths)
@@ -113,7 +120,8 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
           f"method's clean error, so clean accuracy cancels. Error = 100 - metric; drop = clean - mean over "
           f"the family's severities. Metrics in percent, mean over houses with its 95 % interval "
           f"[lo, hi] ({METHOD_WORDS}); every cell of a dataset holds the same houses. Rankings: braces hold "
-          f"methods that no paired interval separates.", "", *[f"**Partial sweep**: {x}." for x in partial],
+          f"methods that no paired interval separates."
+          + (f" Runs read: {scope.note}." if scope.note else ""), "", *[f"**Partial sweep**: {x}." for x in partial],
           *([""] if partial else [])]
     power = []
     for (dataset, metric), p in parts.items():
@@ -166,7 +174,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog=prog("robustness"),
+    ap = cli.ArgumentParser(prog="python -m benchmark.commands.robustness",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("paths", nargs="+", help="the robustness run's folder(s)")
     ap.add_argument("--out", type=Path, default=None, help="folder for the tables and figures (written as a whole)")
@@ -176,15 +184,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--delta", type=float, default=rb.DELTA,
                     help="the difference (points of matched IoU) the power report sizes the houses for (default 3)")
     ap.add_argument("--metric", action="append", choices=rb.METRICS, help="metric(s) (default: all three)")
+    ap.add_argument("--last-sweep", action="store_true",
+                    help="only the jobs of the last multirun into each folder (its last_sweep.json)")
     a = ap.parse_args(argv)
     metrics = a.metric or list(rb.METRICS)
     try:
         if a.out is None:
-            text = render(a.paths, None, metrics, a.reference, a.delta)
+            text = render(a.paths, None, metrics, a.reference, a.delta, a.last_sweep)
         else:
             with atomic_folder(a.out) as tmp:
                 (tmp / "figures").mkdir()
-                text = render(a.paths, tmp, metrics, a.reference, a.delta)
+                text = render(a.paths, tmp, metrics, a.reference, a.delta, a.last_sweep)
     except (rb.RobustnessError, FileNotFoundError, ValueError) as e:
         print(f"robustness: error: {one_line(e)}", file=sys.stderr)
         return 2

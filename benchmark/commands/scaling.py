@@ -25,7 +25,6 @@ the ones here are defaults they replace. Exit status 1 when a run fails (one lin
 
 from __future__ import annotations
 
-import argparse
 import os
 import resource
 import shutil
@@ -37,6 +36,8 @@ import time
 from pathlib import Path
 
 import pandas as pd
+
+from benchmark.commands import cli
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -168,7 +169,7 @@ def measure(n_houses: int, workers: int, overrides: list[str], work: Path, execu
 def main(argv: list[str] | None = None) -> int:
     from benchmark.harness.processes import available_cores
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                                  epilog="e.g. python -m benchmark.commands.scaling --houses 100 1000 --workers 1 2")
     ap.add_argument("--houses", type=int, nargs="+", default=[100], help="numbers of houses (default 100)")
     ap.add_argument("--workers", type=int, nargs="+", default=None,

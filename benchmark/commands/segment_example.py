@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmark.commands import cli
 from envs.maps.frames import ros_origin_to_grid_origin, world_to_ros
 from envs.maps.gridmap import GridMap
 from envs.maps.label_png import write_label_png
@@ -174,7 +175,7 @@ def _rooms(text: str) -> tuple[int, int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out", type=Path, help="folder to write the example inputs into")
     ap.add_argument("--rooms", type=_rooms, default=(3, 2), help="rooms across x up, e.g. 3x2 (default)")
     ap.add_argument("--room-m", type=float, default=4.0, help="room side, metres (default 4)")

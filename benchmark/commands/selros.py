@@ -19,14 +19,13 @@ Map ids come from the ground-truth file names by the rule ``--gt-pattern`` (defa
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
 
 import pandas as pd
 
-from benchmark.commands import prog
+from benchmark.commands import cli
 
 
 def compose_score(overrides: list[str]):
@@ -54,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         geometric_rows,
     )
 
-    ap = argparse.ArgumentParser(prog=prog("baselines table5"), description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=None, help="the SeLRoS release folder (default: shared data)")
     ap.add_argument("--resolution", type=float, default=None, help="metres per pixel (default: the presets', 0.02)")
     ap.add_argument("--gt-pattern", default=GT_PATTERN, help="ground-truth file rule with {id}")
@@ -81,8 +80,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     data = a.data or default_selros_dir()
     if not data.is_dir():
-        print(f"error: the SeLRoS release is not at {data}: get it with `python -m benchmark.commands.data fetch "
-              f"selros` (or give --data DIR)", file=sys.stderr)
+        from benchmark.harness.hints import fetch_command
+
+        root = data.parent if a.data and data.name == "selros" else (None if a.data else default_selros_dir().parent)
+        print(f"error: the SeLRoS release is not at {data}: get it with: {fetch_command('selros', root)} "
+              f"(or give --data DIR)", file=sys.stderr)
         return 2
     try:
         common = [f"external.gt_dir={_quote(data / GT_FOLDER)}", f"external.gt_pattern={_quote(a.gt_pattern)}", *rest]

@@ -4,18 +4,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from benchmark.commands import cli
 from envs.render.thor import PLATFORMS, AI2THORRenderer
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m benchmark.commands.thor reachable --scene NAME --out POINTS.json``: AI2-THOR's
     reachable positions of a scene (a name, or a ProcTHOR house JSON file) as a JSON list."""
-    import argparse  # noqa: PLC0415
     import json  # noqa: PLC0415
 
     from envs.world.house import House  # noqa: PLC0415
 
-    ap = argparse.ArgumentParser(description="AI2-THOR reachable positions of a scene")
+    ap = cli.ArgumentParser(description="AI2-THOR reachable positions of a scene")
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("reachable")
     r.add_argument("--scene", required=True, help="scene name (e.g. ArchitecTHOR-Val-00) or a house .json file")

@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from benchmark.classifiers.train import history_path, train_cnn, train_mlp
+from benchmark.commands import cli
 
 
 def main(argv: list[str] | None = None) -> int:
     from benchmark.commands.errors import cli_errors, one_line  # noqa: PLC0415
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  epilog="extra key=value arguments override conf/classifier/<model>.yaml")
     ap.add_argument("--model", required=True, choices=["cnn", "dinov2"])
     ap.add_argument("--data", type=Path, required=True,

@@ -13,7 +13,6 @@ floorplan renderer) and classifier. Also writes a PNG of the row-normalised matr
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -21,9 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmark.commands import cli
+
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, required=True, help="JSON file to write (a PNG goes beside it)")
     ap.add_argument("overrides", nargs="*", help="Hydra overrides of the root config, key=value")
     a = ap.parse_args(argv)

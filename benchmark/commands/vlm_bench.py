@@ -19,7 +19,6 @@ difference of the scores from the ``before`` way with the same spellings.
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Sequence
 
@@ -27,6 +26,7 @@ import numpy as np
 
 from benchmark.classifiers.torch_common import require_torch, require_transformers
 from benchmark.classifiers.vlm import DEFAULT_PROMPT, VLMClassifier, class_spellings, display_name
+from benchmark.commands import cli
 
 BENCH_CLASSES = ("balcony", "bathroom", "bedroom", "corridor", "dining_room", "kitchen", "living_room")
 SPECIAL = ["[PAD]", "[UNK]", "<|im_start|>", "<|im_end|>", "<|vision_start|>", "<|vision_end|>", "<|image_pad|>",
@@ -209,7 +209,7 @@ def measure(runs: dict, images: Sequence[np.ndarray], repeats: int = 5) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """Print the before/after table (see the module docstring); exit 0."""
-    ap = argparse.ArgumentParser(description="VLM cost per image, before and after the shared prefix (CPU, tiny models)")
+    ap = cli.ArgumentParser(description="VLM cost per image, before and after the shared prefix (CPU, tiny models)")
     ap.add_argument("--images", type=int, default=16, help="images classified per row")
     ap.add_argument("--batch-size", type=int, default=4, help="images per chunk")
     ap.add_argument("--image-size", type=int, default=224, help="square images, pixels (224: 64 image tokens)")

@@ -19,6 +19,7 @@ import contextlib
 import hashlib
 import json
 import os
+import time
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -136,10 +137,58 @@ def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
 
 @contextlib.contextmanager
 def locked(path: Path, timeout: float = 3600.0) -> Iterator[None]:
-    """Hold an inter-process lock tied to ``path`` (a ``.lock`` file beside it)."""
+    """Hold an inter-process lock tied to ``path`` (a ``.lock`` file beside it, removed when
+    the lock is released, so a cache does not fill with empty lock files).
+
+    POSIX: ``flock`` on the lock file; after locking, the file must still be the one at the
+    path (same inode), else another holder removed it in between and the lock is taken again
+    on the new file; the holder removes the file before unlocking. So at most one process
+    holds the lock of a path at a time, and a process killed while holding it leaves a file
+    that the next holder takes over and removes. Elsewhere: ``filelock``'s lock (its file stays).
+
+    Raises:
+        TimeoutError: not acquired within ``timeout`` seconds."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with FileLock(str(path) + ".lock", timeout=timeout):
+    lock = str(path) + ".lock"
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        with FileLock(lock, timeout=timeout):
+            yield
+        return
+    deadline = time.monotonic() + timeout
+    delay = 0.001
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        raise TimeoutError(f"{lock}: held by another process for over {timeout:g} s") from None
+                    time.sleep(delay)
+                    delay = min(delay * 2, 0.05)
+            try:
+                same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+        except BaseException:
+            os.close(fd)
+            raise
+        if same:
+            break
+        os.close(fd)  # the holder before removed this file: lock the one at the path now
+    try:
         yield
+    finally:
+        try:
+            os.unlink(lock)
+        except FileNotFoundError:
+            pass
+        os.close(fd)  # unlocks
 
 
 def atomic_write_json(path: Path, obj: Any) -> None:

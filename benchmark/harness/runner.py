@@ -142,6 +142,10 @@ def _env_classes(env: Any, cfg: DictConfig) -> tuple[str, ...]:
     return ()
 
 
+#: the last job this process ran: ``houses`` scored, its folder ``dir`` and ``moved`` (the line
+#: saying why it wrote beside its folder, or ""); a sweep's launcher reads it after each job.
+LAST_RUN: dict[str, Any] = {}
+
 #: environments built in this process, by resolved config and input-file fingerprints: the
 #: jobs of a sweep that a worker runs one after another share one (a house file is read once).
 _ENVS: dict[str, Any] = {}
@@ -155,7 +159,15 @@ def _environment(node: DictConfig) -> tuple[Any, str]:
     if key not in _ENVS:
         if len(_ENVS) >= 4:
             _ENVS.pop(next(iter(_ENVS)))
-        _ENVS[key] = instantiate(node)
+        try:
+            _ENVS[key] = instantiate(node)
+        except Exception as e:  # a dataset that is absent: one line with the command that fetches it
+            from benchmark.harness.hints import missing_data
+
+            hint = missing_data(e)
+            if hint is None:
+                raise
+            raise ConfigError(f"env: {hint}") from None
     return _ENVS[key], key
 
 
@@ -305,8 +317,10 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     except OSError as e:
         raise ConfigError(f"cannot write the job folder {getattr(e, 'filename', None) or out_dir} "
                           f"({e.strerror or e})") from None
-    if note:
-        log.warning(note)
+    LAST_RUN.clear()
+    LAST_RUN.update(houses=0, dir=str(out_dir), moved=note)
+    if note:  # a sweep's launcher says it once for all its jobs (this job's log file keeps it)
+        log.log(logging.INFO if _in_multirun() else logging.WARNING, note)
     job = Job(out_dir)
     atomic_write_text(job.config_path, OmegaConf.to_yaml(body, resolve=True))
     clf_cfg = cfg.get("classifier") if cfg.get("segmenter") is None else None
@@ -350,6 +364,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
              summary.get("mean_iou", float("nan")), summary["wall_time_s"])
     df.attrs["job_dir"] = str(out_dir)
     df.attrs["n_failed"] = len(failed)
+    LAST_RUN["houses"] = len(rows)
     return df
 
 

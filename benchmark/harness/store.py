@@ -16,6 +16,9 @@ the cache may live anywhere)::
                                per house the content hash of its cache entries
         resolved_config.yaml   the full config, every interpolation resolved
     <results_dir>/runs/<run name>/sweep_summary.{md,csv}   a multirun's jobs (callback)
+    <results_dir>/runs/<run name>/last_sweep.json   the job folders the last multirun into
+                                                    this folder ran, and when (tables and the
+                                                    report read them alone with --last-sweep)
     <cache_dir>/render/<render key>/<entry>/        observations (envs.render.cache layout)
     <cache_dir>/classify/<classify key>/<entry>.npz proba (N, C), poses (N, 3), n_refused
     <cache_dir>/aggregate/<aggregate key>/<entry>.npz raw label map (shared by post-processing variants)
@@ -48,6 +51,8 @@ TIMINGS = "timings.csv"
 IDENTITY = "job.json"
 #: what a multirun's summary callback writes into the sweep folder.
 SWEEP_SUMMARY = "sweep_summary"
+#: the job folders of the last multirun into a sweep folder (written at its end).
+LAST_SWEEP = "last_sweep.json"
 
 
 #: the longest file name part made from an id (file systems allow 255 bytes per name; an
@@ -469,6 +474,129 @@ def find_jobs(paths: Sequence[str | Path], finished_only: bool = True) -> list[J
     return out
 
 
+def write_last_sweep(sweep_dir: str | Path, jobs: Sequence[Job], started: float, command: Sequence[str]) -> Path:
+    """Record the job folders a multirun into ``sweep_dir`` ran (relative to it), when it
+    started and ended (UTC, ISO 8601) and its command line, in ``last_sweep.json`` there."""
+    import json
+    import time
+    from datetime import datetime, timezone
+
+    from envs.atomic import atomic_write_text
+
+    sweep_dir = Path(sweep_dir)
+    rel = sorted({_relative(j.dir, sweep_dir) for j in jobs})
+    doc = {"started_at": datetime.fromtimestamp(started, timezone.utc).isoformat(timespec="seconds"),
+           "finished_at": datetime.fromtimestamp(time.time(), timezone.utc).isoformat(timespec="seconds"),
+           "command": list(command), "jobs": rel}
+    path = sweep_dir / LAST_SWEEP
+    atomic_write_text(path, json.dumps(doc, indent=1) + "\n")
+    return path
+
+
+def _relative(p: Path, root: Path) -> str:
+    try:
+        return Path(p).resolve().relative_to(Path(root).resolve()).as_posix() or "."
+    except ValueError:
+        return str(Path(p).resolve())
+
+
+def last_sweep(sweep_dir: str | Path) -> dict[str, Any] | None:
+    """The ``last_sweep.json`` of ``sweep_dir`` (None when absent).
+
+    Raises:
+        ValueError: the file is there but unreadable (one line naming it)."""
+    import json
+
+    path = Path(sweep_dir) / LAST_SWEEP
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        jobs = doc["jobs"]
+        if not isinstance(jobs, list):
+            raise TypeError("jobs is not a list")
+    except (ValueError, KeyError, TypeError) as e:
+        raise ValueError(f"{path}: unreadable ({e}); expected the job list a multirun writes at its end") from None
+    return doc
+
+
+@dataclass(frozen=True)
+class Scope:
+    """What a table or report reads: the metrics files, and one line saying which runs they
+    are ("" when they are exactly one sweep's, or files that are not a sweep's)."""
+
+    files: list[Path]
+    note: str
+    #: job folders of other runs read beside the last sweep (0 with ``last_only``).
+    n_other: int = 0
+
+
+def sweep_scope(paths: Sequence[str | Path], last_only: bool = False) -> Scope:
+    """The metrics files under ``paths``, scoped by the sweep folders' ``last_sweep.json``.
+
+    A sweep folder at or under a path (one holding ``last_sweep.json``) that also holds job
+    folders its last multirun did not run (an earlier sweep with other houses or settings) is
+    said so in ``note``; with ``last_only`` those are left out and ``note`` says how many. Jobs
+    under no sweep folder (single runs) are read as they are.
+
+    Raises:
+        FileNotFoundError: no metrics file under ``paths``.
+        ValueError: ``last_only`` and a folder without ``last_sweep.json`` (one line), or a
+            job of the last sweep whose metrics are gone."""
+    files = list(iter_metric_files(paths))
+    if not files:
+        raise FileNotFoundError(f"no metrics.csv under {[str(p) for p in paths]}")
+    keep: list[Path] = []
+    notes: list[str] = []
+    n_other = 0
+    for p in map(Path, paths):
+        if not p.is_dir():  # a metrics file named as such: read as it is
+            keep.extend(f for f in files if f.resolve() == p.resolve())
+            continue
+        under = [f for f in files if p.resolve() in f.resolve().parents]
+        # the sweep folders at or under p (results/runs holds one per run name)
+        sweeps = sorted({m.parent for m in p.rglob(LAST_SWEEP)}, key=lambda d: len(d.parts), reverse=True)
+        if not sweeps:
+            if last_only:
+                raise ValueError(f"{p}: no {LAST_SWEEP} (a multirun writes it when it ends); without --last-sweep "
+                                 f"every job under it is read")
+            keep.extend(under)
+            continue
+        by_sweep: dict[Path, list[Path]] = {}
+        for f in under:  # each job belongs to the deepest sweep folder holding it, if any
+            d = next((d for d in sweeps if d.resolve() in f.resolve().parents), None)
+            if d is None:
+                keep.append(f)  # a single run beside the sweeps: read as it is
+            else:
+                by_sweep.setdefault(d, []).append(f)
+        for d in sorted(by_sweep):
+            doc = last_sweep(d) or {"jobs": []}
+            mine = {(d / j).resolve() for j in doc["jobs"]}
+            ours = [f for f in by_sweep[d] if f.parent.resolve() in mine]
+            other = [f for f in by_sweep[d] if f.parent.resolve() not in mine]
+            gone = sorted(mine - {f.parent.resolve() for f in ours})
+            if last_only and gone:
+                raise ValueError(f"{d}: {len(gone)} job(s) of the last sweep have no {METRICS} (e.g. {gone[0]}); "
+                                 f"run the sweep again")
+            when = doc.get("finished_at", "?")
+            if last_only:
+                keep.extend(ours)
+                if other:
+                    notes.append(f"{d}: the last sweep only ({len(ours)} jobs, finished {when}); left out "
+                                 f"{len(other)} job folder(s) of earlier runs in that folder")
+            else:
+                keep.extend(by_sweep[d])
+                n_other += len(other)
+                if other:
+                    notes.append(f"{d}: includes {len(other)} job folder(s) of earlier runs beside the last "
+                                 f"sweep's {len(ours)} (finished {when}); --last-sweep reads that sweep alone")
+    seen: set[Path] = set()
+    out = [f for f in keep if not (f.resolve() in seen or seen.add(f.resolve()))]
+    if not out:
+        raise FileNotFoundError(f"no metrics.csv of the last sweep under {[str(p) for p in paths]}")
+    return Scope(out, "; ".join(notes), n_other)
+
+
 def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
     """The ``metrics.csv`` of every job under ``paths`` (a path may be a CSV file itself), each
     file once."""
@@ -487,5 +615,5 @@ def iter_metric_files(paths: Sequence[str | Path]) -> Iterator[Path]:
 
 
 __all__ = ["CacheStore", "Job", "claim_job_dir", "entry_name", "find_jobs", "flat_settings", "fraction_columns",
-           "iter_metric_files", "job_dir_for", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS",
+           "iter_metric_files", "job_dir_for", "last_sweep", "sweep_scope", "write_last_sweep", "Scope", "LAST_SWEEP", "read_metrics", "safe_name", "METRICS", "NON_ROW_KEYS",
            "SELECTION_KEYS", "SUMMARY", "CONFIG", "TIMINGS", "IDENTITY", "SWEEP_SUMMARY"]

@@ -105,6 +105,12 @@ def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
           f"{n_failed} failed; metrics in percent over each job's successful houses.\n")
     atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.csv", table.to_csv(index=False))
     atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.md", md)
+    if since is not None:  # the jobs this multirun ran: tables and the report can read them alone
+        import sys
+
+        from benchmark.harness.store import write_last_sweep
+
+        write_last_sweep(sweep_dir, jobs, since, sys.argv[1:])
     return table
 
 
@@ -121,6 +127,10 @@ def write_summary_after_failure() -> None:
         write_summary(_STARTED["dir"], since=_STARTED["t0"])
     except OSError:
         pass
+
+
+#: the longest job table a sweep prints at its end (longer ones: their file, and the totals).
+PRINTED_JOBS = 40
 
 
 class SweepSummary(Callback):
@@ -141,7 +151,11 @@ class SweepSummary(Callback):
         OUTCOME["jobs"] = len(table)
         OUTCOME["n_failed"] = int(table["failed"].fillna(0).sum()) if len(table) else 0
         OUTCOME["allow_failures"] = bool(config.run.get("allow_failures", False))
-        print((sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8"), flush=True)
+        md = (sweep_dir / f"{SWEEP_SUMMARY}.md").read_text(encoding="utf-8")
+        if len(table) <= PRINTED_JOBS:
+            print(md, flush=True)
+        else:  # a long sweep (make robustness: 624 jobs): its last line and where the table is
+            print(f"{md.rstrip().splitlines()[-1]} Per job: {sweep_dir / (SWEEP_SUMMARY + '.md')}", flush=True)
 
 
 __all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "clear_error", "record", "record_died", "record_error", "sweep_table",

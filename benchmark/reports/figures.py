@@ -434,7 +434,7 @@ def house_figures(house_index: int, out: Path, overrides: Sequence[str] = (),
 
 
 def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None,
-             formats: Sequence[str] | None = None, workers: int | None = None) -> list[Path]:
+             formats: Sequence[str] | None = None, workers: int | None = None, last_sweep: bool = False) -> list[Path]:
     """Fig. 3 (every configuration with post-processing) and Fig. 4 (every classifier x
     post-processing with both graph KNN and vision cone) from a finished sweep's saved maps.
 
@@ -442,7 +442,8 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
     house every job of a dataset scored. Maps are read through the run store
     (:meth:`benchmark.harness.store.Job.maps_path`). ``workers``: figures drawn at once, in
     forked worker processes (None: ``ROOMSEG_JOBS``, else the number of CPUs; 1: in this
-    process).
+    process). ``last_sweep``: only the jobs of the last multirun into ``run_dir`` (its
+    ``last_sweep.json``, :func:`benchmark.harness.store.sweep_scope`).
 
     Returns:
         the files written.
@@ -454,12 +455,12 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
     from omegaconf import OmegaConf
 
     from benchmark.harness.cache import load_npz
-    from benchmark.harness.store import find_jobs, safe_name
+    from benchmark.harness.store import find_jobs, safe_name, sweep_scope
 
     if isinstance(houses, str):
         houses = [houses]
     jobs = []
-    for job in find_jobs([run_dir]):
+    for job in find_jobs(sweep_scope([run_dir], True).files if last_sweep else [run_dir]):
         df = pd.read_csv(job.metrics_path)
         df["house_id"] = df["house_id"].astype(str)
         jobs.append((job, job.config(), job.summary(), df))

@@ -60,6 +60,8 @@ table.sortable th[data-dir=desc]::after{content:' \\25BC'}
 .maps{display:grid;gap:6px 10px;align-items:start}.maps figure{margin:0}
 .maps figcaption{font-size:12px;color:#444;margin-bottom:2px}
 .maps img{image-rendering:pixelated;border:1px solid #ccc;display:block}
+.scope{background:#fff6d5;border:1px solid #e8d48b;padding:6px 10px;font-size:13px}
+.filters{font-size:13px}.filters select{margin-right:12px}
 .label{font-size:12px;align-self:center;width:190px}.legend span{display:inline-block;margin:0 10px 4px 0;font-size:12px}
 .legend i{display:inline-block;width:12px;height:12px;margin-right:4px;vertical-align:-2px;border:1px solid #999}
 td.err{font-family:ui-monospace,monospace;font-size:12px;max-width:70ch;overflow-wrap:anywhere}
@@ -102,6 +104,27 @@ _JS = r"""
   var wrap = document.getElementById('configs-wrap');
   document.body.setAttribute('data-scroll-width', String(Math.max(document.documentElement.scrollWidth,
     wrap ? wrap.scrollWidth + wrap.getBoundingClientRect().left : 0)));
+  // a robustness run: show the configurations of one robot condition and/or severity
+  var sels = document.querySelectorAll('#config-filters select');
+  function applyFilters() {
+    var rows = document.getElementById('configs').tBodies[0].rows, shown = 0;
+    for (var i = 0; i < rows.length; i++) {
+      var ok = true;
+      for (var j = 0; j < sels.length; j++) {
+        var v = sels[j].value;
+        if (v !== '' && rows[i].getAttribute('data-' + sels[j].getAttribute('data-attr')) !== v) ok = false;
+      }
+      rows[i].style.display = ok ? '' : 'none';
+      if (ok) shown++;
+    }
+    document.getElementById('filter-count').textContent = shown + ' of ' + rows.length + ' configurations';
+  }
+  for (var s = 0; s < sels.length; s++) sels[s].addEventListener('change', applyFilters);
+  // report.html#condition=scan&severity=3 opens the table filtered
+  var want = /^#(?:.*&)?condition=([^&]*)/.exec(window.location.hash), sev = /[#&]severity=([^&]*)/.exec(window.location.hash);
+  if (want && document.getElementById('filter-condition')) document.getElementById('filter-condition').value = decodeURIComponent(want[1]);
+  if (sev && document.getElementById('filter-severity')) document.getElementById('filter-severity').value = decodeURIComponent(sev[1]);
+  if (sels.length) applyFilters();
   // report.html#sort=COLUMN[,desc] opens the configurations sorted (a link to a ranking)
   var m = /^#sort=(\d+)(,desc)?$/.exec(window.location.hash);
   var configs = document.getElementById('configs');
@@ -179,6 +202,7 @@ def _config_rows(jobs) -> tuple[list[str], list[dict]]:
         acc = formatting.finite_float(df["oracle_accuracy"].dropna().iloc[0]) if "oracle_accuracy" in df and df[
             "oracle_accuracy"].notna().any() else None
         rec = {"job": job, "names": names, "dataset": str(df["dataset"].iloc[0]) if "dataset" in df and len(df) else "",
+               "condition": _first(df, "corruption"), "severity": _first(df, "severity"),
                "oracle_accuracy": acc, "n": len(df), "n_ok": len(ok), "n_failed": len(df) - len(ok),
                "wall": formatting.finite_float(summary.get("wall_time_s"))}
         for m in (*METRICS, *COUNTS):
@@ -211,8 +235,46 @@ def _partial_lines(run_dirs) -> list[str]:
         return [str(e)]
 
 
+def _first(df: pd.DataFrame, col: str) -> str:
+    """The column's first value as text ("" when the column is absent or empty)."""
+    if col not in df or not df[col].notna().any():
+        return ""
+    v = df[col].dropna().iloc[0]
+    return str(int(v)) if isinstance(v, (int, float, np.integer, np.floating)) and float(v).is_integer() else str(v)
+
+
+def _robot_columns(rows: list[dict]) -> bool:
+    """Whether the configurations differ in robot condition (a robustness run)."""
+    return any(r["condition"] not in ("", "clean") for r in rows)
+
+
+def _condition_words(condition: str) -> str:
+    from benchmark.reports.robustness import FAMILY_WORDS
+
+    return FAMILY_WORDS.get(condition, condition) or "–"
+
+
+def _filters(rows: list[dict]) -> str:
+    """Selects above a robustness run's configuration table: show one robot condition and/or
+    one severity (the script hides the other rows and says how many show)."""
+    conds = sorted({r["condition"] for r in rows if r["condition"]}, key=lambda c: (c != "clean", c))
+    sevs = sorted({r["severity"] for r in rows if r["severity"] != ""}, key=lambda v: (len(v), v))
+
+    def select(name: str, words: str, values: list[str], label) -> str:
+        opts = "".join(f'<option value="{_esc(v)}">{_esc(label(v))}</option>' for v in values)
+        return (f'<label>{words} <select id="filter-{name}" data-attr="{name}">'
+                f'<option value="">all</option>{opts}</select></label> ')
+
+    return ('<p class="filters" id="config-filters">Show: ' + select("condition", "robot condition", conds, _condition_words)
+            + select("severity", "severity", sevs, lambda v: v)
+            + f'<span class="muted" id="filter-count">{len(rows)} of {len(rows)} configurations</span></p>')
+
+
 def _configs_table(cols: list[str], rows: list[dict]) -> str:
+    robot = _robot_columns(rows)
     heads = [("dataset", False), ("classifier", False), ("aggregator", False), ("post-processing", False)]
+    if robot:
+        heads[1:1] = [("robot condition", False), ("severity", True)]
     heads += [(formatting.METRIC_LABELS.get(m, m.replace("_", " ")) + ("" if m in COUNTS else " %"), True) for m in cols]
     heads += [("houses ok", True), ("failed", True), ("wall s", True)]
     out = ['<table class="sortable" id="configs"><thead><tr>']
@@ -228,6 +290,9 @@ def _configs_table(cols: list[str], rows: list[dict]) -> str:
                  formatting.value_label("postprocess", nm.get("postprocess", "")) if not nm.get("segmenter") else "–"]
         # the job folder (often longer than the rest of the row) is the first cell's tooltip
         line = f'<td title="{_esc(r["job"].dir.name)}">{_esc(cells[0])}</td>'
+        if robot:  # the condition and its severity in columns of their own (sortable, filtered)
+            line += (f'<td>{_esc(_condition_words(r["condition"]))}</td>'
+                     f'<td class="num" data-v="{_esc(r["severity"])}">{_esc(r["severity"] or "–")}</td>')
         line += "".join(f"<td>{_esc(c)}</td>" for c in cells[1:])
         for m in cols:
             v = r.get(m)
@@ -241,9 +306,10 @@ def _configs_table(cols: list[str], rows: list[dict]) -> str:
         line += f'<td class="num" data-v="{r["n_failed"]}">{r["n_failed"]}</td>'
         wall = r["wall"]
         line += f'<td class="num" data-v="{"" if wall is None else wall}">{"–" if wall is None else f"{wall:.1f}"}</td>'
-        out.append(f"<tr>{line}</tr>")
+        attrs = (f' data-condition="{_esc(r["condition"])}" data-severity="{_esc(r["severity"])}"' if robot else "")
+        out.append(f"<tr{attrs}>{line}</tr>")
     out.append("</tbody></table>")
-    return "".join(out)
+    return (_filters(rows) if robot else "") + "".join(out)
 
 
 def _failures(jobs) -> str:
@@ -443,7 +509,7 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
 
 
 def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = None,
-                 per_dataset: int = HOUSES_PER_DATASET, title: str | None = None) -> str:
+                 per_dataset: int = HOUSES_PER_DATASET, title: str | None = None, last_sweep: bool = False) -> str:
     """The report page's HTML for the jobs under ``run_dirs``.
 
     Args:
@@ -451,6 +517,9 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         houses: house ids to draw; default ``per_dataset`` houses of every dataset in the run.
         per_dataset: how many houses of each dataset by default.
         title: page title (default: the run folder names).
+        last_sweep: read only the jobs of the last multirun into each folder (its
+            ``last_sweep.json``); otherwise a folder that also holds earlier runs' jobs is said
+            so at the top of the page.
 
     Returns:
         one self-contained HTML document (str).
@@ -459,10 +528,11 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         FileNotFoundError: no finished job under ``run_dirs``.
         ValueError: a requested house no job scored.
     """
-    from benchmark.harness.store import find_jobs
+    from benchmark.harness.store import find_jobs, sweep_scope
 
+    scope = sweep_scope(list(run_dirs), last_sweep)
     jobs = []
-    for job in find_jobs(list(run_dirs)):
+    for job in find_jobs(scope.files):
         df = pd.read_csv(job.metrics_path)
         df["house_id"] = df["house_id"].astype(str)
         jobs.append((job, job.summary(), df))
@@ -477,6 +547,7 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
             classes = tuple(cls)
             break
     name = title or ", ".join(str(Path(p)) for p in run_dirs)
+    robust = _robustness_section(scope.files, jobs)
     notes = sorted({str(v) for _, _, df in jobs if "metric_params" in df for v in df["metric_params"].dropna()})
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
@@ -489,9 +560,11 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         "(percentile bootstrap over houses, 2000 resamples, seed 0). "
         + (_esc("Metrics: " + "; ".join(notes) + ".") if notes else "")
         + " Click a column header to sort; hover over a dataset for the job folder.</p>",
-        "<h2>Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows), "</div>",
-        "<h2>Failures</h2>", _failures(jobs),
-        _robustness_section(run_dirs, jobs),
+        # which runs the page holds, when it is more than one sweep's (make bench reads its own sweep alone)
+        f'<p class="scope" id="scope"><strong>Runs read:</strong> {_esc(scope.note)}.</p>' if scope.note else "",
+        robust,  # a robustness run leads with its summary; its configurations filter by condition and severity
+        "<h2 id=\"configurations\">Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows),
+        "</div>", "<h2>Failures</h2>", _failures(jobs),
         "<h2>Maps</h2>",
         f'<p class="muted">Per house and configuration: the ground truth, the raw label map and the '
         f"post-processed map(s) in class colours, or a geometric segmenter's rooms in a colour per room, side by "
@@ -503,13 +576,13 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
 
 
 def write_report(run_dirs: Sequence[str | Path], out: str | Path, houses: Sequence[str] | None = None,
-                 per_dataset: int = HOUSES_PER_DATASET) -> Path:
+                 per_dataset: int = HOUSES_PER_DATASET, last_sweep: bool = False) -> Path:
     """Write :func:`build_report`'s page to ``out`` atomically; returns ``out``."""
     from benchmark.harness.cache import atomic_write_text
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out, build_report(run_dirs, houses, per_dataset))
+    atomic_write_text(out, build_report(run_dirs, houses, per_dataset, last_sweep=last_sweep))
     out.chmod(0o644)
     return out
 

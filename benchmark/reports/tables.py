@@ -507,13 +507,14 @@ def metric_notes(df: pd.DataFrame) -> list[str]:
 
 
 def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out_dir: Path | None = None,
-           percent: bool = True, rows: pd.DataFrame | None = None) -> str:
+           percent: bool = True, rows: pd.DataFrame | None = None, scope_note: str = "") -> str:
     """Markdown text of the requested tables; with ``out_dir`` also write .md/.csv/.tex each.
 
     ``tables`` None: every table the rows have data for; a table left out (or asked for
     and empty) gets one line saying why. ``rows``: the rows already read by
-    :func:`load_rows` (``paths`` is then not read again). Returns the text printed by the
-    command.
+    :func:`load_rows` (``paths`` is then not read again). ``scope_note``: which runs the rows
+    are, when more than one sweep's (:func:`benchmark.harness.store.sweep_scope`), written under
+    every table. Returns the text printed by the command.
     """
     df = load_rows(paths) if rows is None else rows
     chunks, skipped = [], []
@@ -537,7 +538,9 @@ def render(paths: Sequence[str | Path], tables: Sequence[str] | None = None, out
         md = (f"### {spec.title}\n\n" + formatting.to_markdown(grid) + "\n\n" +
               f"{grid.legend}, {unit}. " + text +
               (" Metrics: " + "; ".join(notes) + "." if notes else "") +
-              (f" Note: {reason}." if reason else "") + "\n" + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
+              (f" Note: {reason}." if reason else "") +
+              (f" Runs read: {scope_note}." if scope_note else "") + "\n" + "".join(f"\n- {r}" for r in ranks)
+              + ("\n" if ranks else ""))
         chunks.append(md)
         if out_dir is not None:
             out_dir.mkdir(parents=True, exist_ok=True)

@@ -41,8 +41,9 @@ import logging
 import multiprocessing
 import os
 import sys
+import time
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
@@ -65,6 +66,7 @@ from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
 from benchmark.harness.processes import available_cores, worker_init
+from benchmark.harness.progress import SweepProgress
 from benchmark.harness.write_errors import naming_the_file
 
 log = logging.getLogger(__name__)
@@ -221,6 +223,10 @@ def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
         ret.return_value = naming_the_file(e)
     if ret.status == JobStatus.FAILED:  # sent to the launching process: no traceback goes with it
         ret.return_value = _picklable(naming_the_file(ret._return_value))
+    runner = sys.modules.get("benchmark.harness.runner")  # the job's houses, for the sweep's progress line
+    last = dict(getattr(runner, "LAST_RUN", None) or {})
+    ret.roomseg_job = {"houses": int(last.get("houses", 0)), "moved": str(last.get("moved", ""))} \
+        if ret.status == JobStatus.COMPLETED else {"houses": 0, "moved": ""}
     return ret
 
 
@@ -286,19 +292,42 @@ class LocalLauncher(Launcher):
         sweep_dir.mkdir(parents=True, exist_ok=True)
         wanted = self.n_jobs if self.n_jobs is not None else auto_jobs(len(job_overrides), available_cores())
         n = min(wanted, len(job_overrides))
-        if n <= 1:
-            log.info(f"Launching {len(job_overrides)} jobs one after another in this process, "
-                     f"sweep output dir: {sweep_dir}")
-        else:
-            log.info(f"Launching {len(job_overrides)} jobs on {n} {self.start_method} worker(s), "
-                     f"sweep output dir: {sweep_dir}")
-        for i, overrides in enumerate(job_overrides):
-            log.info(f"\t#{initial_job_idx + i} : {' '.join(filter_overrides(overrides))}")
+        how = "one after another in this process" if n <= 1 else f"on {n} {self.start_method} worker(s)"
+        # the job list goes to the sweep's log file (each job's own lines go to its <job>/bench.log)
+        listing = sweep_dir / "sweep.log"
+        with open(listing, "a", encoding="utf-8") as f:
+            f.write(f"[{time.strftime('%Y-%m-%d %H:%M:%S')}] Launching {len(job_overrides)} jobs {how}, "
+                    f"sweep output dir: {sweep_dir}\n")
+            for i, overrides in enumerate(job_overrides):
+                f.write(f"\t#{initial_job_idx + i} : {' '.join(filter_overrides(overrides))}\n")
+        log.info(f"Launching {len(job_overrides)} jobs {how} -> {sweep_dir} (jobs: {listing.name}; "
+                 f"each job's log: <job>/bench.log)")
         _SWEEP = (self.hydra_context, self.config, self.task_function, Singleton.get_state())
         jobs = [(initial_job_idx + i, list(o)) for i, o in enumerate(job_overrides)]
+        progress = SweepProgress(len(jobs))
+        moved: list[str] = []
+
+        def done(ret: JobReturn) -> JobReturn:
+            info = getattr(ret, "roomseg_job", None) or {}
+            if info.get("moved"):
+                moved.append(info["moved"])
+            progress.update(info.get("houses", 0), ret.status != JobStatus.COMPLETED)
+            return ret
+
+        try:
+            return self._run_all(jobs, n, sweep_dir, done)
+        finally:
+            progress.close()
+            if moved:  # one line for every job that wrote beside a folder holding another run's results
+                print(f"note: {len(moved)} of {len(jobs)} job(s) wrote to a <folder>~<key> sibling: their folders "
+                      f"hold another run's results, e.g. {moved[0]}", file=sys.stderr, flush=True)
+
+    def _run_all(self, jobs: list[tuple[int, list[str]]], n: int, sweep_dir: Path, done) -> list[JobReturn]:
+        """Run ``jobs`` in this process (``n`` <= 1) or on ``n`` worker processes; ``done`` is
+        called with each job's return as it finishes."""
         if n <= 1:
             try:
-                return [_raise_if_pool_broken(_run(i, o, 1)) for i, o in jobs]
+                return [done(_raise_if_pool_broken(_run(i, o, 1))) for i, o in jobs]
             finally:
                 configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         ctx = multiprocessing.get_context(self.start_method)
@@ -313,6 +342,8 @@ class LocalLauncher(Launcher):
         pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state, os.getpid()))
         try:
             futures = [pool.submit(mod._run, i, o, n) for i, o in jobs]
+            for f in as_completed(futures):  # the progress line advances as jobs finish, in any order
+                done(f.result())
             return [f.result() for f in futures]
         except BrokenProcessPool:
             _stop(pool)
