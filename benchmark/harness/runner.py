@@ -40,6 +40,7 @@ from omegaconf import DictConfig, OmegaConf
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
 from benchmark.harness.executor import (
+    CONNECT_TIMEOUT_S,
     Executor,
     HouseResult,
     JobSpec,
@@ -260,7 +261,8 @@ def choose_executor(cfg: DictConfig, pipe: Pipeline, n_houses: int) -> Executor:
     workers = cfg.run.get("workers") or available_cores()
     if cfg.run.get("executor", "local") == "ray":
         ray_cfg = cfg.run.get("ray") or {}
-        return RayExecutor(ray_cfg.get("address"), workers)
+        return RayExecutor(ray_cfg.get("address"), workers,
+                           ray_cfg.get("connect_timeout") or CONNECT_TIMEOUT_S)
     if parallel_jobs() > 1:  # the launcher's n_jobs workers are the sweep's processes already
         workers = 1
     workers = min(int(workers), n_houses)
@@ -317,6 +319,9 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     pipe.eval_ids = tuple(ids)
     key, settings = job_identity(cfg, ids, plain)
+    executor = choose_executor(cfg, pipe, len(ids))
+    if hasattr(executor, "connect"):  # a cluster that cannot be reached: one line, before anything is written
+        executor.connect()
     try:
         out_dir, note = claim_job_dir(out_dir, key, settings)
     except OSError as e:
@@ -331,7 +336,6 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     # a bar only on a terminal with no other job beside it; else the finished-job line below
     progress = house_progress(job_label(pipe.names, None if acc is None else float(acc)),
                               bool(cfg.run.get("progress", True)))
-    executor = choose_executor(cfg, pipe, len(ids))
     spec = JobSpec(key=config_key("worker", plain, choices, ids),
                    build=partial(pipeline_from_plain, plain, choices, tuple(ids), pipe.keys), cwd=os.getcwd())
     try:
