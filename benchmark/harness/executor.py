@@ -394,7 +394,7 @@ def import_ray():
         import ray  # noqa: PLC0415
     except ImportError:
         raise ConfigError("run.executor=ray needs Ray, which is not installed: pip install -e '.[cluster]' "
-                          "(or pip install 'ray[default]')") from None
+                          "(or pip install ray)") from None
     return ray
 
 
