@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from benchmark.harness.processes import pid_alive, run_guarded
+from benchmark.guarded import pid_alive, run_guarded
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import check_room_area, merge_small_rooms
 from envs.maps.gridmap import GridMap
@@ -155,7 +155,7 @@ class Rose2(Segmenter):
     def run_driver(self, image: np.ndarray) -> dict:
         """One subprocess of the driver on ``image``; the driver's JSON result.
 
-        The driver runs under :func:`benchmark.harness.processes.run_guarded`: in a process
+        The driver runs under :func:`benchmark.guarded.run_guarded`: in a process
         group of its own, killed whole (with whatever ROSE² started) on a timeout or when this
         process dies, its output bounded; its folder ``<tmp>/roomseg-rose2-<pid>-*`` goes with
         it, and folders of processes that are gone are removed first (:func:`clean_rose2_tmp`).
