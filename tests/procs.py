@@ -3,6 +3,7 @@ process group, who are a process's children. Zombies (dead, not yet reaped) coun
 
 from __future__ import annotations
 
+import signal
 import sys
 import time
 from pathlib import Path
@@ -57,3 +58,19 @@ def gone_within(pgid: int, seconds: float) -> list[int]:
             return []
         time.sleep(0.05)
     return alive_in_group(pgid)
+
+
+def default_sigint() -> None:
+    """A ``preexec_fn`` for a process a test will Ctrl-C (SIGINT): SIGINT's default action in
+    it, whatever this process inherited. ``make test`` run as a background job of a
+    non-interactive shell starts with SIGINT ignored, a setting every child inherits (Python
+    then installs no KeyboardInterrupt handler), so the child would never see the Ctrl-C."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def ignores_sigint(pid: int) -> bool:
+    """Whether process ``pid`` ignores SIGINT (its ``SigIgn`` mask in ``/proc/<pid>/status``)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("SigIgn:"):
+            return bool(int(line.split()[1], 16) >> (signal.SIGINT - 1) & 1)
+    return False

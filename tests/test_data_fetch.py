@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import http.server
+import json
 import threading
 from pathlib import Path
 
@@ -242,3 +243,32 @@ def test_an_absent_dataset_is_one_line_with_a_fetch_command_that_parses(tmp_path
     assert words[1:3] == ["-m", "benchmark.commands.data"]
     a = parser().parse_args(words[3:])  # exits 2 on an unrecognized argument
     assert a.cmd == "fetch" and a.names == ["procthor_shared"] and a.root == tmp_path / "nowhere"
+
+
+# ---------------------------------------------------------------- the catalogue checks its own fields (issue 38, item 6)
+@pytest.mark.parametrize("folder", ["../../outside", "..", "/tmp/abs", "a/b", ".hidden", "a\\b", ""])
+def test_a_folder_outside_the_data_root_is_refused_before_any_fetch(server, tmp_path, capsys, folder):
+    # before: folder ../../outside fetched the data outside the root and left a stray folder in it
+    cat = catalogue(tmp_path, server.url)
+    cat.write_text(cat.read_text().replace("  folder: toy\n", f"  folder: {json.dumps(folder)}\n"))
+    (tmp_path / "deep" / "er").mkdir(parents=True)
+    root = tmp_path / "deep" / "er" / "data"
+    before = sorted(p for p in tmp_path.rglob("*"))
+    for args in (["fetch", "toy", "--no-progress"], ["list"]):
+        assert main(["--root", str(root), "--catalogue", str(cat), *args]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and str(cat) in err and "dataset 'toy'" in err, err
+        assert ("folder" in err and "needs folder" in err) if folder == "" else f"folder {folder!r}" in err, err
+    assert sorted(p for p in tmp_path.rglob("*")) == before  # nothing fetched, no stray folder anywhere
+
+
+@pytest.mark.parametrize("text,what", [("- toy\n- other\n", "expected a mapping of dataset names to entries, got a list"),
+                                       ("toy: just a string\n", "dataset 'toy': expected a mapping of fields, got a string"),
+                                       ("just a string\n", "got a string")])
+def test_a_catalogue_of_the_wrong_shape_is_one_line(tmp_path, capsys, text, what):
+    # before: a catalogue that is a YAML list was an AttributeError traceback
+    cat = tmp_path / "catalogue.yaml"
+    cat.write_text(text)
+    assert main(["--root", str(tmp_path / "data"), "--catalogue", str(cat), "list"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(cat) in err and what in err, err

@@ -88,5 +88,10 @@ def test_a_run_into_a_full_disk_writes_nothing_and_exits_2(small_disk, tmp_path)
     p = _bench(small_disk, tmp_path, "run.limit=1")
     _, err = p.communicate(timeout=600)
     assert p.returncode == 2, err[-2000:]
-    line = err.strip().splitlines()[-1]
+    # one line: Hydra's own "Error executing job with overrides: [...]" no longer before it (issue 38 item 7)
+    assert len(err.strip().splitlines()) == 1, err[-2000:]
+    line = err.strip()
     assert line.startswith("roomseg-bench: error: ") and str(small_disk) in line and "No space left on device" in line
+    # and no file half-written: Hydra's .hydra/*.yaml are written whole or not at all (was a 0-byte config.yaml)
+    empty = [p for p in (small_disk / "R").rglob("*") if p.is_file() and p.stat().st_size == 0]
+    assert empty == []

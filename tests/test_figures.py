@@ -98,15 +98,15 @@ def test_bad_input(tmp_path, capsys):
         figure_postprocess(s, np.full(s.grid.shape, 9), s.semantic, tmp_path / "x.png")
     with pytest.raises(ValueError, match="one per pose"):
         figure_aggregators(s, np.zeros((2, 3)), s.semantic, s.semantic, tmp_path / "x.png", np.ones((3, 7)))
-    gen = ["env=synthetic", "env.n_houses=2", f"run.results_dir={tmp_path}"]
+    gen = ["env=synthetic", "env.n_houses=2", f"run.results_dir={tmp_path}"]  # errors go to stderr (issue 38 item 5; were on stdout)
     assert main(["fig3", "--house-index", "5", "--out", str(tmp_path / "x.png"), *gen]) == 2
-    assert "out of range" in capsys.readouterr().out
+    assert "out of range" in capsys.readouterr().err
     assert main(["fig3", "--house-index", "0", "--out", str(tmp_path / "x.png"), "postprocess=none", *gen]) == 2
-    assert "postprocess=none" in capsys.readouterr().out
+    assert "postprocess=none" in capsys.readouterr().err
     assert main(["fig4", "--house-index", "0", "--out", str(tmp_path / "x.png"), "aggregator=graph_knn", *gen]) == 2
-    assert "aggregator" in capsys.readouterr().out
+    assert "aggregator" in capsys.readouterr().err
     assert main(["fig4", "--house-index", "0", "--out", str(tmp_path / "x.png"), "classifier"]) == 2
-    assert "key=value" in capsys.readouterr().out
+    assert "key=value" in capsys.readouterr().err
     assert not (tmp_path / "x.png").exists()
 
 
@@ -155,7 +155,7 @@ def test_figures_in_png_pdf_and_svg(tmp_path, capsys):
     with pytest.raises(ValueError, match="png, pdf, svg"):
         parse_formats("png,jpeg")
     assert main(["fig3", "--format", "gif", "--out", str(tmp_path / "x.png")]) == 2
-    assert "expected a comma-separated list" in capsys.readouterr().out
+    assert "expected a comma-separated list" in capsys.readouterr().err
 
 
 def test_view_labels_never_overlap():
@@ -202,7 +202,7 @@ def test_from_run_draws_the_chosen_houses(tmp_path, capsys):
     assert sum("synthetic-s000002" in n for n in names) == 6 and not any("s000001" in n for n in names)
     capsys.readouterr()
     assert main(["from-run", str(res / "runs" / "figs"), "--out", str(out), "--house", "nope"]) == 2
-    assert "no job of" in capsys.readouterr().out
+    assert "no job of" in capsys.readouterr().err
     default = tmp_path / "default"
     assert main(["from-run", str(res / "runs" / "figs"), "--out", str(default)]) == 0
     assert {p.name.split("_")[1] for p in default.iterdir()} == {"synthetic-s000000"}
@@ -236,5 +236,5 @@ def test_from_run_draws_the_chosen_houses(tmp_path, capsys):
     blocker.write_text("")
     capsys.readouterr()
     assert main(["from-run", str(res / "runs" / "figs"), "--out", str(blocker / "figs")]) == 2
-    printed = capsys.readouterr().out.strip()
+    printed = capsys.readouterr().err.strip()
     assert len(printed.splitlines()) == 1 and printed.startswith("error: cannot write") and "a_file" in printed

@@ -93,3 +93,77 @@ def test_ray_runs_four_houses_like_one_process(tmp_path, procthor_file, ray_head
     assert not timings["cached"].any() and "t_render" in timings
     # the rows were computed in Ray's worker processes, into the same cache folder layout
     assert len(list((tmp_path / "ray" / "cache" / "scores").rglob("*.json"))) == 4
+
+
+# ---------------------------------------------------------------- reaching a cluster (issue 38, item 3)
+def _bench_fails(tmp_path: Path, *overrides: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "env=synthetic", "run.limit=1",
+                           "run.executor=ray", f"run.results_dir={tmp_path / 'R'}", "run.progress=false", *overrides],
+                          cwd=ROOT, env=env or {**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
+                          timeout=120)
+
+
+def _nothing_written(tmp_path: Path) -> None:
+    job = tmp_path / "R" / "runs" / "default"
+    assert not any((job / f).exists() for f in ("job.json", "metrics.csv", "summary.json", "resolved_config.yaml"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("address,why", [("127.0.0.1:1", "Connection refused"),
+                                         ("nosuchhost.invalid:6379", "unknown host 'nosuchhost.invalid'")])
+def test_an_unreachable_cluster_is_one_line_at_once(tmp_path, address, why):
+    # before: 62 lines of Ray's retries over 823 s, then "cannot write (... cannot connect to Ray ...)"
+    pytest.importorskip("ray")
+    t = time.monotonic()
+    r = _bench_fails(tmp_path, f"run.ray.address={address}")
+    assert time.monotonic() - t < 60
+    assert r.returncode == 2
+    assert r.stderr.strip() == (f"roomseg-bench: error: run.ray.address={address}: cannot connect to Ray ({why}; "
+                                f"run.ray.connect_timeout=30)"), r.stderr
+    _nothing_written(tmp_path)
+
+
+@pytest.mark.slow
+def test_a_port_that_never_answers_waits_connect_timeout_seconds(tmp_path):
+    # the port accepts connections but no Ray answers on it: Ray alone would retry for minutes
+    pytest.importorskip("ray")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(16)
+        address = f"127.0.0.1:{s.getsockname()[1]}"
+        t = time.monotonic()
+        r = _bench_fails(tmp_path, f"run.ray.address={address}", "run.ray.connect_timeout=3")
+        took = time.monotonic() - t
+    assert r.returncode == 2 and took < 40, (took, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert f"roomseg-bench: error: run.ray.address={address}: cannot connect to Ray (no answer from Ray within 3 s; " \
+           f"run.ray.connect_timeout)" in lines, r.stderr
+    _nothing_written(tmp_path)
+
+
+@pytest.mark.slow
+def test_ray_not_installed_is_one_line_naming_the_extra(tmp_path):
+    # before: a 44-line traceback. A package named ray that cannot be imported stands for none.
+    fake = tmp_path / "noray" / "ray"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise ImportError(\"No module named 'ray'\")\n")
+    env = {**os.environ, "PYTHONPATH": f"{fake.parent}{os.pathsep}{ROOT}"}
+    r = _bench_fails(tmp_path, "run.ray.address=127.0.0.1:1", env=env)
+    assert r.returncode == 2
+    assert r.stderr.strip() == ("roomseg-bench: error: run.executor=ray needs Ray, which is not installed: "
+                                "pip install -e '.[cluster]' (or pip install ray)"), r.stderr
+    _nothing_written(tmp_path)
+
+
+def test_connect_timeout_is_checked_and_changes_no_job_identity():
+    from benchmark.config import compose_job
+    from benchmark.harness.checks import ConfigError, check_config
+    from benchmark.harness.runner import job_identity
+
+    for bad in ("0", "-1", "x"):
+        cfg, _ = compose_job([f"run.ray.connect_timeout={bad}"])
+        with pytest.raises(ConfigError, match="connect_timeout: seconds > 0"):
+            check_config(cfg)
+    a, _ = compose_job([])
+    b, _ = compose_job(["run.ray.connect_timeout=5"])
+    assert job_identity(a, ["h"])[0] == job_identity(b, ["h"])[0]

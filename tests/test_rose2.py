@@ -5,9 +5,13 @@ the map drawn for ROSE² and its rooms carried back are checked by hand."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
+import tempfile
+import time
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +20,7 @@ import pytest
 
 from benchmark.segmenters.rose2 import ROSE2_RESOLUTION, Rose2, rooms_to_instances, rose2_image
 from envs.maps.gridmap import GridMap
+from tests.procs import NEEDS_PROC
 
 ROOT = Path(__file__).resolve().parents[1]
 STANDIN = ROOT / "tests" / "fixtures" / "rose2_standin"
@@ -109,3 +114,122 @@ def test_settings_are_checked_when_built(tmp_path):
         Rose2(checkout=str(STANDIN), python=sys.executable, timeout=0)
     with pytest.raises(ValueError, match="make rose2-env"):
         Rose2(checkout=str(STANDIN), python=str(tmp_path / "nope"))
+
+
+# ---------------------------------------------------------------- the driver's processes (issue 38, item 2)
+def _marked(mark: str) -> list[int]:
+    """Pids of the living processes whose environment holds ``ROSE2_MARK=<mark>``."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            if f"ROSE2_MARK={mark}".encode() not in (d / "environ").read_bytes().split(b"\0"):
+                continue
+            state = (d / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if state not in "ZXx":
+            out.append(int(d.name))
+    return out
+
+
+def _cmdline(pid: int) -> bytes:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return b""
+
+
+def _gone(mark: str, seconds: float) -> list[int]:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and _marked(mark):
+        time.sleep(0.1)
+    return _marked(mark)
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+def test_a_timeout_kills_the_drivers_whole_group_and_its_folder(tmp_path, monkeypatch):
+    # the stand-in starts a child of its own and never finishes: before, only the driver was
+    # killed on the timeout and its child lived on
+    mark = uuid.uuid4().hex
+    monkeypatch.setenv("ROSE2_STANDIN", "child")
+    monkeypatch.setenv("ROSE2_MARK", mark)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    seg = Rose2(checkout=str(STANDIN), python=sys.executable, timeout=2)
+    try:
+        with pytest.raises(RuntimeError, match="ROSE2 timed out after 2 s"):
+            seg.run_driver(np.full((20, 20), 255, np.uint8))
+        assert _gone(mark, 3) == []
+    finally:
+        for pid in _marked(mark):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, 9)
+    assert list(tmp_path.glob("roomseg-rose2-*")) == []
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+def test_the_drivers_output_is_bounded(tmp_path):
+    # 300 MB on the driver's stderr: before, captured whole in the worker (peak > 600 MB)
+    code = ("import resource, sys, numpy as np; from benchmark.segmenters.rose2 import Rose2; "
+            f"seg = Rose2(checkout={str(STANDIN)!r}, python=sys.executable); "
+            "img = np.full((40, 40), 200, np.uint8); img[10:30, 10:30] = 255; img[9, 9:31] = 0; "
+            "out = seg.run_driver(img); assert out['status'] == 'ok', out; "
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "ROSE2_STANDIN": "spam", "ROSE2_STANDIN_MB": "300"}
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    peak_mb = int(r.stdout.split()[-1])
+    assert peak_mb < 250, peak_mb
+
+
+@NEEDS_PROC
+@pytest.mark.slow
+def test_kill_9_of_the_run_leaves_no_driver_and_no_folder(tmp_path):
+    # roomseg-bench with two workers, each inside a driver whose ROSE2 started a child; kill -9
+    # of roomseg-bench: before, drivers and children lived on (parent pid 1) with their folders
+    mark = uuid.uuid4().hex
+    (tmp_path / "tmp").mkdir()
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "ROSE2_STANDIN": "child", "ROSE2_MARK": mark,
+           "TMPDIR": str(tmp_path / "tmp")}
+    p = subprocess.Popen([sys.executable, "-m", "benchmark.commands.bench", "env=synthetic", "env.resolution=0.1",
+                          "run.limit=2", "run.workers=2", "segmenter=rose2", f"segmenter.python={sys.executable}",
+                          f"segmenter.checkout={STANDIN}", f"run.results_dir={tmp_path / 'R'}",
+                          "run.progress=false"], cwd=ROOT, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        def up():  # both stand-ins' own children are running
+            kids = [q for q in _marked(mark) if b"time.sleep(3600)" in _cmdline(q)]
+            return len(kids) == 2 and len(list((tmp_path / "tmp").glob("roomseg-rose2-*"))) == 2
+        deadline = time.monotonic() + 240
+        while not up():
+            assert p.poll() is None and time.monotonic() < deadline, "the drivers never started"
+            time.sleep(0.2)
+        time.sleep(0.5)
+        p.kill()
+        p.wait()
+        assert _gone(mark, 5) == []
+        assert list((tmp_path / "tmp").glob("roomseg-rose2-*")) == []
+    finally:
+        p.kill()
+        for pid in _marked(mark):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, 9)
+
+
+def test_folders_of_dead_drivers_are_removed_first(tmp_path, monkeypatch):
+    from benchmark.segmenters.rose2 import clean_rose2_tmp
+
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    stale = tmp_path / f"roomseg-rose2-{int(dead.stdout)}-abc"
+    live = tmp_path / f"roomseg-rose2-{os.getpid()}-abc"
+    other = tmp_path / "roomseg-rose2-notapid"
+    for d in (stale, live, other):
+        (d / "x").mkdir(parents=True)
+    assert clean_rose2_tmp() == [stale]
+    assert not stale.exists() and live.exists() and other.exists()

@@ -13,6 +13,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from procs import default_sigint
 
 from hydra_plugins.roomseg_sweep.roomseg_sweep import (
     GridsSweeper,
@@ -175,7 +176,8 @@ def test_ctrl_c_stops_the_workers_at_once(tmp_path):
     app = _app(tmp_path, "validate: quick")
     env = dict(os.environ, JOB_SLEEP="20")
     p = subprocess.Popen([sys.executable, str(app), "-m", "n=1,2,3,4,5,6"], cwd=app.parent, env=env,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         preexec_fn=default_sigint)  # (SIGINT may be ignored here: make test as a background job)
     time.sleep(3)  # the workers are in their first jobs
     workers = subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
     assert len(workers) == 3, workers  # the launching process and its two workers

@@ -42,6 +42,42 @@ PROG = "roomseg-bench"
 register_resolvers()  # hydra.sweep.subdir's job_dir, before Hydra composes anything
 
 
+def _save_config_whole(cfg, filename: str, output_dir: Path) -> None:
+    """Hydra's ``_save_config`` (``.hydra/config.yaml``, ``hydra.yaml``, ``overrides.yaml`` of
+    every job), written atomically: a job that cannot write them (a full disk) or is killed
+    leaves the file whole or absent, never empty or cut."""
+    from omegaconf import OmegaConf
+
+    from envs.atomic import atomic_write_text
+
+    atomic_write_text(Path(output_dir) / filename, OmegaConf.to_yaml(cfg), durable=False)
+
+
+def _whole_hydra_files() -> None:
+    import hydra.core.utils as hydra_utils
+
+    if hasattr(hydra_utils, "_save_config"):  # (Hydra 1.1-1.3: run_job looks it up in its module)
+        hydra_utils._save_config = _save_config_whole
+
+
+class _WithoutHydraJobLine:
+    """``sys.stderr`` less Hydra's own "Error executing job with overrides: [...]" line, which
+    it writes before re-raising a job's error: :func:`main` says what failed in one line."""
+
+    PREFIX = "Error executing job with overrides:"
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        if text.startswith(self.PREFIX):
+            return len(text)
+        return self._stream.write(text)
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
 def app(cfg: DictConfig) -> float:
     """One job: run the configuration, record its failed houses. Returns its mean IoU."""
@@ -141,7 +177,12 @@ def main() -> int:
         sys.argv[1:] = quote_braces(sys.argv[1:])  # viewpoints.path=poses/{house_id}.csv as typed
         check_run_overrides(sys.argv[1:])  # run.<typo> or +run.<typo>: refused before Hydra writes anything
         check_top_overrides(sys.argv[1:])  # aggregater=... or +aggregater=...: the nearest known key
-        app()
+        _whole_hydra_files()
+        stderr, sys.stderr = sys.stderr, _WithoutHydraJobLine(sys.stderr)
+        try:
+            app()
+        finally:
+            sys.stderr = stderr
     except (ConfigError, StageError, HydraException, OmegaConfBaseException, OSError) as e:
         if _finished_jobs()[1]:  # a multirun whose jobs ran: report every failed job, count the finished
             return _report_sweep(e)
@@ -163,6 +204,9 @@ def _report_error(e: BaseException) -> int:
 
     if isinstance(e, (ConfigError, StageError)):
         print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
+        return 2
+    if _refused_input(e) is not None:
+        print(f"{PROG}: error: {_one_line(_refused_input(e))}", file=sys.stderr)
         return 2
     if isinstance(e, (HydraException, OmegaConfBaseException)):
         print(f"{PROG}: config error: {_unknown_key_line(e) or _one_line(e).split(' full_key:')[0]}", file=sys.stderr)
@@ -188,6 +232,19 @@ def _unknown_key_line(e: BaseException) -> str:
     return f"{m.group(1)}: unknown key (with or without +){hint}{nearest(m.group(1).rsplit('.', 1)[-1], valid)}"
 
 
+def _refused_input(e: BaseException) -> BaseException | None:
+    """The ValueError with which a stage's or an environment's constructor refused its input
+    (a damaged house file), when Hydra wrapped it (``Error in call to target ...``): its own
+    line names the thing; None for any other error."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    cause = e.__cause__
+    if isinstance(e, HydraException) and isinstance(cause, ValueError) and not isinstance(cause, OmegaConfBaseException):
+        return cause
+    return None
+
+
 def _write_error(e: BaseException) -> str:
     from benchmark.harness.write_errors import failed_path
 
@@ -205,7 +262,8 @@ def _report_sweep(first: BaseException) -> int:
 
     launched = importlib.import_module("hydra_plugins.roomseg_sweep.roomseg_sweep").LAUNCHED
     failed = [r._return_value for r in launched if r.status != JobStatus.COMPLETED]
-    lines = [(_write_error(f) if isinstance(f, OSError) else _one_line(f)) for f in (failed or [first])]
+    lines = [(_write_error(f) if isinstance(f, OSError) else _one_line(_refused_input(f) or f))
+             for f in (failed or [first])]
     for msg in dict.fromkeys(lines):
         print(f"{PROG}: error: {msg}", file=sys.stderr)
     done, total = _finished_jobs()

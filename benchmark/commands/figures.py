@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from benchmark.commands import cli
@@ -56,12 +57,12 @@ def main(argv: list[str] | None = None) -> int:
                     raise FileNotFoundError(f"no saved maps to draw in {a.run_dir} (run with run.save_maps=true)")
             paths = [a.out / p.relative_to(tmp) for p in paths]
     except (ValueError, FileNotFoundError, RuntimeError) as e:
-        print(f"error: {e}")
+        print(f"error: {e}", file=sys.stderr)
         return 2
     except OSError as e:  # a full disk, a read-only folder: one line naming the file
         from benchmark.harness.write_errors import cannot_write
 
-        print(f"error: {cannot_write(e, a.out)}")  # on stdout, as this command's other errors
+        print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
         return 2
     for p in paths:
         print(p)

@@ -64,8 +64,11 @@ def angle(v: Any) -> bool:
 
 
 def ray_settings(v: Any) -> bool:
-    """a mapping with address: null, auto or host:port"""
+    """a mapping with address: null, auto or host:port, and connect_timeout: seconds > 0"""
     if not isinstance(v, Mapping):
+        return False
+    t = v.get("connect_timeout")
+    if t is not None and not (_num(t) and t > 0):
         return False
     a = v.get("address")
     return a is None or (isinstance(a, str) and (a == "auto" or a.startswith("ray://")

@@ -387,14 +387,34 @@ def import_ray():
     """``ray``, or one line saying how to install it.
 
     Raises:
-        ImportError: Ray is not installed."""
+        ConfigError: Ray is not installed (one line naming the extra)."""
+    from benchmark.harness.checks import ConfigError  # noqa: PLC0415
+
     try:
         import ray  # noqa: PLC0415
     except ImportError:
-        raise ImportError("run.executor=ray needs Ray: pip install -e '.[cluster]' (or pip install ray)") from None
+        raise ConfigError("run.executor=ray needs Ray, which is not installed: pip install -e '.[cluster]' "
+                          "(or pip install ray)") from None
     return ray
 
 
+#: seconds to reach a Ray cluster when ``run.ray.connect_timeout`` is not set.
+CONNECT_TIMEOUT_S = 30.0
+
+
+def unreachable(address: str, timeout: float) -> str | None:
+    """Why the head at ``address`` (``host:port`` or ``ray://host:port``) cannot be reached
+    with TCP within ``timeout`` seconds (an unknown host, a refused port, no answer), or None."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            return None
+    except socket.gaierror:
+        return f"unknown host {host!r}"
+    except TimeoutError:
+        return f"no answer within {timeout:g} s"
+    except (OSError, ValueError) as e:
+        return getattr(e, "strerror", None) or str(e)
 def _ray_task(key: str, box: list, hid: str) -> HouseResult:
     """A Ray task: ``box`` holds the ObjectRef of the job's spec, fetched only by a worker that
     has not built the job's pipeline yet."""
@@ -418,25 +438,73 @@ class RayExecutor:
 
     name = "ray"
 
-    def __init__(self, address: str | None = None, workers: int | None = None) -> None:
+    def __init__(self, address: str | None = None, workers: int | None = None,
+                 connect_timeout: float = CONNECT_TIMEOUT_S) -> None:
         self.address = address
         self.workers = workers
+        self.connect_timeout = float(connect_timeout)
         self._remote = None
 
     def connect(self):
+        """Ray, connected (once per process).
+
+        A cluster's address is first reached with TCP, then ``ray.init`` gets what is left of
+        ``connect_timeout`` seconds (Ray itself retries for many minutes).
+
+        Raises:
+            ConfigError: Ray is not installed, or the cluster cannot be reached in time (one line)."""
+        from benchmark.harness.checks import ConfigError  # noqa: PLC0415
+
         ray = import_ray()
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {"address": self.address, "logging_level": logging.WARNING}
             if self.address is None:
                 kwargs.update(address="local", num_cpus=self.workers, include_dashboard=False)
-            try:
-                ray.init(**kwargs)
-            except (ConnectionError, RuntimeError, ValueError) as e:
-                raise ConnectionError(f"run.ray.address={self.address!r}: cannot connect to Ray "
-                                      f"({' '.join(str(e).split())[:200]})") from None
+            where = f"run.ray.address={self.address}: cannot connect to Ray"
+            t0 = time.monotonic()
+            if self.address not in (None, "auto"):
+                why = unreachable(self.address, self.connect_timeout)
+                if why:
+                    raise ConfigError(f"{where} ({why}; run.ray.connect_timeout={self.connect_timeout:g})")
+            self._init(ray, kwargs, None if self.address is None else
+                       max(self.connect_timeout - (time.monotonic() - t0), 1.0), where)
         if self._remote is None:
             self._remote = ray.remote(num_cpus=1)(_ray_task)
         return ray
+
+    def _init(self, ray, kwargs: dict[str, Any], timeout: float | None, where: str) -> None:
+        """``ray.init(**kwargs)`` in a daemon thread, waited for ``timeout`` seconds (None: for ever)."""
+        from benchmark.harness.checks import ConfigError  # noqa: PLC0415
+
+        box: list[BaseException | None] = []
+
+        def go() -> None:
+            try:
+                ray.init(**kwargs)
+                box.append(None)
+            except BaseException as e:  # noqa: BLE001 - reported in the calling thread
+                box.append(e)
+
+        quiet = _DropNotMainThread()
+        logging.getLogger("ray").addFilter(quiet)
+        for h in logging.getLogger("ray").handlers:
+            h.addFilter(quiet)
+        try:
+            t = threading.Thread(target=go, name="ray-init", daemon=True)
+            t.start()
+            t.join(timeout)
+        finally:
+            logging.getLogger("ray").removeFilter(quiet)
+            for h in logging.getLogger("ray").handlers:
+                h.removeFilter(quiet)
+        if not box:
+            raise ConfigError(f"{where} (no answer from Ray within {self.connect_timeout:g} s; "
+                              f"run.ray.connect_timeout)")
+        if box[0] is not None:
+            e = box[0]
+            if isinstance(e, (ConnectionError, RuntimeError, ValueError, TimeoutError)):
+                raise ConfigError(f"{where} ({' '.join(str(e).split())[:200]})") from None
+            raise e
 
     def map(self, spec: JobSpec, house_ids: Sequence[str], progress: Progress | None = None,
             where: str = "") -> list[HouseResult]:
@@ -471,6 +539,14 @@ class RayExecutor:
                     ray.cancel(r, force=True)
             raise
         return out  # type: ignore[return-value]
+
+
+class _DropNotMainThread(logging.Filter):
+    """Ray's warning that ``ray.init`` outside the main thread sets no SIGTERM handler (this
+    process keeps its own)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "not the main thread" not in record.getMessage()
 
 
 def _ray_completed(ray, refs: list) -> Iterator[Any]:

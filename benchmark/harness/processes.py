@@ -15,6 +15,8 @@ out-of-memory kill) blocks for ever on the pool's pipe, holding its memory. Call
   re-parented, so its parent is gone).
 
 Either way a parent that died before the call is noticed at once (its pid is given).
+
+External programs (ROSE²'s driver) run under :mod:`benchmark.guarded` instead.
 """
 
 from __future__ import annotations
@@ -36,6 +38,60 @@ def available_cores() -> int:
         return max(len(os.sched_getaffinity(0)), 1)
     except (AttributeError, OSError):
         return max(os.cpu_count() or 1, 1)
+
+
+#: the least memory a worker process is counted as needing (bytes) when capping ``run.workers``.
+MIN_WORKER_BYTES = 256 * 2**20
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available for new work (``MemAvailable`` of ``/proc/meminfo``), or None
+    where unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def resident_bytes() -> int:
+    """This process's resident memory in bytes (0 where unknown)."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def worker_cap(requested: int | None) -> tuple[int, str | None]:
+    """How many worker processes to start for ``requested`` (None: as many as the cores).
+
+    At most the cores this process may use (:func:`available_cores`: more processes than cores
+    only take turns, each holding its memory), and at most what the available memory holds at
+    ``max(this process's resident memory, MIN_WORKER_BYTES)`` a worker (a forked worker
+    starts as a copy of this process; a simplified estimate: a worker's peak is not known in
+    advance).
+
+    Returns:
+        (the workers, one line saying why fewer than requested, or None).
+    """
+    cores = available_cores()
+    want = cores if requested is None else int(requested)
+    got, why = want, None
+    if want > cores:
+        got, why = cores, f"the {cores} core(s) this process may use"
+    mem = available_memory()
+    per = max(resident_bytes(), MIN_WORKER_BYTES)
+    if mem is not None and got > max(mem // per, 1):
+        got = max(mem // per, 1)
+        why = f"what the available memory holds ({mem / 2**30:.1f} GiB, about {per / 2**30:.2f} GiB a worker)"
+    if got >= want:
+        return want, None
+    asked = f"run.workers={requested}" if requested is not None else "run.workers (the cores)"
+    return got, f"{asked}: capped at {got} worker process(es), {why}"
 
 
 def _prctl_pdeathsig(sig: int) -> bool:
@@ -86,4 +142,4 @@ def worker_init(parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-__all__ = ["available_cores", "die_with_parent", "worker_init", "PR_SET_PDEATHSIG"]
+__all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "PR_SET_PDEATHSIG"]

@@ -41,6 +41,7 @@ from benchmark.config import ROBOT_STAGES, robot_settings
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
 from benchmark.harness.executor import (
+    CONNECT_TIMEOUT_S,
     Executor,
     HouseResult,
     JobSpec,
@@ -57,7 +58,7 @@ from benchmark.harness.pipeline import (
     StageError,
     expand_force,
 )
-from benchmark.harness.processes import available_cores
+from benchmark.harness.processes import available_cores, worker_cap
 from benchmark.harness.progress import house_progress, job_label, parallel_jobs
 from benchmark.harness.store import NON_ROW_KEYS, SELECTION_KEYS, Job, claim_job_dir, flat_settings
 from benchmark.harness.typed import check_typed
@@ -245,20 +246,38 @@ def pipeline_from_plain(plain: dict[str, Any], choices: dict[str, str], eval_ids
     return pipe
 
 
+#: the lines said about capping ``run.workers`` in this process (:func:`choose_executor`).
+_CAP_NOTES: set[str] = set()
+
+
 def choose_executor(cfg: DictConfig, pipe: Pipeline, n_houses: int) -> Executor:
     """The executor of a job's ``n_houses`` houses (see the module docstring): Ray for
     ``run.executor=ray``; else this process when one worker would do (``run.workers=1``, one
     house, or a launcher that already runs several jobs side by side, each in its own
     process); else this process's pool of ``run.workers`` processes (default: the cores
     available)."""
-    workers = cfg.run.get("workers") or available_cores()
+    ray_cfg = cfg.run.get("ray") or {}
     if cfg.run.get("executor", "local") == "ray":
-        ray_cfg = cfg.run.get("ray") or {}
-        return RayExecutor(ray_cfg.get("address"), workers)
+        address = ray_cfg.get("address")  # a cluster's CPUs are its own; a local instance gets the capped count
+        workers = (cfg.run.get("workers") or available_cores()) if address else _workers(cfg, n_houses)
+        return RayExecutor(address, workers, ray_cfg.get("connect_timeout") or CONNECT_TIMEOUT_S)
     if parallel_jobs() > 1:  # the launcher's n_jobs workers are the sweep's processes already
-        workers = 1
-    workers = min(int(workers), n_houses)
+        return SerialExecutor(pipe)
+    workers = _workers(cfg, n_houses)
     return SerialExecutor(pipe) if workers <= 1 else local_pool(workers)
+
+
+def _workers(cfg: DictConfig, n_houses: int) -> int:
+    """``run.workers`` (None: the cores), at most ``n_houses`` and at most what this machine
+    holds (:func:`benchmark.harness.processes.worker_cap`; one warning line, once per process,
+    when that cap binds)."""
+    requested = cfg.run.get("workers")
+    cap, note = worker_cap(requested)
+    want = max(min(int(requested) if requested is not None else available_cores(), n_houses), 1)
+    if note and want > cap and note not in _CAP_NOTES:
+        _CAP_NOTES.add(note)
+        log.warning(note)
+    return min(want, cap)
 
 
 def _in_multirun() -> bool:
@@ -312,6 +331,9 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     pipe.eval_ids = tuple(ids)
     key, settings = job_identity(cfg, ids, plain)
+    executor = choose_executor(cfg, pipe, len(ids))
+    if hasattr(executor, "connect"):  # a cluster that cannot be reached: one line, before anything is written
+        executor.connect()
     try:
         out_dir, note = claim_job_dir(out_dir, key, settings)
     except OSError as e:
@@ -328,7 +350,6 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     # a bar only on a terminal with no other job beside it; else the finished-job line below
     progress = house_progress(job_label(pipe.names, None if acc is None else float(acc)),
                               bool(cfg.run.get("progress", True)))
-    executor = choose_executor(cfg, pipe, len(ids))
     spec = JobSpec(key=config_key("worker", plain, choices, ids),
                    build=partial(pipeline_from_plain, plain, choices, tuple(ids), pipe.keys), cwd=os.getcwd())
     try:

@@ -45,6 +45,8 @@ from typing import Any
 
 #: the files every finished job folder holds.
 METRICS, SUMMARY, CONFIG = "metrics.csv", "summary.json", "resolved_config.yaml"
+#: the mappings of a runner job's ``summary.json`` that reports read (:meth:`Job.summary`).
+RUN_SUMMARY_MAPPINGS = ("names", "keys", "contents")
 #: per-house timings beside metrics.csv (they differ from run to run; the rows do not).
 TIMINGS = "timings.csv"
 #: the job's identity (written first, when the runner claims the folder).
@@ -131,7 +133,7 @@ SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
 #: :func:`benchmark.harness.runner.job_identity`, and of the configuration tables compare).
 NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
                 "run.allow_failures", "run.cache_failures", "run.name", "run.workers", "run.executor",
-                "run.ray.address")
+                "run.ray.address", "run.ray.connect_timeout")
 
 
 def flat_settings(plain: dict[str, Any]) -> dict[str, Any]:
@@ -176,15 +178,35 @@ class Job:
 
     def config(self):
         """The job's resolved config (a read-only OmegaConf DictConfig, read once per file
-        version: reports ask for it many times)."""
+        version: reports ask for it many times).
+
+        Raises:
+            ValueError: one line naming the file: it does not parse, or is not a mapping with
+                a ``run`` section (empty, a list, another file's text)."""
         st = self.config_path.stat()
         return _load_config(str(self.config_path), st.st_mtime_ns, st.st_size)
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self, require: Sequence[str] = ()) -> dict[str, Any]:
+        """The job's ``summary.json``; ``require``: keys that must hold mappings (the runner's
+        ``names``, ``keys``, ``contents``: :data:`RUN_SUMMARY_MAPPINGS`).
+
+        Raises:
+            ValueError: one line naming the file: it does not parse, is not a JSON object, or
+                one of ``names``, ``keys``, ``contents`` (required or present) is not a mapping."""
         import json
 
-        with open(self.summary_path, encoding="utf-8") as f:
-            return json.load(f)
+        try:
+            with open(self.summary_path, encoding="utf-8") as f:
+                out = json.load(f)
+        except (ValueError, UnicodeDecodeError) as e:
+            raise ValueError(f"{self.summary_path}: malformed JSON ({' '.join(str(e).split())[:120]})") from None
+        if not isinstance(out, dict):
+            raise ValueError(f"{self.summary_path}: expected a JSON object, got {type(out).__name__}")
+        bad = [k for k in dict.fromkeys((*require, *RUN_SUMMARY_MAPPINGS))
+               if (k in require or k in out) and not isinstance(out.get(k), dict)]
+        if bad:
+            raise ValueError(f"{self.summary_path}: malformed summary (expected {', '.join(bad)} as mappings)")
+        return out
 
     def cache(self) -> CacheStore:
         """The cache this job wrote to (its ``run.cache_dir``, wherever that is)."""
@@ -199,7 +221,7 @@ class Job:
 
         Raises:
             KeyError: the job did not run that house (the message names job and house)."""
-        summary = self.summary()
+        summary = self.summary(RUN_SUMMARY_MAPPINGS)
         contents = summary.get("contents", {})
         if house_id not in contents:
             raise KeyError(f"{self.summary_path}: no house {house_id!r} in this job "
@@ -431,7 +453,7 @@ def read_metrics(path: str | Path):
     if path.name == METRICS:
         try:
             n = json.loads(summary.read_text(encoding="utf-8")).get("n_houses")
-        except ValueError:
+        except (ValueError, AttributeError):  # (the summary itself is checked where it is read: Job.summary)
             n = None
         if isinstance(n, int) and n != len(df):
             raise ValueError(f"{path}: {len(df)} rows but {summary.name} says {n} houses (truncated?)")
@@ -440,9 +462,17 @@ def read_metrics(path: str | Path):
 
 @lru_cache(maxsize=256)
 def _load_config(path: str, mtime_ns: int, size: int):
-    from omegaconf import OmegaConf
+    from omegaconf import DictConfig, OmegaConf
 
-    cfg = OmegaConf.load(path)
+    try:
+        cfg = OmegaConf.load(path)
+    except Exception as e:  # noqa: BLE001 - any YAML error is a malformed file
+        raise ValueError(f"{path}: unreadable config ({type(e).__name__}: "
+                         f"{' '.join(str(e).split())[:120]})") from None
+    if not isinstance(cfg, DictConfig) or not isinstance(cfg.get("run"), DictConfig):
+        what = "empty" if isinstance(cfg, DictConfig) and not len(cfg) else (
+            "no run section" if isinstance(cfg, DictConfig) else "a list")
+        raise ValueError(f"{path}: malformed resolved config ({what}; expected the mapping the runner writes)")
     OmegaConf.set_readonly(cfg, True)
     return cfg
 

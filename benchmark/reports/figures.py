@@ -32,7 +32,6 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
-import pandas as pd
 
 from benchmark.reports.formatting import finite_float
 from benchmark.reports.plotting import (
@@ -455,15 +454,21 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
     from omegaconf import OmegaConf
 
     from benchmark.harness.cache import load_npz
-    from benchmark.harness.store import find_jobs, safe_name, sweep_scope
+    from benchmark.harness.store import (
+        RUN_SUMMARY_MAPPINGS,
+        find_jobs,
+        read_metrics,
+        safe_name,
+        sweep_scope,
+    )
 
     if isinstance(houses, str):
         houses = [houses]
     jobs = []
     for job in find_jobs(sweep_scope([run_dir], True).files if last_sweep else [run_dir]):
-        df = pd.read_csv(job.metrics_path)
+        df = read_metrics(job.metrics_path)  # checked whole: one line naming the file
         df["house_id"] = df["house_id"].astype(str)
-        jobs.append((job, job.config(), job.summary(), df))
+        jobs.append((job, job.config(), job.summary(RUN_SUMMARY_MAPPINGS), df))
     scenes: dict[tuple, Scene] = {}
 
     def scene_for(cfg, hid):

@@ -528,14 +528,14 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         FileNotFoundError: no finished job under ``run_dirs``.
         ValueError: a requested house no job scored.
     """
-    from benchmark.harness.store import find_jobs, sweep_scope
+    from benchmark.harness.store import RUN_SUMMARY_MAPPINGS, find_jobs, read_metrics, sweep_scope
 
     scope = sweep_scope(list(run_dirs), last_sweep)
     jobs = []
     for job in find_jobs(scope.files):
-        df = pd.read_csv(job.metrics_path)
+        df = read_metrics(job.metrics_path)  # checked whole: one line naming the file
         df["house_id"] = df["house_id"].astype(str)
-        jobs.append((job, job.summary(), df))
+        jobs.append((job, job.summary(RUN_SUMMARY_MAPPINGS), df))
     cols, rows = _config_rows(jobs)
     chosen = pick_houses(jobs, houses, per_dataset)
     n_rows = sum(len(df) for _, _, df in jobs)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import tempfile
 import time
@@ -33,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from benchmark.guarded import pid_alive, run_guarded
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import check_room_area, merge_small_rooms
 from envs.maps.gridmap import GridMap
@@ -45,6 +47,20 @@ CHECKOUT_ENV = "ROOMSEG_ROSE2"
 DEFAULT_PYTHON = Path(__file__).resolve().parents[2] / ".venv-rose2" / "bin" / "python"
 DRIVER = Path(__file__).with_name("rose2_driver.py")
 FREE, UNKNOWN, OCCUPIED = 255, 200, 0
+#: name prefix of a driver's folder in the temporary folder: ``roomseg-rose2-<pid>-<random>``.
+TMP_PREFIX = "roomseg-rose2-"
+
+
+def clean_rose2_tmp() -> list[Path]:
+    """Remove the driver folders (``<tmp>/roomseg-rose2-<pid>-*``) of processes that are gone
+    (killed before they could remove their own); returns the folders removed."""
+    removed = []
+    for p in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*-*"):
+        pid = p.name[len(TMP_PREFIX):].split("-", 1)[0]
+        if pid.isdigit() and not pid_alive(int(pid)):
+            shutil.rmtree(p, ignore_errors=True)
+            removed.append(p)
+    return removed
 
 
 def rose2_image(walkable: np.ndarray, resolution: float, wall_m: float = 0.2, margin_m: float = 1.0
@@ -139,23 +155,31 @@ class Rose2(Segmenter):
     def run_driver(self, image: np.ndarray) -> dict:
         """One subprocess of the driver on ``image``; the driver's JSON result.
 
+        The driver runs under :func:`benchmark.guarded.run_guarded`: in a process
+        group of its own, killed whole (with whatever ROSE² started) on a timeout or when this
+        process dies, its output bounded; its folder ``<tmp>/roomseg-rose2-<pid>-*`` goes with
+        it, and folders of processes that are gone are removed first (:func:`clean_rose2_tmp`).
+
         Raises:
             RuntimeError: a timeout, or the driver could not run (one line)."""
-        with tempfile.TemporaryDirectory(prefix="roomseg-rose2-") as tmp:
-            tmp = Path(tmp)
+        clean_rose2_tmp()
+        tmp = Path(tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{os.getpid()}-"))
+        try:
             np.save(tmp / "map.npy", image)
             (tmp / "params.json").write_text(json.dumps({"filter": self.filter}))
             cmd = [str(self.python), str(DRIVER), "--rose2", str(self.checkout), "--map", str(tmp / "map.npy"),
                    "--params", str(tmp / "params.json"), "--out", str(tmp / "out.json")]
             try:
-                r = subprocess.run(cmd, capture_output=True, text=True, timeout=self.timeout,
-                                   env={**os.environ, "PYTHONPATH": "", "MPLBACKEND": "Agg"})
+                r = run_guarded(cmd, timeout=self.timeout, remove=[str(tmp)],
+                                env={**os.environ, "PYTHONPATH": "", "MPLBACKEND": "Agg"})
             except subprocess.TimeoutExpired:
                 raise RuntimeError(f"ROSE2 timed out after {self.timeout:g} s (segmenter.timeout)") from None
             if r.returncode != 0 or not (tmp / "out.json").is_file():
                 last = (r.stderr.strip().splitlines() or ["no output"])[-1]
                 raise RuntimeError(f"the ROSE2 driver failed (exit {r.returncode}): {last[:300]}")
             return json.loads((tmp / "out.json").read_text())
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
 
     def __call__(self, grid: GridMap) -> np.ndarray:
         t = time.perf_counter()

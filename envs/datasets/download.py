@@ -22,6 +22,7 @@ import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 from urllib.parse import urljoin
 
 from envs.digest import file_digest
@@ -67,20 +68,37 @@ class Dataset:
         return sum(f.size for f in self.files)
 
 
+def _yaml_kind(v: Any) -> str:
+    return {list: "list", str: "string", int: "number", float: "number", bool: "boolean"}.get(type(v), type(v).__name__)
+
+
+def _plain_name(folder: str) -> bool:
+    """``folder`` is one folder name inside the data root: not empty, no separator, not ``.``
+    or ``..``, not hidden (``.<folder>.fetch`` is its staging folder), not absolute."""
+    return (bool(folder) and folder == folder.strip() and "/" not in folder and "\\" not in folder
+            and not folder.startswith(".") and not Path(folder).is_absolute() and ":" not in folder)
+
+
 def load_catalogue(path: str | Path = CATALOGUE) -> dict[str, Dataset]:
     """The catalogue's datasets by name.
 
     Raises:
-        ValueError: an entry without a required field, an unknown kind, or a file entry without
-            path, size or a 64-hex-digit sha256 (one line naming the entry)."""
+        ValueError: a catalogue that is not a mapping, an entry that is not one, an entry without
+            a required field, an unknown kind, a ``folder`` that is not one plain folder name
+            inside the data root, or a file entry without path, size or a 64-hex-digit sha256
+            (one line naming the entry)."""
     import yaml
 
     try:
         raw = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
     except yaml.YAMLError as e:
         raise ValueError(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from None
+    if not isinstance(raw, dict):
+        raise ValueError(f"{path}: expected a mapping of dataset names to entries, got a {_yaml_kind(raw)}")
     out = {}
     for name, e in raw.items():
+        if not isinstance(e, dict):
+            raise ValueError(f"{path}: dataset {name!r}: expected a mapping of fields, got a {_yaml_kind(e)}")
         missing = [k for k in ("title", "kind", "source", "licence", "used_by") if k not in e]
         if missing:
             raise ValueError(f"{path}: dataset {name!r} has no {', '.join(missing)}")
@@ -90,13 +108,19 @@ def load_catalogue(path: str | Path = CATALOGUE) -> dict[str, Dataset]:
         if e["kind"] == "files":
             if not e.get("folder") or not e.get("base_url") or not e.get("files"):
                 raise ValueError(f"{path}: dataset {name!r} (kind files) needs folder, base_url and files")
+            folder = e["folder"]
+            if not isinstance(folder, str) or not _plain_name(folder):
+                raise ValueError(f"{path}: dataset {name!r}: folder {folder!r} is not one plain folder name inside "
+                                 f"the data root (no '/', '\\', '..', leading '.' or absolute path)")
+            if not isinstance(e["files"], list) or not all(isinstance(f, dict) for f in e["files"]):
+                raise ValueError(f"{path}: dataset {name!r}: files must be a list of entries (path, size, sha256)")
             for f in e["files"]:
                 sha = str(f.get("sha256", ""))
                 if not f.get("path") or not isinstance(f.get("size"), int) or len(sha) != 64 or \
                         any(c not in "0123456789abcdef" for c in sha):
                     raise ValueError(f"{path}: dataset {name!r}: file entry {f} needs path, size (bytes) and a "
                                      f"64-hex-digit sha256")
-                if Path(f["path"]).is_absolute() or ".." in Path(f["path"]).parts:
+                if not isinstance(f["path"], str) or Path(f["path"]).is_absolute() or ".." in Path(f["path"]).parts:
                     raise ValueError(f"{path}: dataset {name!r}: file path {f['path']!r} leaves the dataset folder")
                 files.append(DataFile(f["path"], urljoin(e["base_url"], f.get("url", f["path"])), f["size"], sha))
         known = {"title", "kind", "source", "licence", "used_by", "folder", "files", "size", "base_url"}

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import zlib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -121,7 +122,7 @@ def _read_text(path: Path) -> str:
     try:
         with opener(path, "rt", encoding="utf-8") as f:
             return f.read()
-    except (OSError, EOFError, UnicodeDecodeError) as e:
+    except (OSError, EOFError, UnicodeDecodeError, zlib.error) as e:  # zlib.error: a damaged .gz (a flipped bit)
         raise ValueError(f"house file {path}: cannot be read ({e})") from None
 
 
@@ -140,7 +141,7 @@ def _jsonl(path: Path, prefix: str) -> Iterator[HouseRecord]:
                     yield HouseRecord(hid, source, error=_json_error(hid, source, e))
                     continue
                 yield HouseRecord(_own_id(data, f"{prefix}-{i:05d}"), source, data)
-    except (OSError, EOFError, UnicodeDecodeError) as e:
+    except (OSError, EOFError, UnicodeDecodeError, zlib.error) as e:  # zlib.error: a damaged .gz (a flipped bit)
         raise ValueError(f"house file {path}: cannot be read ({e})") from None
 
 
