@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from benchmark.harness.progress import SweepProgress, duration_words
+from benchmark.harness.sweep_progress import SweepProgress, duration_words
 
 ROOT = Path(__file__).resolve().parents[1]
 

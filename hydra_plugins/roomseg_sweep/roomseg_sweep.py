@@ -66,7 +66,7 @@ from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
 from benchmark.harness.processes import available_cores, worker_init
-from benchmark.harness.progress import SweepProgress
+from benchmark.harness.sweep_progress import SweepProgress
 from benchmark.harness.write_errors import naming_the_file
 
 log = logging.getLogger(__name__)
