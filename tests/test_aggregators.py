@@ -158,3 +158,22 @@ def test_euclidean_neighbours_with_lattice_ties(k):
     ids = np.broadcast_to(np.arange(len(rows)), d2.shape)
     want = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
     np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+@pytest.mark.parametrize("vote", ["label", "probability"])
+def test_vision_cone_equals_per_ray_loop_on_a_shared_house_at_default_settings(shared_houses, vote):
+    """A real ProcTHOR house at 0.05 m/px, the default 10 m cone (315 rays a view, furniture
+    and walls blocking them at every distance): the kernel's shared-path walk votes for
+    exactly the cells the per-ray reference walks."""
+    from benchmark.viewpoints import Autotrace
+    from envs.maps.scene import rasterise_house
+
+    scene = rasterise_house(shared_houses[0], resolution=0.05)
+    poses = Autotrace().generate(scene)[::12]
+    proba = np.random.default_rng(1).dirichlet(np.ones(len(scene.classes)), len(poses))
+    cone = VisionCone(vote=vote)
+    got, want = cone(scene.grid, poses, proba), vision_cone_reference(scene.grid, poses, proba, vote=vote)
+    assert cone.last_used > 5 and (got >= 0).sum() > 1000
+    assert np.array_equal(got, want)

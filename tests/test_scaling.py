@@ -86,4 +86,8 @@ def test_perf_writes_its_tables_with_where_and_when(tmp_path, capsys):
     first = text.splitlines()[0]
     assert first.startswith("Measured on ") and " cores" in first and "--synthetic 1 --resolutions 0.1" in first
     assert "graph KNN ms" in text and "KNN identical" in text
+    # the cone's floor: its votes are the same pairs, so the row says identical
+    row = [ln for ln in text.splitlines() if ln.startswith("| synthetic")][0].split("|")
+    head = [h.strip() for h in text.splitlines()[2].split("|")]
+    assert row[head.index("floor identical")].strip() == "True" and float(row[head.index("cone / floor")]) > 0
     assert "Medians over houses" in text and "graph KNN ms" in capsys.readouterr().out

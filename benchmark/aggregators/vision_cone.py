@@ -8,8 +8,12 @@ and every walkable cell a ray reaches with clear line of sight gets one vote fro
 several rays of one view still gets one vote. The label of a cell is the class with the
 most votes summed over the ``window`` x ``window`` pixels around it (ties: lower class
 index); walkable cells with no vote in their window stay unlabelled.
-Memory: (C, H, W) float32 vote counts and an (H, W) int32 stamp, linear in the map size, and
-nothing per ray: every cone shares one array of ray offsets around its view's heading.
+Memory: (C, H, W) float32 vote counts, an (H + 2, W + 2) int32 cell state (free, blocked or
+off the map, and the last view that voted there) and an (H, W) bool obstacle copy, linear in
+the map size, and nothing per ray: every cone shares one array of ray offsets around its
+view's heading. Neighbouring rays of a view share most cells near the camera; a ray walks
+them against the cells the view's earlier rays walked (in order along each ray) and looks a
+cell up only where it leaves that path, so the lookups number about the cells seen.
 """
 
 from __future__ import annotations
@@ -21,14 +25,35 @@ from numba import njit
 from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
-from envs.render.raycast import cone_thetas, ray_end, trace_ray
+from envs.render.raycast import cone_thetas, line_step, ray_end, trace_ray
+
+#: values of the per-cell state array besides view ids (>= 0: the last view that voted there)
+FREE, BLOCKED, OUTSIDE = -1, -2, -3
 
 
-@njit(cache=True)
-def _cone_votes(blocked, rows, cols, yaws, offsets, max_range, short_px, labels, votes, counts, stamp):
+def cone_state(walkable: np.ndarray) -> np.ndarray:
+    """(H + 2, W + 2) int32: ``FREE`` on walkable cells, ``BLOCKED`` on the others, ``OUTSIDE`` on a
+    one-cell border (a ray walks one cell per step, so it meets the border before leaving the
+    map: no bounds checks in the walk). Cell (r, c) of the map is (r + 1, c + 1) here."""
+    st = np.full((walkable.shape[0] + 2, walkable.shape[1] + 2), OUTSIDE, np.int32)
+    st[1:-1, 1:-1] = np.where(walkable, FREE, BLOCKED)
+    return st
+
+
+@njit(cache=True, nogil=True)
+def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, labels, votes, counts):
+    """Per view: the short forward ray, then the cone's rays in order of heading. A ray's cells
+    are those of :func:`envs.render.raycast.trace_ray` (same digital line, stops before the first
+    blocked cell or at the map edge), walked here without its buffer: ``path[j]`` holds the j-th
+    cell of the latest ray of this view that reached index j, a free cell this view has already
+    voted for, so a ray that is at that cell at step j (neighbouring rays share most of their
+    cells near the camera) skips the state lookup; any other cell is looked up once in
+    ``state``, which also stamps the view (one vote per view and cell)."""
     cap = int(np.ceil(max(max_range, short_px))) + 2
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
+    path_r = np.empty(cap, np.int64)
+    path_c = np.empty(cap, np.int64)
     n_cls = votes.shape[1]
     used = 0
     for v in range(rows.shape[0]):
@@ -39,19 +64,38 @@ def _cone_votes(blocked, rows, cols, yaws, offsets, max_range, short_px, labels,
         if hr >= 0:
             continue
         used += 1
+        lab = labels[v]
+        known = 0  # path[:known] holds cells of this view's rays
         for t in range(offsets.shape[0]):  # the cone's rays: the view's heading + fixed offsets
             r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
-            n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
-            for j in range(n):
-                rr = buf_r[j]
-                cc = buf_c[j]
-                if stamp[rr, cc] != v:
-                    stamp[rr, cc] = v
-                    if labels[v] >= 0:  # one vote for the view's label
-                        counts[labels[v], rr, cc] += 1.0
-                    else:  # its probability vector
-                        for k in range(n_cls):
-                            counts[k, rr, cc] += votes[v, k]
+            dr = abs(r1 - r0)
+            dc = abs(c1 - c0)
+            sr = 1 if r1 > r0 else -1
+            sc = 1 if c1 > c0 else -1
+            err = dc - dr
+            r = r0
+            c = c0
+            j = 0
+            while True:
+                if not (j < known and path_r[j] == r and path_c[j] == c):
+                    s = state[r + 1, c + 1]
+                    if s < FREE:  # blocked, or off the map
+                        break
+                    if s != v:
+                        state[r + 1, c + 1] = v
+                        if lab >= 0:  # one vote for the view's label
+                            counts[lab, r, c] += 1.0
+                        else:  # its probability vector
+                            for k in range(n_cls):
+                                counts[k, r, c] += votes[v, k]
+                    path_r[j] = r
+                    path_c[j] = c
+                j += 1
+                if r == r1 and c == c1:
+                    break
+                r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+            if j > known:
+                known = j
     return used
 
 
@@ -106,9 +150,9 @@ class VisionCone(Aggregator):
         # memory does not grow with the number of views (a million views fit)
         offsets = cone_thetas(0.0, self.fov, max_px, self.ray_density)
         counts = np.zeros((n_cls, *grid.shape), np.float32)
-        self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), r.astype(np.int64), c.astype(np.int64),
-                                     np.deg2rad(yaw), offsets, float(max_px), float(self.blocked_ray_m / grid.resolution),
-                                     labels, p.astype(np.float32), counts, np.full(grid.shape, -1, np.int32))
+        self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), cone_state(grid.walkable),
+                                     r.astype(np.int64), c.astype(np.int64), np.deg2rad(yaw), offsets, float(max_px),
+                                     float(self.blocked_ray_m / grid.resolution), labels, p.astype(np.float32), counts)
         return counts
 
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
