@@ -177,3 +177,22 @@ def test_vision_cone_equals_per_ray_loop_on_a_shared_house_at_default_settings(s
     got, want = cone(scene.grid, poses, proba), vision_cone_reference(scene.grid, poses, proba, vote=vote)
     assert cone.last_used > 5 and (got >= 0).sum() > 1000
     assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("window", [1, 3, 5])
+@pytest.mark.parametrize("n_classes", [1, 2, 7])
+def test_window_mode_one_class_at_a_time_equals_the_stacked_argmax(seed, window, n_classes):
+    """Small integer votes (ties everywhere, cells with none) and fractional ones: the running
+    best equals the argmax over all classes' window sums, ties to the lower class."""
+    from benchmark.aggregators.reference import window_mode_reference
+    from benchmark.aggregators.vision_cone import window_mode
+
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(0, 3, (n_classes, 23, 31)).astype(np.float32) * (rng.random((n_classes, 23, 31)) < 0.3)
+    if seed % 2:
+        counts = counts * rng.random(counts.shape).astype(np.float32)
+    walkable = rng.random((23, 31)) < 0.8
+    got = window_mode(counts, walkable, window)
+    assert got.dtype == np.int32 and (got == -1).any() and (got >= 0).any()
+    assert np.array_equal(got, window_mode_reference(counts, walkable, window))

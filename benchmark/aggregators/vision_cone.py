@@ -101,13 +101,36 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
 
 def window_mode(counts: np.ndarray, walkable: np.ndarray, window: int) -> np.ndarray:
     """Per cell, the class with the most votes in the ``window`` x ``window`` box around it
-    (ties: lower index), on walkable cells with any vote; -1 elsewhere."""
+    (ties: lower index), on walkable cells with any vote; -1 elsewhere.
+
+    One class at a time (a running best sum and its class), so the work arrays are a few
+    bytes per pixel whatever the number of classes (not a (C, H, W) stack of window sums);
+    :func:`benchmark.aggregators.reference.window_mode_reference` is the stacked argmax.
+
+    Args:
+        counts: (C, H, W) votes per class.
+        walkable: (H, W) bool.
+        window: odd box size, pixels.
+
+    Returns:
+        (H, W) int32 class indices, -1 where unlabelled.
+    """
     if window < 1 or window % 2 == 0:
         raise ValueError(f"window must be an odd number of pixels >= 1, got {window}")
-    summed = np.stack([cv2.boxFilter(c.astype(np.float32), -1, (window, window), normalize=False,
-                                     borderType=cv2.BORDER_CONSTANT) for c in counts])
-    lab = np.argmax(summed, axis=0).astype(np.int32)
-    lab[(summed.max(axis=0) <= 0) | ~walkable] = -1
+    lab = np.zeros(walkable.shape, np.int32)
+    best = None
+    for k, c in enumerate(counts):
+        summed = cv2.boxFilter(c.astype(np.float32, copy=False), -1, (window, window), normalize=False,
+                               borderType=cv2.BORDER_CONSTANT)
+        if best is None:
+            best = summed
+            continue
+        better = summed > best  # strictly: a tie keeps the lower class
+        lab[better] = k
+        np.maximum(best, summed, out=best)
+    if best is None:
+        return np.full(walkable.shape, -1, np.int32)
+    lab[(best <= 0) | ~walkable] = -1
     return lab
 
 
