@@ -195,4 +195,9 @@ def test_window_mode_one_class_at_a_time_equals_the_stacked_argmax(seed, window,
     walkable = rng.random((23, 31)) < 0.8
     got = window_mode(counts, walkable, window)
     assert got.dtype == np.int32 and (got == -1).any() and (got >= 0).any()
-    assert np.array_equal(got, window_mode_reference(counts, walkable, window))
+    want = window_mode_reference(counts, walkable, window)
+    assert np.array_equal(got, want)
+    for band in (1, 2, 5, 22):  # bands of rows, windows reaching across their edges: the same
+        assert np.array_equal(window_mode(counts, walkable, window, band_rows=band), want)
+    if seed % 2 == 0:  # whole votes as the cone counts them (uint16): the same
+        assert np.array_equal(window_mode(counts.astype(np.uint16), walkable, window, band_rows=7), want)

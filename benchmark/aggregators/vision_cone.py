@@ -8,7 +8,8 @@ and every walkable cell a ray reaches with clear line of sight gets one vote fro
 several rays of one view still gets one vote. The label of a cell is the class with the
 most votes summed over the ``window`` x ``window`` pixels around it (ties: lower class
 index); walkable cells with no vote in their window stay unlabelled.
-Memory: (C, H, W) float32 vote counts, an (H + 2, W + 2) int32 cell state (free, blocked or
+Memory: (C, H, W) vote counts (uint16 with label votes from fewer than 65,536 views, else
+float32), an (H + 2, W + 2) int32 cell state (free, blocked or
 off the map, and the last view that voted there) and an (H, W) bool obstacle copy, linear in
 the map size, and nothing per ray: every cone shares one array of ray offsets around its
 view's heading. Neighbouring rays of a view share most cells near the camera; a ray walks
@@ -84,7 +85,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                     if s != v:
                         state[r + 1, c + 1] = v
                         if lab >= 0:  # one vote for the view's label
-                            counts[lab, r, c] += 1.0
+                            counts[lab, r, c] += 1
                         else:  # its probability vector
                             for k in range(n_cls):
                                 counts[k, r, c] += votes[v, k]
@@ -99,38 +100,55 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     return used
 
 
-def window_mode(counts: np.ndarray, walkable: np.ndarray, window: int) -> np.ndarray:
+#: rows of the map the window mode works on at once (its float work arrays are this many rows)
+MODE_BAND_ROWS = 512
+
+
+def window_mode(counts: np.ndarray, walkable: np.ndarray, window: int, band_rows: int = MODE_BAND_ROWS) -> np.ndarray:
     """Per cell, the class with the most votes in the ``window`` x ``window`` box around it
     (ties: lower index), on walkable cells with any vote; -1 elsewhere.
 
-    One class at a time (a running best sum and its class), so the work arrays are a few
-    bytes per pixel whatever the number of classes (not a (C, H, W) stack of window sums);
-    :func:`benchmark.aggregators.reference.window_mode_reference` is the stacked argmax.
+    One class at a time (a running best sum and its class) and ``band_rows`` rows at a time
+    (each band's window sums read ``window // 2`` rows beyond it; outside the map counts as no
+    vote, as for the whole map at once), so the work arrays beyond the (H, W) int32 result are
+    a band's, whatever the map's size and the number of classes.
+    :func:`benchmark.aggregators.reference.window_mode_reference` is the whole-map stacked argmax.
 
     Args:
-        counts: (C, H, W) votes per class.
+        counts: (C, H, W) votes per class (uint16, float32 or any real type).
         walkable: (H, W) bool.
         window: odd box size, pixels.
+        band_rows: rows per band (>= 1).
 
     Returns:
         (H, W) int32 class indices, -1 where unlabelled.
     """
     if window < 1 or window % 2 == 0:
         raise ValueError(f"window must be an odd number of pixels >= 1, got {window}")
-    lab = np.zeros(walkable.shape, np.int32)
-    best = None
-    for k, c in enumerate(counts):
-        summed = cv2.boxFilter(c.astype(np.float32, copy=False), -1, (window, window), normalize=False,
-                               borderType=cv2.BORDER_CONSTANT)
-        if best is None:
-            best = summed
-            continue
-        better = summed > best  # strictly: a tie keeps the lower class
-        lab[better] = k
-        np.maximum(best, summed, out=best)
-    if best is None:
-        return np.full(walkable.shape, -1, np.int32)
-    lab[(best <= 0) | ~walkable] = -1
+    h = walkable.shape[0]
+    lab = np.full(walkable.shape, -1, np.int32)
+    if len(counts) == 0:
+        return lab
+    half = window // 2
+    for r0 in range(0, h, max(int(band_rows), 1)):
+        r1 = min(r0 + max(int(band_rows), 1), h)
+        a, b = max(r0 - half, 0), min(r1 + half, h)  # the band and the rows its windows read
+        out = lab[r0:r1]
+        out[:] = 0
+        best = None
+        for k, c in enumerate(counts):
+            # float32 window sums straight from the counts (uint16 counts need no float copy;
+            # sums of whole votes stay exact below 2**24)
+            src = c[a:b] if c.dtype in (np.uint16, np.float32) else c[a:b].astype(np.float32)
+            summed = cv2.boxFilter(src, cv2.CV_32F, (window, window), normalize=False,
+                                   borderType=cv2.BORDER_CONSTANT)[r0 - a:r1 - a]
+            if best is None:
+                best = summed.copy()
+                continue
+            better = summed > best  # strictly: a tie keeps the lower class
+            out[better] = k
+            np.maximum(best, summed, out=best)
+        out[(best <= 0) | ~walkable[r0:r1]] = -1
     return lab
 
 
@@ -164,7 +182,9 @@ class VisionCone(Aggregator):
         self.last_used = 0
 
     def votes(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
-        """(C, H, W) float32 vote counts (before the window mode)."""
+        """(C, H, W) vote counts (before the window mode): with ``vote="label"`` whole votes, uint16
+        (a cell gets at most one vote per view, so fewer than 65,536 views cannot overflow it;
+        uint32 beyond), else float32 sums of probabilities."""
         r, c, yaw, p, _ = view_cells(grid, poses, proba)
         n_cls = p.shape[1]
         labels = np.argmax(p, axis=1).astype(np.int64) if self.vote == "label" else np.full(len(p), -1, np.int64)
@@ -172,7 +192,8 @@ class VisionCone(Aggregator):
         # every cone has the same ray offsets around its heading: no (views x rays) array, so
         # memory does not grow with the number of views (a million views fit)
         offsets = cone_thetas(0.0, self.fov, max_px, self.ray_density)
-        counts = np.zeros((n_cls, *grid.shape), np.float32)
+        whole = np.uint16 if len(p) < 2**16 else np.uint32
+        counts = np.zeros((n_cls, *grid.shape), whole if self.vote == "label" else np.float32)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), cone_state(grid.walkable),
                                      r.astype(np.int64), c.astype(np.int64), np.deg2rad(yaw), offsets, float(max_px),
                                      float(self.blocked_ray_m / grid.resolution), labels, p.astype(np.float32), counts)
