@@ -113,8 +113,10 @@ scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000
 scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
 	$(PY) -m benchmark.commands.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
 
+# roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 2.3 GB), extrapolated to 16000^2 px
+PERF_SEGMENT_ROOMS ?= 20 40
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --segment-rooms $(PERF_SEGMENT_ROOMS)
 
 perf-publish: setup  ## make perf's tables -> results/published/perf.md (included by docs/robot-conditions.md)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --robot-houses 10 --out results/published/perf.md

@@ -15,6 +15,12 @@ ratios, and peak traced memory (tracemalloc: Python and NumPy allocations, inclu
 map-sized work arrays the numba kernels fill), also as bytes per map pixel: constant across
 resolutions means linear in the map size.
 
+Large maps (``--segment-rooms``): ``roomseg-segment`` (vision cone, post-processing, every
+output file) on the example building of :mod:`benchmark.commands.segment_example` with N x N
+rooms of 10 m at 0.05 m/px, each in a fresh process; its peak RSS, and the bytes per map pixel
+between the two largest sizes (what each extra pixel costs), extrapolated to a 16000 x 16000
+px map (800 m x 800 m) next to the 8 GB target. Extrapolated, not measured at that size.
+
 Robot conditions (issue #25), per shared ProcTHOR house at 0.05 m/px (``--robot-houses``):
 scan-map construction (:func:`envs.maps.scan.scan_map`, default :class:`ScanSettings`: plane
 0.25 m, range 10 m, 1 degree beams, no noise; scans along the autotrace views' trajectory every
@@ -207,6 +213,46 @@ def run_robot(houses: int, scan_ref_scans: int, path: Path) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: a child process that segments and prints its own peak RSS in KiB as its last line: VmHWM of
+#: its memory after exec (getrusage's ru_maxrss would also count the forking parent's pages)
+_SEGMENT_CHILD = ("import sys; from benchmark.commands.segment import main; rc = main(sys.argv[1:]); "
+                  "print([ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM:')][0]); "
+                  "sys.exit(rc)")
+
+
+def run_segment_memory(rooms: list[int], workdir: Path) -> pd.DataFrame:
+    """Peak RSS of ``roomseg-segment`` on the N x N room example, per N (module docstring)."""
+    import subprocess
+    import sys
+
+    from benchmark.commands.segment_example import write_example
+
+    rows = []
+    for n in rooms:
+        d = workdir / f"rooms{n}"
+        ex = write_example(d, n, n, room_m=10.0, resolution=0.05)
+        h, w = ex.grid.shape
+        t = time.perf_counter()
+        p = subprocess.run([sys.executable, "-c", _SEGMENT_CHILD, f"map={ex.map_yaml}", f"poses={ex.poses}",
+                            "frame=ros", f"labels={ex.labels}", f"out={d / 'segmented'}",
+                            f"max_map_pixels={h * w + 1}"], capture_output=True, text=True)
+        wall = time.perf_counter() - t
+        if p.returncode != 0:
+            raise RuntimeError(f"roomseg-segment on {ex.map_yaml} failed: {p.stderr.strip()[-500:]}")
+        peak = int(p.stdout.strip().splitlines()[-1]) * 1024
+        rows.append({"rooms": f"{n} x {n}", "pixels": h * w, "wall s": wall, "peak RSS MB": peak / 2**20})
+        print(f"roomseg-segment {w} x {h} px: {wall:.1f} s, peak RSS {peak / 2**20:.0f} MB", flush=True)
+    df = pd.DataFrame(rows)
+    if len(df) >= 2:
+        a, b = df.iloc[-2], df.iloc[-1]
+        per_px = (b["peak RSS MB"] - a["peak RSS MB"]) * 2**20 / (b["pixels"] - a["pixels"])
+        df["B/px (marginal)"] = [float("nan")] * (len(df) - 1) + [per_px]
+        big = 16000 * 16000
+        df["16000^2 px extrapolated GB"] = [float("nan")] * (len(df) - 1) + [
+            (b["peak RSS MB"] * 2**20 + per_px * (big - b["pixels"])) / 1e9]
+    return df
+
+
 def robot_table(df: pd.DataFrame) -> pd.DataFrame:
     """The robot-conditions summary: medians and maxima over houses."""
     return pd.DataFrame([{
@@ -231,6 +277,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot-houses", type=int, default=5,
                     help="shared ProcTHOR houses for the scan-map and frontier timings (0: none)")
     ap.add_argument("--scan-ref-scans", type=int, default=40, help="scans the scan-map reference runs on")
+    ap.add_argument("--segment-rooms", type=int, nargs="*", default=[],
+                    help="large maps: roomseg-segment's peak memory on N x N rooms of 10 m (e.g. 10 20: "
+                         "2020^2 and 4020^2 px), extrapolated to 16000^2 px")
     ap.add_argument("--out", type=Path, default=None,
                     help="also write the tables here (Markdown, with the date, machine, commit and command)")
     a = ap.parse_args(argv)
@@ -244,6 +293,16 @@ def main(argv: list[str] | None = None) -> int:
                   f"Robot conditions at 0.05 m/px, shared houses. Times: best of 3 calls per house (references: 1 "
                   f"call; the scan-map reference on the first {a.scan_ref_scans} scans, clean and noisy). Targets: "
                   f"scan map <= 50 ms, frontier <= 200 ms per house."]
+        print("\n" + "\n\n".join(parts[-2:]) + "\n")
+    if a.segment_rooms:
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="roomseg-perf-") as d:
+            seg = run_segment_memory(a.segment_rooms, Path(d))
+        parts += [seg.to_markdown(index=False, floatfmt=".1f"),
+                  "roomseg-segment (vision cone, post-processing, all outputs) on N x N rooms of 10 m at 0.05 m/px, "
+                  "a fresh process each: peak RSS; bytes per pixel between the two largest maps, and the peak "
+                  "extrapolated from them to 16000 x 16000 px (target: within 8 GB). Extrapolated, not run."]
         print("\n" + "\n\n".join(parts[-2:]) + "\n")
     if a.houses == 0 and a.synthetic == 0:
         return _write(a.out, parts, argv)
