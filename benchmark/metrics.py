@@ -287,13 +287,18 @@ def segments(labels: np.ndarray, connectivity: int = 4) -> np.ndarray:
     labels = np.asarray(labels)
     if connectivity not in (4, 8):
         raise ValueError(f"connectivity must be 4 or 8, got {connectivity}")
-    out = np.full(labels.shape, -1, dtype=np.int32)
     fg = labels >= 0
     if not fg.any():
-        return out
-    # shift so that every negative value is one background value 0
-    lab = sk_label(np.where(fg, labels.astype(np.int64) + 1, 0), background=0,
-                   connectivity=1 if connectivity == 4 else 2)
+        return np.full(labels.shape, -1, dtype=np.int32)
+    # shift so that every negative value is one background value 0, in the narrowest type that
+    # holds it (a large map: no int64 copies beside the labelling's own output)
+    wide = labels.dtype.itemsize > 4 or labels.dtype == np.uint32
+    src = labels.astype(np.int64 if wide and int(labels.max()) >= 2**31 - 1 else np.int32)
+    src += 1
+    src[~fg] = 0
+    del fg
+    lab = sk_label(src, background=0, connectivity=1 if connectivity == 4 else 2)
+    del src
     n = int(lab.max())
     # skimage numbers regions by their first pixel in raster order; order by value, stably
     first = np.zeros(n + 1, dtype=np.int64)
@@ -303,8 +308,7 @@ def segments(labels: np.ndarray, connectivity: int = 4) -> np.ndarray:
     rank = np.empty(n + 1, dtype=np.int32)
     rank[0] = -1
     rank[1 + order] = np.arange(n, dtype=np.int32)
-    out[fg] = rank[lab[fg]]
-    return out
+    return rank[lab]  # background (0) -> -1
 
 
 def _check(pred: np.ndarray, gt_instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -158,3 +158,46 @@ def test_euclidean_neighbours_with_lattice_ties(k):
     ids = np.broadcast_to(np.arange(len(rows)), d2.shape)
     want = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
     np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+@pytest.mark.parametrize("vote", ["label", "probability"])
+def test_vision_cone_equals_per_ray_loop_on_a_shared_house_at_default_settings(shared_houses, vote):
+    """A real ProcTHOR house at 0.05 m/px, the default 10 m cone (315 rays a view, furniture
+    and walls blocking them at every distance): the kernel's shared-path walk votes for
+    exactly the cells the per-ray reference walks."""
+    from benchmark.viewpoints import Autotrace
+    from envs.maps.scene import rasterise_house
+
+    scene = rasterise_house(shared_houses[0], resolution=0.05)
+    poses = Autotrace().generate(scene)[::12]
+    proba = np.random.default_rng(1).dirichlet(np.ones(len(scene.classes)), len(poses))
+    cone = VisionCone(vote=vote)
+    got, want = cone(scene.grid, poses, proba), vision_cone_reference(scene.grid, poses, proba, vote=vote)
+    assert cone.last_used > 5 and (got >= 0).sum() > 1000
+    assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("window", [1, 3, 5])
+@pytest.mark.parametrize("n_classes", [1, 2, 7])
+def test_window_mode_one_class_at_a_time_equals_the_stacked_argmax(seed, window, n_classes):
+    """Small integer votes (ties everywhere, cells with none) and fractional ones: the running
+    best equals the argmax over all classes' window sums, ties to the lower class."""
+    from benchmark.aggregators.reference import window_mode_reference
+    from benchmark.aggregators.vision_cone import window_mode
+
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(0, 3, (n_classes, 23, 31)).astype(np.float32) * (rng.random((n_classes, 23, 31)) < 0.3)
+    if seed % 2:
+        counts = counts * rng.random(counts.shape).astype(np.float32)
+    walkable = rng.random((23, 31)) < 0.8
+    got = window_mode(counts, walkable, window)
+    assert got.dtype == np.int32 and (got == -1).any() and (got >= 0).any()
+    want = window_mode_reference(counts, walkable, window)
+    assert np.array_equal(got, want)
+    for band in (1, 2, 5, 22):  # bands of rows, windows reaching across their edges: the same
+        assert np.array_equal(window_mode(counts, walkable, window, band_rows=band), want)
+    if seed % 2 == 0:  # whole votes as the cone counts them (uint16): the same
+        assert np.array_equal(window_mode(counts.astype(np.uint16), walkable, window, band_rows=7), want)

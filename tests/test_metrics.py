@@ -9,6 +9,7 @@ from benchmark.metrics import (
     resample_nearest,
     score_instances,
     score_semantic,
+    segments,
 )
 
 P0 = MetricParams(min_segment_m2=0)
@@ -165,3 +166,27 @@ def test_resample_and_describe():
     assert resample_nearest(resample_nearest(a, (4, 4)), (2, 2)).tolist() == a.tolist()
     assert "50 px at 0.05 m/px" in describe(MetricParams(), 0.05)
     assert "313 px at 0.02 m/px" in describe(MetricParams(), 0.02) and "500 px" in describe(MetricParams(), 0.02, colours=True)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("connectivity", [4, 8])
+@pytest.mark.parametrize("dtype", [np.int64, np.int32, np.int16])
+def test_segments_equal_a_per_value_scipy_labelling(seed, connectivity, dtype):
+    """Ids ordered by value, then by the raster position of each region's first pixel: a
+    reference labelling each value apart with SciPy, whatever the input's integer type."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(-2, 4, (19, 23)).astype(dtype)
+    labels[rng.random(labels.shape) < 0.5] = 1  # large regions too
+    want = np.full(labels.shape, -1, np.int32)
+    nxt = 0
+    structure = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
+    for v in np.unique(labels[labels >= 0]):
+        comp, n = ndimage.label(labels == v, structure=structure)
+        firsts = sorted((int(np.flatnonzero(comp == k)[0]), k) for k in range(1, n + 1))
+        for _, k in firsts:
+            want[comp == k] = nxt
+            nxt += 1
+    got = segments(labels, connectivity)
+    assert got.dtype == np.int32 and np.array_equal(got, want)

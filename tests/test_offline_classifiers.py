@@ -111,3 +111,27 @@ def test_classifiers_on_rendered_views_share_the_interface(procthor_file):
     truth = true_labels(obs)
     # every rendered view's true label is a class of a room of this house
     assert set(truth.tolist()) <= set(scene.instance_classes.tolist())
+
+
+def test_objects_training_key_is_kept_per_process_and_follows_the_training_file(tmp_path, shared_houses):
+    """The key is hashed once per settings and training file (every job of a sweep builds its
+    own classifier); it equals the key computed afresh, and a training file rewritten with other
+    houses gives the new content's key."""
+    import json
+    import os
+
+    from benchmark.classifiers import objects
+
+    f = tmp_path / "train.jsonl"
+    f.write_text("\n".join(json.dumps(h.data) for h in shared_houses[:3]) + "\n")
+    first = ObjectsClassifier(train_path=str(f)).training_key()
+    assert ObjectsClassifier(train_path=str(f)).training_key() == first
+    assert ObjectsClassifier(train_path=str(f))._training_key() == first  # the memo holds the real key
+    assert ObjectsClassifier(train_path=str(f), train_stop=2).training_key() != first
+    before = len(objects._TRAINING_KEYS)
+    ObjectsClassifier(train_path=str(f)).training_key()
+    assert len(objects._TRAINING_KEYS) == before  # no new entry: kept
+    f.write_text("\n".join(json.dumps(h.data) for h in shared_houses[3:6]) + "\n")
+    os.utime(f, ns=(1, 1))  # an old modification time: the size differs
+    changed = ObjectsClassifier(train_path=str(f)).training_key()
+    assert changed != first and changed == ObjectsClassifier(train_path=str(f))._training_key()

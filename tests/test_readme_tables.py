@@ -78,6 +78,26 @@ def test_publish_then_write_a_block(tmp_path, monkeypatch):
     assert "**61 s wall, 341 MB peak RSS**" in text and text.startswith("intro\n") and text.endswith("end\n")
 
 
+def test_publish_records_the_numba_compile_step_of_a_fresh_clone(tmp_path):
+    """With make setup's compile step timed into an empty numba cache (make bench-publish), the
+    timing block says the run was timed as on a fresh clone and how long the compile took; a
+    malformed compile-time file is one error naming it."""
+    run = _hand_run(tmp_path)
+    (tmp_path / "time.txt").write_text("19.6 349184\n")
+    (tmp_path / "compile.txt").write_text("10.4 250000\n")
+    dest = rt.publish(run, "bench", tmp_path, tmp_path / "time.txt", compile_time_file=tmp_path / "compile.txt")
+    assert json.loads((dest / "provenance.json").read_text())["numba_compile_s"] == 10.4
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- BEGIN generated: bench-timing -->\n<!-- END generated: bench-timing -->\n")
+    rt.write(readme, tmp_path)
+    text = readme.read_text()
+    assert "**20 s wall, 341 MB peak RSS**" in text
+    assert "numba's cache empty before `make setup`, whose kernel compile step took 10 s" in text
+    (tmp_path / "bad.txt").write_text("oops\n")
+    with pytest.raises(ValueError, match="bad.txt: expected GNU time"):
+        rt.publish(run, "bench", tmp_path, tmp_path / "time.txt", compile_time_file=tmp_path / "bad.txt")
+
+
 def test_bad_markers_and_missing_inputs(tmp_path):
     with pytest.raises(ValueError, match="no '<!-- END generated: bench-table4 -->'"):
         rt.blocks_in("<!-- BEGIN generated: bench-table4 -->\nx\n")

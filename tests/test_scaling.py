@@ -86,4 +86,23 @@ def test_perf_writes_its_tables_with_where_and_when(tmp_path, capsys):
     first = text.splitlines()[0]
     assert first.startswith("Measured on ") and " cores" in first and "--synthetic 1 --resolutions 0.1" in first
     assert "graph KNN ms" in text and "KNN identical" in text
+    # the cone's floor: its votes are the same pairs, so the row says identical
+    row = [ln for ln in text.splitlines() if ln.startswith("| synthetic")][0].split("|")
+    head = [h.strip() for h in text.splitlines()[2].split("|")]
+    assert row[head.index("floor identical")].strip() == "True" and float(row[head.index("cone / floor")]) > 0
     assert "Medians over houses" in text and "graph KNN ms" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_perf_segment_memory_measures_each_size_in_its_own_process(tmp_path):
+    """make perf's large-map rows: roomseg-segment run on two example buildings, each peak
+    is the child's own (at least the size of its map arrays, far below the parent's), the
+    marginal bytes per pixel and the 16000^2 extrapolation on the last row."""
+    from benchmark.commands.perf import run_segment_memory
+
+    df = run_segment_memory([2, 4], tmp_path)
+    assert list(df["pixels"]) == [420 ** 2, 820 ** 2]  # 10 m rooms at 0.05 m/px, 0.1 m outer walls
+    assert (df["peak RSS MB"] > 50).all() and df["peak RSS MB"].iloc[1] > df["peak RSS MB"].iloc[0]
+    last = df.iloc[-1]
+    assert last["B/px (marginal)"] > 1 and last["16000^2 px extrapolated GB"] > last["peak RSS MB"] / 1024
+    assert (tmp_path / "rooms4" / "segmented" / "labels.png").exists()

@@ -11,13 +11,13 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from benchmark.aggregators.common import view_cells
 from benchmark.aggregators.graph_knn import neighbour_offsets
-from benchmark.aggregators.vision_cone import window_mode
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import cone_thetas
 
@@ -159,6 +159,16 @@ def walk_ray(blocked: np.ndarray, r0: int, c0: int, theta: float, max_range: flo
     return seen, None
 
 
+def window_mode_reference(counts: np.ndarray, walkable: np.ndarray, window: int) -> np.ndarray:
+    """The window mode as a stack: every class's window sums at once, then the first argmax
+    (ties: lower index); -1 on cells with no vote in their window or not walkable."""
+    summed = np.stack([cv2.boxFilter(c.astype(np.float32), -1, (window, window), normalize=False,
+                                     borderType=cv2.BORDER_CONSTANT) for c in counts])
+    lab = np.argmax(summed, axis=0).astype(np.int32)
+    lab[(summed.max(axis=0) <= 0) | ~walkable] = -1
+    return lab
+
+
 def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_range_m: float = 10.0,
                           blocked_ray_m: float = 0.3, window: int = 5, vote: str = "label",
                           ray_density: float = 1.0) -> np.ndarray:
@@ -181,7 +191,7 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
                 counts[int(np.argmax(p[i])), rr, cc] += 1
             else:
                 counts[:, rr, cc] += p[i]
-    return window_mode(counts, grid.walkable, window)
+    return window_mode_reference(counts, grid.walkable, window)
 
 
-__all__ = ["graph_knn_reference", "vision_cone_reference", "euclidean_knn_reference", "digital_line", "walk_ray", "grid_graph"]
+__all__ = ["graph_knn_reference", "vision_cone_reference", "window_mode_reference", "euclidean_knn_reference", "digital_line", "walk_ray", "grid_graph"]

@@ -7,10 +7,19 @@ slow reference (graph KNN: one SciPy csgraph BFS per viewpoint; vision cone: a p
 Python loop), on the *same* views, in the same process; the labels must be identical.
 The per-ray Python reference is very slow, so it runs on the first ``--cone-ref-views``
 views only and the fast version is timed again on exactly those views for the ratio.
+The vision cone is also set against its floor: one vote added for each visible (view, cell)
+pair, each pair once, from a precomputed list (what any cone implementation must at least
+do); ``cone / floor`` is the ratio of the two times.
 Euclidean KNN (no reference) is timed alongside. Prints per-house medians, the speed-up
 ratios, and peak traced memory (tracemalloc: Python and NumPy allocations, including the
 map-sized work arrays the numba kernels fill), also as bytes per map pixel: constant across
 resolutions means linear in the map size.
+
+Large maps (``--segment-rooms``): ``roomseg-segment`` (vision cone, post-processing, every
+output file) on the example building of :mod:`benchmark.commands.segment_example` with N x N
+rooms of 10 m at 0.05 m/px, each in a fresh process; its peak RSS, and the bytes per map pixel
+between the two largest sizes (what each extra pixel costs), extrapolated to a 16000 x 16000
+px map (800 m x 800 m) next to the 8 GB target. Extrapolated, not measured at that size.
 
 Robot conditions (issue #25), per shared ProcTHOR house at 0.05 m/px (``--robot-houses``):
 scan-map construction (:func:`envs.maps.scan.scan_map`, default :class:`ScanSettings`: plane
@@ -29,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from numba import njit
 
 from benchmark.commands import cli
 from benchmark.paths import procthor_houses
@@ -68,6 +78,40 @@ def _scenes(path: Path, houses: int, synthetic: int, res: float):
             yield "synthetic", hid, env.scene(hid)
 
 
+@njit(cache=True)
+def _add_votes(flat, labels, counts):
+    for k in range(flat.shape[0]):
+        counts[labels[k], flat[k]] += 1.0
+
+
+def cone_pairs(grid, poses: np.ndarray, proba: np.ndarray, cone) -> tuple[np.ndarray, np.ndarray]:
+    """Every (view, cell) pair ``cone`` votes for, each once, in view order: ((P,) int64 flat
+    cell indices, (P,) int64 the view's label), found with :func:`envs.maps.rays.cast_rays`
+    per view and :func:`numpy.unique` per view (no code shared with the cone's kernel)."""
+    from benchmark.aggregators.common import view_cells
+    from envs.maps.rays import cast_rays, cone_thetas
+
+    r, c, yaw, p, _ = view_cells(grid, poses, proba)
+    blocked, max_px = ~grid.walkable, cone.max_range_m / grid.resolution
+    flats, labs = [], []
+    for i in range(len(r)):
+        *_, hit = cast_rays(blocked, int(r[i]), int(c[i]), np.deg2rad([yaw[i]]), cone.blocked_ray_m / grid.resolution)
+        if hit[0, 0] >= 0:
+            continue
+        rr, cc, _, _ = cast_rays(blocked, int(r[i]), int(c[i]), cone_thetas(yaw[i], cone.fov, max_px, cone.ray_density),
+                                 max_px)
+        flats.append(np.unique(rr.astype(np.int64) * grid.shape[1] + cc))
+        labs.append(np.full(len(flats[-1]), int(np.argmax(p[i])), np.int64))
+    return np.concatenate(flats), np.concatenate(labs)
+
+
+def cone_floor(grid, flat: np.ndarray, labels: np.ndarray, n_classes: int) -> np.ndarray:
+    """The floor of the vision cone: one vote per visible pair into (C, H * W) float32 counts."""
+    counts = np.zeros((n_classes, grid.shape[0] * grid.shape[1]), np.float32)
+    _add_votes(flat, labels, counts)
+    return counts
+
+
 def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: int, path: Path) -> pd.DataFrame:
     from benchmark.aggregators.euclidean_knn import EuclideanKNN
     from benchmark.aggregators.graph_knn import GraphKNN
@@ -86,6 +130,11 @@ def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: i
             lab, t_knn = _timed(knn, s.grid, poses, proba)
             ref, t_knn_ref = _timed(graph_knn_reference, s.grid, poses, proba, 5, repeat=1)
             cone_lab, t_cone = _timed(cone, s.grid, poses, proba)
+            flat, labs = cone_pairs(s.grid, poses, proba, cone)
+            floor_counts, t_floor = _timed(cone_floor, s.grid, flat, labs, proba.shape[1])
+            _, t_votes = _timed(cone.votes, s.grid, poses, proba)
+            # the floor's counts are the cone's votes: the same pairs, each once
+            floor_equal = bool(np.array_equal(floor_counts.reshape(-1, *s.grid.shape), cone.votes(s.grid, poses, proba)))
             sub = slice(0, cone_ref_views)
             small, t_cone_sub = _timed(cone, s.grid, poses[sub], proba[sub])
             cref, t_cone_ref = _timed(vision_cone_reference, s.grid, poses[sub], proba[sub], repeat=1)
@@ -97,14 +146,17 @@ def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: i
                 "dataset": dataset, "resolution": res, "house": hid, "pixels": h_ * w_, "views": len(poses),
                 "knn_ms": 1e3 * t_knn, "knn_ref_ms": 1e3 * t_knn_ref, "knn_speedup": t_knn_ref / t_knn,
                 "knn_equal": bool(np.array_equal(lab, ref)),
-                "cone_ms": 1e3 * t_cone, "cone_speedup": t_cone_ref / t_cone_sub,
+                "cone_ms": 1e3 * t_cone, "cone_speedup": t_cone_ref / t_cone_sub, "cone_pairs": len(flat),
+                "cone_votes_ms": 1e3 * t_votes, "cone_floor_ms": 1e3 * t_floor, "cone_over_floor": t_votes / t_floor,
+                "floor_equal": floor_equal,
                 "cone_equal": bool(np.array_equal(small, cref)), "eu_ms": 1e3 * t_eu, "postprocess_ms": 1e3 * t_pp,
                 "knn_peak_MB": knn_peak / 2**20, "cone_peak_MB": cone_peak / 2**20,
                 "knn_B_px": knn_peak / (h_ * w_), "cone_B_px": cone_peak / (h_ * w_),
                 "pp_peak_MB": _peak(pp, cone_lab, s.grid) / 2**20,
             })
             print(f"{res} m/px {hid}: knn {1e3 * t_knn:.1f} ms (x{t_knn_ref / t_knn:.0f}), "
-                  f"cone {1e3 * t_cone:.1f} ms (x{t_cone_ref / t_cone_sub:.0f}), euclidean {1e3 * t_eu:.1f} ms, "
+                  f"cone {1e3 * t_cone:.1f} ms (x{t_cone_ref / t_cone_sub:.0f}; votes {1e3 * t_votes:.1f} ms = "
+                  f"{t_votes / t_floor:.1f} x the floor's {1e3 * t_floor:.2f} ms for {len(flat)} pairs), euclidean {1e3 * t_eu:.1f} ms, "
                   f"post {1e3 * t_pp:.1f} ms", flush=True)
     return pd.DataFrame(rows)
 
@@ -161,6 +213,46 @@ def run_robot(houses: int, scan_ref_scans: int, path: Path) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: a child process that segments and prints its own peak RSS in KiB as its last line: VmHWM of
+#: its memory after exec (getrusage's ru_maxrss would also count the forking parent's pages)
+_SEGMENT_CHILD = ("import sys; from benchmark.commands.segment import main; rc = main(sys.argv[1:]); "
+                  "print([ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM:')][0]); "
+                  "sys.exit(rc)")
+
+
+def run_segment_memory(rooms: list[int], workdir: Path) -> pd.DataFrame:
+    """Peak RSS of ``roomseg-segment`` on the N x N room example, per N (module docstring)."""
+    import subprocess
+    import sys
+
+    from benchmark.commands.segment_example import write_example
+
+    rows = []
+    for n in rooms:
+        d = workdir / f"rooms{n}"
+        ex = write_example(d, n, n, room_m=10.0, resolution=0.05)
+        h, w = ex.grid.shape
+        t = time.perf_counter()
+        p = subprocess.run([sys.executable, "-c", _SEGMENT_CHILD, f"map={ex.map_yaml}", f"poses={ex.poses}",
+                            "frame=ros", f"labels={ex.labels}", f"out={d / 'segmented'}",
+                            f"max_map_pixels={h * w + 1}"], capture_output=True, text=True)
+        wall = time.perf_counter() - t
+        if p.returncode != 0:
+            raise RuntimeError(f"roomseg-segment on {ex.map_yaml} failed: {p.stderr.strip()[-500:]}")
+        peak = int(p.stdout.strip().splitlines()[-1]) * 1024
+        rows.append({"rooms": f"{n} x {n}", "pixels": h * w, "wall s": wall, "peak RSS MB": peak / 2**20})
+        print(f"roomseg-segment {w} x {h} px: {wall:.1f} s, peak RSS {peak / 2**20:.0f} MB", flush=True)
+    df = pd.DataFrame(rows)
+    if len(df) >= 2:
+        a, b = df.iloc[-2], df.iloc[-1]
+        per_px = (b["peak RSS MB"] - a["peak RSS MB"]) * 2**20 / (b["pixels"] - a["pixels"])
+        df["B/px (marginal)"] = [float("nan")] * (len(df) - 1) + [per_px]
+        big = 16000 * 16000
+        df["16000^2 px extrapolated GB"] = [float("nan")] * (len(df) - 1) + [
+            (b["peak RSS MB"] * 2**20 + per_px * (big - b["pixels"])) / 1e9]
+    return df
+
+
 def robot_table(df: pd.DataFrame) -> pd.DataFrame:
     """The robot-conditions summary: medians and maxima over houses."""
     return pd.DataFrame([{
@@ -185,6 +277,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot-houses", type=int, default=5,
                     help="shared ProcTHOR houses for the scan-map and frontier timings (0: none)")
     ap.add_argument("--scan-ref-scans", type=int, default=40, help="scans the scan-map reference runs on")
+    ap.add_argument("--segment-rooms", type=int, nargs="*", default=[],
+                    help="large maps: roomseg-segment's peak memory on N x N rooms of 10 m (e.g. 10 20: "
+                         "2020^2 and 4020^2 px), extrapolated to 16000^2 px")
     ap.add_argument("--out", type=Path, default=None,
                     help="also write the tables here (Markdown, with the date, machine, commit and command)")
     a = ap.parse_args(argv)
@@ -199,6 +294,16 @@ def main(argv: list[str] | None = None) -> int:
                   f"call; the scan-map reference on the first {a.scan_ref_scans} scans, clean and noisy). Targets: "
                   f"scan map <= 50 ms, frontier <= 200 ms per house."]
         print("\n" + "\n\n".join(parts[-2:]) + "\n")
+    if a.segment_rooms:
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="roomseg-perf-") as d:
+            seg = run_segment_memory(a.segment_rooms, Path(d))
+        parts += [seg.to_markdown(index=False, floatfmt=".1f"),
+                  "roomseg-segment (vision cone, post-processing, all outputs) on N x N rooms of 10 m at 0.05 m/px, "
+                  "a fresh process each: peak RSS; bytes per pixel between the two largest maps, and the peak "
+                  "extrapolated from them to 16000 x 16000 px (target: within 8 GB). Extrapolated, not run."]
+        print("\n" + "\n\n".join(parts[-2:]) + "\n")
     if a.houses == 0 and a.synthetic == 0:
         return _write(a.out, parts, argv)
     df = run(a.houses, a.synthetic, a.resolutions, a.cone_ref_views, a.data)
@@ -208,7 +313,9 @@ def main(argv: list[str] | None = None) -> int:
         "graph KNN ms": g["knn_ms"].median(), "csgraph BFS ref ms": g["knn_ref_ms"].median(),
         "KNN speed-up": g["knn_speedup"].median(), "KNN identical": g["knn_equal"].all(),
         "vision cone ms": g["cone_ms"].median(), "cone speed-up": g["cone_speedup"].median(),
-        "cone identical": g["cone_equal"].all(), "Euclidean KNN ms": g["eu_ms"].median(),
+        "cone identical": g["cone_equal"].all(), "cone votes ms": g["cone_votes_ms"].median(),
+        "cone floor ms": g["cone_floor_ms"].median(), "cone / floor": g["cone_over_floor"].median(),
+        "floor identical": g["floor_equal"].all(), "Euclidean KNN ms": g["eu_ms"].median(),
         "post-process ms": g["postprocess_ms"].median(),
         "KNN peak MB": g["knn_peak_MB"].median(), "cone peak MB": g["cone_peak_MB"].median(),
         "KNN B/px": g["knn_B_px"].median(), "cone B/px": g["cone_B_px"].median(),
@@ -217,7 +324,9 @@ def main(argv: list[str] | None = None) -> int:
     table["resolution"] = table["resolution"].map(lambda r: f"{r:g} m/px")
     parts += [table.to_markdown(index=False, floatfmt=".1f"),
               f"Medians over houses. Speed-ups measured in this run on the same inputs (cone: the first "
-              f"{a.cone_ref_views} views). Times: best of 3 calls per house. Peak: tracemalloc (Python/NumPy "
+              f"{a.cone_ref_views} views). Cone / floor: the cone's voting (before the window mode) over one vote "
+              f"per visible (view, cell) pair from a precomputed list, same views; floor identical: those "
+              f"votes equal the cone's. Times: best of 3 calls per house. Peak: tracemalloc (Python/NumPy "
               f"allocations, incl. the numba kernels' work arrays)."]
     print("\n" + "\n\n".join(parts[-2:]))
     return _write(a.out, parts, argv)

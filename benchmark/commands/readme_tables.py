@@ -23,6 +23,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("run_dir", type=Path)
     p.add_argument("--name", required=True, help="published name (e.g. bench)")
     p.add_argument("--time", type=Path, default=None, help="GNU time output, -f '%%e %%M' (wall s, peak KiB)")
+    p.add_argument("--compile-time", type=Path, default=None,
+                   help="GNU time output of make setup's numba compile step before the run, into an empty numba "
+                        "cache (a fresh clone's)")
     p.add_argument("--command", default="make bench", help="the command that made the run (recorded)")
     p.add_argument("--columns", default=None,
                    help="robustness: keep these columns only, every job's rows in one metrics.csv "
@@ -38,7 +41,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from benchmark.reports.readme_tables import ROBUSTNESS_COLUMNS
 
             columns = ROBUSTNESS_COLUMNS if a.columns == "robustness" else (a.columns.split(",") if a.columns else None)
-            print(publish(a.run_dir, a.name, ".", a.time, a.command, columns))
+            print(publish(a.run_dir, a.name, ".", a.time, a.command, columns, a.compile_time))
         elif a.cmd == "write":
             for f in a.readme or [Path(f) for f in BLOCK_FILES]:
                 changed = write(f, ".")

@@ -115,14 +115,17 @@ def measured_line(module: str, args: list[str]) -> str:
 
 
 def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: str | Path | None = None,
-            command: str = "make bench", columns: Sequence[str] | None = None) -> Path:
+            command: str = "make bench", columns: Sequence[str] | None = None,
+            compile_time_file: str | Path | None = None) -> Path:
     """Copy a finished run's per-house metrics into ``<root>/results/published/<name>/``.
 
     Each job's ``metrics.csv`` keeps its relative folder and every column but the stage
     timings (``t_*``, which differ run to run). With ``columns``, every job's rows go into one
     ``metrics.csv`` with those columns only (a large sweep: the robustness benchmark). ``provenance.json`` records ``command``,
     the UTC date, :func:`machine`, the commit and, from ``time_file`` (GNU time's
-    ``-f "%e %M"``: wall seconds and peak RSS in KiB), the wall time and peak memory.
+    ``-f "%e %M"``: wall seconds and peak RSS in KiB), the wall time and peak memory; from
+    ``compile_time_file`` (the same format), the seconds ``make setup``'s numba compile step took
+    into an empty numba cache before the run (the run then timed as on a fresh clone).
 
     Returns:
         the published folder (replaced whole).
@@ -159,15 +162,23 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
     if hasattr(os, "getloadavg"):  # other work on the machine while it ran (5-minute load average at the end)
         prov["load_avg_5min"] = round(os.getloadavg()[1], 1)
     if time_file is not None:
-        try:
-            wall, rss_kb = Path(time_file).read_text().split()[-2:]
-            prov["wall_s"], prov["peak_rss_mb"] = round(float(wall), 1), round(int(rss_kb) / 1024)
-        except (OSError, ValueError) as e:
-            raise ValueError(f"{time_file}: expected GNU time's '%e %M' (seconds, KiB), got an error: {e}") from None
+        wall, rss_kb = _gnu_time(time_file)
+        prov["wall_s"], prov["peak_rss_mb"] = round(wall, 1), round(rss_kb / 1024)
+    if compile_time_file is not None:
+        prov["numba_compile_s"] = round(_gnu_time(compile_time_file)[0], 1)
     atomic_write_json(tmp / PROVENANCE, prov)
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)
     return dest
+
+
+def _gnu_time(path: str | Path) -> tuple[float, int]:
+    """(wall seconds, peak RSS KiB) from GNU time's ``-f "%e %M"`` output; ValueError naming the file."""
+    try:
+        wall, rss_kb = Path(path).read_text().split()[-2:]
+        return float(wall), int(rss_kb)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{path}: expected GNU time's '%e %M' (seconds, KiB), got an error: {e}") from None
 
 
 def provenance(root: str | Path, name: str) -> dict:
@@ -210,9 +221,11 @@ def render_block(block: Block, root: str | Path = ".") -> str:
                     f"(on {p['date_utc']}, {p['machine']}).\n")
         load = (f"; load average {p['load_avg_5min']:g} over the last 5 minutes from other work on the machine"
                 if "load_avg_5min" in p else "")
+        numba = (f"; as on a fresh clone: numba's cache empty before `make setup`, whose kernel compile step "
+                 f"took {p['numba_compile_s']:.0f} s" if "numba_compile_s" in p else "")
         return (f"Measured with `/usr/bin/time` on {p['date_utc']} on {p['machine']} (after `make setup`): "
                 f"`{p['command']}` took **{p['wall_s']:.0f} s wall, {p['peak_rss_mb']} MB peak RSS** "
-                f"({p['jobs']} configurations, from an empty cache{load}).\n")
+                f"({p['jobs']} configurations, from an empty cache{load}{numba}).\n")
     paths = [root / PUBLISHED / s for s in block.sources]
     for s in block.sources:
         provenance(root, s)  # a missing published run: one line saying how to publish it

@@ -55,7 +55,15 @@ def _check_index_map(values: np.ndarray, what: str) -> np.ndarray:
         raise ValueError(f"{what}: expected integer values (-1 = none), got dtype {v.dtype}")
     if v.size and v.min() < -1:
         raise ValueError(f"{what}: values below -1 ({int(v.min())}); expected -1 (none) or an index >= 0")
-    return v.astype(np.int64, copy=False)
+    return v  # its own integer type: no 8-byte-per-pixel copy of a large map
+
+
+def _marked(v: np.ndarray, dtype, marker: int) -> np.ndarray:
+    """``v`` (values -1..marker - 1) as ``dtype`` with ``marker`` for -1, without an int64
+    temporary (a large map's image costs its own bytes and a bool mask)."""
+    img = v.astype(dtype)
+    img[v < 0] = marker
+    return img
 
 
 def index_image(values: np.ndarray) -> tuple[np.ndarray, int]:
@@ -68,9 +76,9 @@ def index_image(values: np.ndarray) -> tuple[np.ndarray, int]:
     v = _check_index_map(values, "index map")
     top = int(v.max())
     if top < NO_VALUE_8:
-        return np.where(v < 0, NO_VALUE_8, v).astype(np.uint8), NO_VALUE_8
+        return _marked(v, np.uint8, NO_VALUE_8), NO_VALUE_8
     if top < NO_VALUE_16:
-        return np.where(v < 0, NO_VALUE_16, v).astype(np.uint16), NO_VALUE_16
+        return _marked(v, np.uint16, NO_VALUE_16), NO_VALUE_16
     raise ValueError(f"index map: value {top} does not fit a 16-bit PNG (at most {NO_VALUE_16 - 1})")
 
 
@@ -254,7 +262,7 @@ def write_ros_segmentation(yaml_path: str | Path, values: np.ndarray, grid: Grid
     if int(v.max()) >= ROS_MAX_VALUES:
         raise ValueError(f"{yaml_path}: value {int(v.max())} does not fit a raw ROS map (0..100 are read as is, "
                          f"others as unknown)")
-    img = np.where(v < 0, NO_VALUE_8, v).astype(np.uint8)
+    img = _marked(v, np.uint8, NO_VALUE_8)
     origin = tuple(ros_origin) if ros_origin is not None else ros_origin_of(grid)
     return write_ros_map(yaml_path, img, grid.resolution, origin, negate=False, mode="raw",
                          image_name=image_name or yaml_path.stem + ".png")

@@ -1,0 +1,185 @@
+"""Compile the numba kernels ahead of a first run (``make setup`` does it once).
+
+numba compiles a kernel on its first call and keeps the machine code in its on-disk cache
+(``cache=True``: ``__pycache__`` beside the source, or ``NUMBA_CACHE_DIR``); a later process
+loads it in milliseconds. A fresh clone has no cache, so its first run used to wait ~9 s
+of compiling (2 cores) before any house was done, and so did every pool or Ray worker on a
+fresh machine. This command calls every stage that has a kernel through its public
+function on one small generated house, with the argument types a run passes, so each
+kernel is compiled (or loaded) with exactly the signature a run needs:
+
+    python -m benchmark.commands.compile_kernels            # compile into numba's cache
+    python -m benchmark.commands.compile_kernels --measure  # the options, timed (below)
+
+``--measure`` runs the warm-up in fresh processes and prints, per stage, the seconds with
+an empty cache (a temporary ``NUMBA_CACHE_DIR``: what a fresh clone pays) and with the
+cache filled (what every run after ``make setup`` pays), and how many signatures the kernels
+were compiled for (each one is a separate compile). Nothing
+outside the temporary folder is written by ``--measure``.
+
+Every ``numba`` dispatcher in the ``benchmark`` and ``envs`` packages must be reached here:
+:func:`kernels` lists them and the test suite checks none is left uncompiled.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import pkgutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+#: packages whose modules hold kernels (algorithm modules only: commands hold none)
+PACKAGES = ("envs", "benchmark")
+SKIP = ("benchmark.commands", "benchmark.classifiers", "benchmark.reports", "envs.render.ai2thor",
+        "envs.render.habitat")
+
+
+def kernels() -> dict[str, object]:
+    """Every numba dispatcher defined in the algorithm modules: ``{"module.name": dispatcher}``."""
+    from numba.core.registry import CPUDispatcher
+
+    found: dict[str, object] = {}
+    for pkg_name in PACKAGES:
+        pkg = importlib.import_module(pkg_name)
+        for info in pkgutil.walk_packages(pkg.__path__, pkg_name + "."):
+            if info.name.startswith(SKIP):
+                continue
+            try:
+                mod = importlib.import_module(info.name)
+            except ImportError:  # an optional simulator adapter whose library is absent
+                continue
+            for name, obj in vars(mod).items():
+                if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == info.name:
+                    found[f"{info.name}.{name}"] = obj
+    return found
+
+
+def _scene():
+    from envs.datasets.synthetic import generate_house
+    from envs.maps.scene import rasterise_house
+
+    house = generate_house(0, length=(7.0, 7.0), depth=(6.5, 6.5))
+    return house, rasterise_house(house, resolution=0.1)
+
+
+def stages() -> list[tuple[str, Callable[[], object]]]:
+    """(name, call) per stage with a kernel, on one small generated house (7 m x 6.5 m, 0.1 m/px)."""
+    from benchmark.aggregators.euclidean_knn import EuclideanKNN
+    from benchmark.aggregators.graph_knn import GraphKNN
+    from benchmark.aggregators.vision_cone import VisionCone
+    from benchmark.conditions.coverage import view_coverage
+    from benchmark.conditions.exploration import Frontier, RandomWalk
+    from benchmark.postprocess import PostProcess
+    from benchmark.viewpoints import Autotrace
+    from envs.maps.rays import cast_rays
+    from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map
+    from envs.maps.trajectory import route
+    from envs.render.floorplan import FloorplanRenderer, occluders
+
+    house, scene = _scene()
+    poses = Autotrace().generate(scene)
+    rng = np.random.default_rng(0)
+    proba = rng.dirichlet(np.ones(len(scene.classes)), len(poses))
+    grid = scene.grid
+    labels = scene.semantic
+    return [
+        ("render (floorplan)", lambda: FloorplanRenderer().render(house, scene, poses)),
+        ("graph_knn", lambda: (GraphKNN()(grid, poses, proba), GraphKNN(weighting="probability")(grid, poses, proba))),
+        ("vision_cone", lambda: (VisionCone()(grid, poses, proba), VisionCone(vote="probability")(grid, poses, proba))),
+        ("euclidean_knn", lambda: EuclideanKNN()(grid, poses, proba)),
+        ("postprocess", lambda: PostProcess()(labels, grid)),
+        ("scan map", lambda: robot_scan_map(scene, poses[:4], ScanSettings(range_noise=0.02, dropout=0.1, seed=1),
+                                            house_wall_height(house))),
+        ("exploration", lambda: (Frontier(budget=3.0).explore(scene), RandomWalk(budget=3.0).generate(scene))),
+        ("route", lambda: route(grid.walkable, grid, poses[:4])),
+        ("coverage", lambda: view_coverage(scene, poses, 90.0, 6.0, occluders(scene, 1.2))),
+        ("ray cast", lambda: cast_rays(~grid.walkable, *grid.world_to_cell(poses[0, 0], poses[0, 1]),
+                                       np.array([0.0, 1.0]), 10.0)),
+    ]
+
+
+def warm() -> dict[str, float]:
+    """Run every stage once; return the seconds each took (compile or cache load included)."""
+    t0 = time.perf_counter()
+    todo = stages()
+    took = {"setup (house, autotrace)": time.perf_counter() - t0}
+    for name, call in todo:
+        t = time.perf_counter()
+        call()
+        took[name] = time.perf_counter() - t
+    return took
+
+
+def _child() -> None:
+    t0 = time.perf_counter()
+    import numba  # noqa: F401  (the import is part of what a run pays, counted apart)
+
+    t_import = time.perf_counter() - t0
+    took = warm()
+    sigs = {k: len(d.signatures) for k, d in kernels().items()}
+    print(json.dumps({"import numba": t_import, "stages": took, "signatures": sigs}))
+
+
+def _measure_once(cache_dir: str) -> dict:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--child"], env=env,
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"the warm-up process failed (exit {p.returncode}): {p.stderr.strip()[-2000:]}")
+    res = json.loads(p.stdout.strip().splitlines()[-1])
+    res["process"] = time.perf_counter() - t0
+    return res
+
+
+def measure() -> str:
+    """The warm-up timed in fresh processes, empty cache then filled cache (a table)."""
+    with tempfile.TemporaryDirectory(prefix="numba-cache-") as d:
+        cold = _measure_once(d)
+        warm_ = _measure_once(d)
+    lines = ["| stage | empty numba cache (s) | filled cache (s) |", "|---|---:|---:|"]
+    for k in cold["stages"]:
+        lines.append(f"| {k} | {cold['stages'][k]:.2f} | {warm_['stages'][k]:.2f} |")
+    tc, tw = sum(cold["stages"].values()), sum(warm_["stages"].values())
+    lines.append(f"| **all stages** | **{tc:.2f}** | **{tw:.2f}** |")
+    lines.append(f"| whole process (python start, imports, stages) | {cold['process']:.2f} | {warm_['process']:.2f} |")
+    sigs = cold["signatures"]  # as compiled (a kernel loaded from the cache lists none)
+    multi = {k: v for k, v in sigs.items() if v > 1}
+    inner = sorted(k for k, v in sigs.items() if v == 0)
+    lines.append("")
+    lines.append(f"{len(sigs)} kernels, compiled for {sum(sigs.values())} argument-type signatures"
+                 + (" (more than one: " + ", ".join(f"{k} x{v}" for k, v in multi.items())
+                    + "; a call inside another kernel counts too)" if multi else "")
+                 + (f"; inlined only into the kernels that call them: {', '.join(inner)}" if inner else "") + ".")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--measure", action="store_true",
+                    help="time the warm-up with an empty and a filled numba cache in fresh processes (writes nothing)")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        _child()
+        return 0
+    if a.measure:
+        print(measure())
+        return 0
+    t0 = time.perf_counter()
+    warm()
+    print(f"numba kernels compiled into the cache in {time.perf_counter() - t0:.1f} s "
+          f"({len(kernels())} kernels; a first run now loads them instead of compiling)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

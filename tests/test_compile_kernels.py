@@ -1,0 +1,58 @@
+"""Compiling the numba kernels ahead of a run (``make setup``): the warm-up reaches every
+kernel, and a run after it (clean and every robot condition's stages)
+finds all the machine code it needs in the cache: it writes no cache entry of its own."""
+
+from __future__ import annotations
+
+import inspect
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from benchmark.commands.compile_kernels import kernels
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cache_files(d: Path) -> dict[str, int]:
+    return {str(p.relative_to(d)): p.stat().st_mtime_ns for p in d.rglob("*") if p.is_file()}
+
+
+def test_kernels_lists_every_njit_function_of_the_algorithm_modules():
+    """The list the warm-up is checked against holds the kernels known to exist (one per
+    stage that has one) and only numba dispatchers."""
+    ks = kernels()
+    for name in ("benchmark.aggregators.vision_cone._cone_votes", "benchmark.aggregators.graph_knn._knn_bfs",
+                 "benchmark.aggregators.euclidean_knn._k_nearest", "benchmark.postprocess._fill_fronts",
+                 "envs.render.floorplan._render_views", "envs.maps.scan._scan_kernel", "envs.maps.trajectory._dijkstra",
+                 "envs.maps.rays._mark_cones"):
+        assert name in ks
+    assert all(hasattr(d, "py_func") and hasattr(d, "signatures") for d in ks.values())
+
+
+@pytest.mark.slow
+def test_warm_up_compiles_every_kernel_and_a_run_after_it_compiles_nothing(tmp_path):
+    cache = tmp_path / "numba-cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), ROOMSEG_SHARED_DATA=str(ROOT.parent / "shared" / "data"))
+    p = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--child"], env=env, cwd=ROOT,
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    sigs = json.loads(p.stdout.strip().splitlines()[-1])["signatures"]
+    assert set(sigs) == set(kernels())
+    ks = kernels()
+    compiled_src = "\n".join(inspect.getsource(ks[k].py_func) for k, n in sigs.items() if n >= 1)
+    for k, n in sigs.items():  # a kernel with no signature of its own is compiled inside one that calls it
+        assert n >= 1 or f"{k.rsplit('.', 1)[1]}(" in compiled_src, f"{k} is never compiled by the warm-up"
+    before = _cache_files(cache)
+    assert before, "the warm-up wrote nothing to numba's cache"
+    # a robustness run of one house: clean and realistic_3 (scan map, frontier exploration,
+    # pose error, label noise), every view-based method and geometric segmenter
+    run = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "experiment=robustness", "env=synthetic",
+                          "run.limit=1", f"run.results_dir={tmp_path / 'results'}", "corruption=clean,realistic_3"],
+                         env=env, cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert _cache_files(cache) == before  # every kernel a run calls was loaded, none compiled
