@@ -302,7 +302,9 @@ class Pipeline:
                 views = poses_array(self.stage("viewpoints").generate(scene))
                 timings["t_viewpoints"] = time.perf_counter() - t
             t = time.perf_counter()
-            free = np.asarray(self.mapping(scene, views, house=self.env.house(hid)), dtype=bool)
+            est = self._slam_estimate(hid, scene, views)  # a SLAM robot's scans sit at its estimate
+            kw = {} if est is None else {"estimate": (est.true, est.estimate, est.view_index)}
+            free = np.asarray(self.mapping(scene, views, house=self.env.house(hid), **kw), dtype=bool)
             timings["t_map"] = time.perf_counter() - t
             return free
 
@@ -315,6 +317,15 @@ class Pipeline:
         info = {"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
                 "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))}
         return GridMap(free, scene.grid.resolution, scene.grid.origin), info
+
+    def _slam_estimate(self, hid: str, scene, views: np.ndarray):
+        """The robot's one pose estimate (:class:`benchmark.slam.SlamEstimate`) along its views,
+        when its ``pose_error`` stage is a SLAM that makes one and errs; else None."""
+        stage = self.stage("pose_error")
+        if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
+            return None
+        spacing = self.mapping.settings.spacing if self.mapping is not None else None
+        return stage.estimate(scene.grid, views, hid, spacing)
 
     def score_path(self, hid: str) -> Path:
         return self.store.score_path(self.keys["score"], hid, content=self.contents(hid)["score"])
@@ -619,8 +630,14 @@ class MethodPipeline(Pipeline):
         without a ``pose_error`` stage."""
         if self.pose_error is None:
             return poses, {"pose_error_mean_m": 0.0, "pose_error_max_m": 0.0, "yaw_error_mean_deg": 0.0}
-        noisy, stats = self.pose_error(poses, scene.grid, hid)
-        keep = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg")
+        if hasattr(self.pose_error, "estimate"):  # one SLAM estimate along the whole route, as the map's
+            spacing = self.mapping.settings.spacing if self.mapping is not None else None
+            noisy, stats = self.pose_error(poses, scene.grid, hid, route_poses=self._render_poses(hid),
+                                           spacing=spacing)
+        else:
+            noisy, stats = self.pose_error(poses, scene.grid, hid)
+        keep = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg", "ate_rmse_m", "odometry_ate_rmse_m",
+                "route_m", "loop_closures", "wrong_closures")
         return noisy, {k: float(stats[k]) for k in keep if k in stats}
 
     def _received_labels(self, scene, received: np.ndarray, poses: np.ndarray,

@@ -94,10 +94,22 @@ def robot_settings(cfg: DictConfig) -> dict[str, Any]:
         if node is None:
             continue
         amounts = {"pose_error": ("sigma_xy", "sigma_yaw", "drift_xy", "drift_yaw"), "label_noise": ("share",)}.get(g)
+        if g == "pose_error" and shapes_map({g: node}):
+            amounts = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures")
         if amounts and all(not node.get(k) for k in amounts):
             continue
         out[g] = node
     return out
+
+
+#: pose-error stages whose one estimate also places the robot's scans (benchmark/slam.py)
+MAP_POSE_ERRORS = ("benchmark.slam.OdometrySlam",)
+
+
+def shapes_map(robot: dict[str, Any]) -> bool:
+    """True when the robot's pose error is a SLAM estimate that its map is built at too."""
+    node = robot.get("pose_error")
+    return isinstance(node, dict) and node.get("_target_") in MAP_POSE_ERRORS
 
 
 def stage_keys(cfg: DictConfig) -> dict[str, str]:
@@ -109,7 +121,8 @@ def stage_keys(cfg: DictConfig) -> dict[str, str]:
     classify = config_key("classify", render, _plain(cfg.get("classifier")))
     keys = {"render": render, "classify": classify}
     if "mapping" in robot:  # the robot's map: the house, the views it drove through, the mapping
-        keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"])
+        slam = [{"pose_error": robot["pose_error"]}] if shapes_map(robot) else []
+        keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"], *slam)
     if cfg.get("segmenter") is not None:
         parts = [{"mapping": keys["map"]}] if "mapping" in robot else []
         keys["score"] = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics), *parts)
@@ -215,7 +228,8 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     if seg is not None and "mapping" in robot:  # the robot's map is built along its views
         groups = (*groups, "viewpoints")
         names["viewpoints"] = choices.get("viewpoints", "")
-    robot_groups = tuple(g for g in ROBOT_STAGES if g in robot and (seg is None or g == "mapping"))
+    robot_groups = tuple(g for g in ROBOT_STAGES if g in robot and (
+        seg is None or g == "mapping" or (g == "pose_error" and "mapping" in robot and shapes_map(robot))))
     common = dict(
         env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg), names=names,
         metric_params=metric_params, force=expand_force(cfg.run.get("force")),

@@ -1,0 +1,233 @@
+"""One robot, one pose estimate (issue 37, items 1-2): odometry on SE(2) against a pure-Python
+reference, the pose-graph solve on a hand-made loop with a known answer and against a dense
+reference, the map inserted at the estimate, rigid alignment recovering a known offset, and
+severity 0 identical to clean through the harness."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from benchmark.alignment import align_rigid, apply_rigid, ate_rmse
+from benchmark.odometry import from_se2, increments, integrate, move_sigmas, noisy_moves, to_se2
+from benchmark.pose_graph import PoseGraph, move_edge, solve
+from benchmark.slam import OdometrySlam, subsequence
+from envs.maps.scan import ScanSettings, scan_map, scan_obstacles
+from envs.maps.slam_map import scan_map_at_estimate
+from tests.maps import two_rooms_scene
+
+
+# ----------------------------------------------------------------------------- odometry
+def _reference_integrate(start, moves):
+    """Probabilistic Robotics Table 5.6, one move at a time with the math module."""
+    x, y, th = start
+    out = [(x, y, th)]
+    for r1, t, r2 in moves:
+        x += t * math.cos(th + r1)
+        y += t * math.sin(th + r1)
+        th = th + r1 + r2
+        th = (th + math.pi) % (2 * math.pi) - math.pi
+        out.append((x, y, th))
+    return out
+
+
+def test_integration_matches_a_pure_python_reference_and_inverts_increments():
+    rng = np.random.default_rng(3)
+    moves = np.column_stack([rng.uniform(-1, 1, 200), rng.uniform(0, 0.5, 200), rng.uniform(-1, 1, 200)])
+    start = np.array([1.0, -2.0, 0.3])
+    got = integrate(start, moves)
+    want = np.array(_reference_integrate(start, moves))
+    np.testing.assert_allclose(got[:, :2], want[:, :2], atol=1e-9)
+    np.testing.assert_allclose(np.cos(got[:, 2] - want[:, 2]), 1.0, atol=1e-12)
+    # moves recovered from the states, and the states again from them
+    back = increments(got)
+    np.testing.assert_allclose(integrate(start, back), got, atol=1e-9)
+
+
+def test_pose_conventions_yaw_zero_faces_plus_z():
+    # a robot at yaw 0 driving 1 m ends 1 m further along +z; at yaw 90 along +x
+    for yaw, (dx, dz) in ((0.0, (0, 1)), (90.0, (1, 0))):
+        s = to_se2(np.array([[0.0, 0.0, yaw]]))
+        end = from_se2(integrate(s[0], np.array([[0.0, 1.0, 0.0]])))
+        np.testing.assert_allclose(end[1], [dx, dz, yaw], atol=1e-12)
+
+
+def test_turn_in_place_is_one_rotation_and_noise_couples_as_the_book_says():
+    states = to_se2(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 90.0]]))
+    np.testing.assert_allclose(increments(states), [[0.0, 0.0, -math.pi / 2]], atol=1e-12)
+    # variances: rot1 a1 r1^2 + a2 t^2, trans a3 t^2 + a4 (r1^2 + r2^2), rot2 a1 r2^2 + a2 t^2
+    m = np.array([[0.5, 2.0, -0.25]])
+    a = (0.1, 0.02, 0.05, 0.3)
+    var = move_sigmas(m, a)[0] ** 2
+    np.testing.assert_allclose(var, [0.1 * 0.25 + 0.02 * 4, 0.05 * 4 + 0.3 * (0.25 + 0.0625), 0.1 * 0.0625 + 0.08])
+    draws = noisy_moves(np.repeat(m, 40000, 0), a, np.random.default_rng(0).standard_normal((40000, 3)))
+    np.testing.assert_allclose(draws.var(axis=0), var, rtol=0.03)
+    np.testing.assert_array_equal(noisy_moves(m, (0, 0, 0, 0), np.ones((1, 3))), m)
+
+
+# ----------------------------------------------------------------------------- pose graph
+def _square_graph(yaw_sigma=1e-7):
+    """A holonomic robot (heading 0 throughout) drives a 1 m square; odometry reports the last
+    side 1.2 m; a loop closure says it is back at the start. Equal, isotropic position weights:
+    the 0.2 m misclosure is spread evenly over the five edges."""
+    z = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.2, 0.0], [0.0, 0.0, 0.0]])
+    i, j = np.array([0, 1, 2, 3, 4]), np.array([1, 2, 3, 4, 0])
+    info = np.broadcast_to(np.diag([1 / 0.1, 1 / 0.1, 1 / yaw_sigma]), (5, 3, 3)).copy()
+    return PoseGraph(5, i, j, z, info), np.vstack([[0, 0, 0], np.cumsum(z[:4], axis=0)])
+
+
+def test_pose_graph_spreads_a_loop_misclosure_evenly():
+    graph, dead = _square_graph()
+    est, info = solve(graph, dead)
+    c = np.array([0.0, 0.2 / 5, 0.0])  # each edge absorbs a fifth of the misclosure
+    want = np.vstack([[0, 0, 0], np.cumsum(graph.z[:4] + c, axis=0)])
+    np.testing.assert_allclose(est, want, atol=1e-6)
+    assert info["converged"] and info["chi2"] == pytest.approx(5 * (0.04 / 0.1) ** 2, rel=1e-6)  # a residual stays
+
+
+def _reference_solve(graph, initial):
+    """Dense least squares over a residual written with the math module (no shared code)."""
+    from scipy.optimize import least_squares
+
+    def res(v):
+        st = [tuple(initial[0])] + [tuple(v[3 * k:3 * k + 3]) for k in range(graph.n - 1)]
+        out = []
+        for e in range(len(graph.i)):
+            xi, yi, ti = st[graph.i[e]]
+            xj, yj, tj = st[graph.j[e]]
+            dx, dy = xj - xi, yj - yi
+            r = [math.cos(ti) * dx + math.sin(ti) * dy - graph.z[e, 0],
+                 -math.sin(ti) * dx + math.cos(ti) * dy - graph.z[e, 1],
+                 math.remainder(tj - ti - graph.z[e, 2], 2 * math.pi)]
+            out.extend(graph.sqrt_info[e] @ np.array(r))
+        return np.array(out)
+
+    sol = least_squares(res, np.asarray(initial[1:]).ravel(), xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    return np.vstack([initial[0], sol.x.reshape(-1, 3)])
+
+
+def test_pose_graph_matches_a_dense_reference_on_a_turning_loop():
+    # a robot driving a noisy circle of 12 nodes, odometry with the book's noise, two closures
+    rng = np.random.default_rng(5)
+    ang = np.linspace(0, 2 * np.pi, 13)[:-1]
+    true = np.column_stack([np.cos(ang), np.sin(ang), ang + np.pi / 2])
+    moves = increments(true)
+    alphas = (0.01, 0.01, 0.01, 0.01)
+    rep = noisy_moves(moves, alphas, rng.standard_normal(moves.shape))
+    z, info = move_edge(rep, move_sigmas(rep, alphas), 1e-3)
+    from benchmark.pose_graph import relative
+    zc = relative(true, np.array([0, 2]), np.array([11, 9]))
+    graph = PoseGraph(12, np.r_[np.arange(11), 0, 2], np.r_[np.arange(1, 12), 11, 9], np.vstack([z, zc]),
+                      np.concatenate([info, np.broadcast_to(np.diag([50.0, 50.0, 50.0]), (2, 3, 3))]))
+    dead = integrate(true[0], rep)
+    got, _ = solve(graph, dead)
+    want = _reference_solve(graph, dead)
+    np.testing.assert_allclose(got[:, :2], want[:, :2], atol=1e-6)
+    assert ate_rmse(got[:, :2], true[:, :2]) < ate_rmse(dead[:, :2], true[:, :2])
+
+
+# ----------------------------------------------------------------------------- alignment
+def test_alignment_recovers_a_known_rigid_offset_exactly():
+    rng = np.random.default_rng(1)
+    true = rng.uniform(-5, 5, (50, 2))
+    theta, t = 0.7, np.array([1.5, -2.0])
+    est = apply_rigid(-theta, [0, 0], true - t)  # est = R^-1 (true - t)
+    got_theta, got_t = align_rigid(est, true)
+    assert got_theta == pytest.approx(theta, abs=1e-12)
+    np.testing.assert_allclose(got_t, t, atol=1e-12)
+    assert ate_rmse(est, true) == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(ValueError, match="align_rigid"):
+        align_rigid(est[:3], true[:4])
+
+
+# ----------------------------------------------------------------------------- the map
+def test_inserting_at_the_true_poses_is_the_scan_map_and_a_shift_shifts_it():
+    scene = two_rooms_scene()
+    grid = scene.grid
+    settings = ScanSettings(range_noise=0.02, dropout=0.1, max_range=3.0)
+    obstacles = scan_obstacles(scene, 0.25)
+    xs, zs = grid.pixel_to_world(np.array([10, 20, 30, 20]), np.array([10, 20, 60, 50]))
+    scans = np.column_stack([xs, zs, [0.0, 45.0, 180.0, 270.0]])
+    a = scan_map(obstacles, grid, scans, settings)
+    b = scan_map_at_estimate(obstacles, grid, scans, scans, settings)
+    np.testing.assert_array_equal(a.log_odds, b.log_odds)
+    # every scan believed 3 cells further along +x (columns): the same evidence, 3 columns on
+    est = scans + [3 * grid.resolution, 0.0, 0.0]
+    c = scan_map_at_estimate(obstacles, grid, scans, est, ScanSettings(max_range=1.0))
+    d = scan_map(obstacles, grid, scans, ScanSettings(max_range=1.0))
+    np.testing.assert_array_equal(c.log_odds[:, 3:], d.log_odds[:, :-3])
+    # a heading error turns the scan: the room's walls no longer land on themselves
+    turned = scan_map_at_estimate(obstacles, grid, scans, scans + [0.0, 0.0, 10.0], ScanSettings(max_range=1.0))
+    assert not np.array_equal(turned.occupancy, d.occupancy)
+
+
+# ----------------------------------------------------------------------------- the stage
+def _loop_poses(grid):
+    """Views around the right-hand room twice (capture order): a route that revisits."""
+    from tests.maps import pose_at
+
+    ring = [(8, 45), (8, 70), (30, 70), (30, 45)]
+    return np.array([pose_at(grid, r, c, 90.0 * k) for _ in range(3) for k, (r, c) in enumerate(ring)])
+
+
+def test_odometry_slam_clean_is_the_truth_and_errs_with_closures_when_set():
+    scene = two_rooms_scene()
+    poses = _loop_poses(scene.grid)
+    clean = OdometrySlam()
+    got, stats = clean(poses, scene.grid, "h")
+    np.testing.assert_array_equal(got, poses)
+    assert clean.is_clean and stats["pose_error_mean_m"] == 0
+    slam = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0)
+    est = slam.estimate(scene.grid, poses, "h")
+    np.testing.assert_array_equal(est.true[est.view_index], poses)  # views are nodes of the route
+    st = est.stats()
+    assert st["loop_closures"] > 0 and st["wrong_closures"] == 0 and 0 < st["ate_rmse_m"] < st["odometry_ate_rmse_m"]
+    # the same draws for the same house; a kept subset of the views gets the same estimates
+    again, _ = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0)(
+        poses[1::2], scene.grid, "h", route_poses=poses)
+    np.testing.assert_array_equal(again, est.views[1::2])
+    lost = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0,
+                        wrong_closures=2, wrong_min_distance=1.0).estimate(scene.grid, poses, "h")
+    assert len(lost.wrong) == 2
+    d = np.hypot(*(lost.true[lost.wrong[:, 1], :2] - lost.true[lost.wrong[:, 0], :2]).T)
+    assert (d >= 1.0).all()
+
+
+def test_bad_settings_and_views_off_the_route_are_one_line():
+    with pytest.raises(ValueError, match=r"pose_error.alpha3 = -1: expected a number >= 0"):
+        OdometrySlam(alpha3=-1)
+    with pytest.raises(ValueError, match=r"pose_error.wrong_closures = 1.5: expected an integer >= 0"):
+        OdometrySlam(wrong_closures=1.5)
+    with pytest.raises(ValueError, match="view 0 at"):
+        subsequence(np.zeros((2, 3)), np.ones((1, 3)))
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+def test_severities_on_shared_houses_grow_from_centimetres(shared_scenes):
+    """ATE (m) of the slam_1..5 settings on the first two shared houses grows with severity,
+    from centimetres (published graph SLAM) to a clearly degraded estimate."""
+    from benchmark.viewpoints import Autotrace
+
+    levels = [1e-5, 4e-5, 2e-4, 1e-3, 2.5e-3]
+    for scene in shared_scenes[:2]:
+        poses = Autotrace().generate(scene)
+        ate = [OdometrySlam(alpha1=a, alpha2=a / 2, alpha3=a, alpha4=a / 4).estimate(scene.grid, poses, "0")
+               .stats()["ate_rmse_m"] for a in levels]
+        assert ate[0] < 0.1 and ate[-1] > 0.3 and ate[0] < ate[2] < ate[-1]
+
+
+@pytest.mark.slow
+def test_severity_zero_rows_are_the_clean_rows_byte_for_byte(tmp_path):
+    from tests.test_robot_conditions import _metrics_bytes, _run
+
+    for base, extra in (([], ["pose_error=odometry"]), (["mapping=scan"], ["mapping=scan", "pose_error=odometry"])):
+        want = _metrics_bytes(_run(tmp_path, "a", *base, results=f"a{len(base)}"))
+        got = _run(tmp_path, "b", *extra, results=f"b{len(base)}")
+        assert _metrics_bytes(got) == want, extra
+    slam = _run(tmp_path, "s", "corruption=slam_3", results="s")
+    assert (slam["status"] == "ok").all() and (slam["ate_rmse_m"] > 0).all() and (slam["loop_closures"] > 0).all()
+    seg = _run(tmp_path, "g", "corruption=slam_3", "segmenter=distance", results="s")
+    assert (seg["status"] == "ok").all()
