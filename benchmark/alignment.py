@@ -50,4 +50,32 @@ def ate_rmse(est: np.ndarray, true: np.ndarray) -> float:
     return float(np.sqrt((d ** 2).sum(axis=1).mean()))
 
 
-__all__ = ["align_rigid", "apply_rigid", "ate_rmse"]
+
+def to_map_frame(labels: np.ndarray, grid, theta: float, t: np.ndarray, fill: int = -1) -> np.ndarray:
+    """A world-frame label raster brought into a robot map's frame (nearest cell).
+
+    The map's cell (r, c) at map-frame position p (its centre, metres) shows the world point
+    ``R(theta) p + t`` (:func:`align_rigid` of the estimated trajectory onto the true one), so it
+    takes the label of the world cell containing that point; ``fill`` off the raster.
+
+    Args:
+        labels: (H, W) int labels on ``grid`` (world frame).
+        grid: the :class:`envs.maps.gridmap.GridMap` both rasters share (cells, metres per cell, origin).
+        theta, t: the rigid transform map frame -> world frame (radians, (2,) metres).
+
+    Returns:
+        (H, W) labels in the map's frame (same dtype).
+    """
+    labels = np.asarray(labels)
+    h, w = labels.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    x, z = grid.pixel_to_world(rows.ravel(), cols.ravel())
+    world = apply_rigid(theta, t, np.column_stack([x, z]))
+    r, c = grid.world_to_cell(world[:, 0], world[:, 1])
+    ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    out = np.full(h * w, fill, labels.dtype)
+    out[ok] = labels[r[ok], c[ok]]
+    return out.reshape(h, w)
+
+
+__all__ = ["align_rigid", "apply_rigid", "ate_rmse", "to_map_frame"]

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from benchmark.alignment import align_rigid, apply_rigid, ate_rmse
+from benchmark.alignment import align_rigid, apply_rigid, ate_rmse, to_map_frame
 from benchmark.odometry import from_se2, increments, integrate, move_sigmas, noisy_moves, to_se2
 from benchmark.pose_graph import PoseGraph, move_edge, solve
 from benchmark.slam import OdometrySlam, subsequence
@@ -142,6 +142,24 @@ def test_alignment_recovers_a_known_rigid_offset_exactly():
         align_rigid(est[:3], true[:4])
 
 
+def test_ground_truth_comes_into_the_map_frame_by_the_alignment():
+    scene = two_rooms_scene()
+    res = scene.grid.resolution
+    # map frame -> world: 3 cells along +x; the map's cell c shows the world's cell c + 3
+    got = to_map_frame(scene.instances, scene.grid, 0.0, np.array([3 * res, 0.0]))
+    np.testing.assert_array_equal(got[:, :-3], scene.instances[:, 3:])
+    assert (got[:, -3:] == -1).all()
+    # a quarter turn about the map's centre and back is the identity on the cells
+    h, w = scene.grid.shape
+    centre = np.array(scene.grid.pixel_to_world(h / 2 - 0.5, w / 2 - 0.5))
+    t = centre - apply_rigid(np.pi / 2, [0, 0], centre[None])[0]
+    there = to_map_frame(scene.instances, scene.grid, np.pi / 2, t)
+    back = to_map_frame(there, scene.grid, -np.pi / 2, centre - apply_rigid(-np.pi / 2, [0, 0], centre[None])[0])
+    inside = back >= 0
+    assert inside.sum() > 0.5 * (scene.instances >= 0).sum()
+    np.testing.assert_array_equal(back[inside], scene.instances[inside])
+
+
 # ----------------------------------------------------------------------------- the map
 def test_inserting_at_the_true_poses_is_the_scan_map_and_a_shift_shifts_it():
     scene = two_rooms_scene()
@@ -229,5 +247,9 @@ def test_severity_zero_rows_are_the_clean_rows_byte_for_byte(tmp_path):
         assert _metrics_bytes(got) == want, extra
     slam = _run(tmp_path, "s", "corruption=slam_3", results="s")
     assert (slam["status"] == "ok").all() and (slam["ate_rmse_m"] > 0).all() and (slam["loop_closures"] > 0).all()
+    assert (slam["map_align_m"] >= 0).all() and slam["map_free_iou"].between(0.3, 1.0).all()
     seg = _run(tmp_path, "g", "corruption=slam_3", "segmenter=distance", results="s")
     assert (seg["status"] == "ok").all()
+    # segmenter and method rows share the robot's one map and the one alignment
+    np.testing.assert_allclose(seg["ate_rmse_m"], slam["ate_rmse_m"])
+    np.testing.assert_allclose(seg["map_free_iou"], slam["map_free_iou"])
