@@ -253,3 +253,24 @@ def test_severity_zero_rows_are_the_clean_rows_byte_for_byte(tmp_path):
     # segmenter and method rows share the robot's one map and the one alignment
     np.testing.assert_allclose(seg["ate_rmse_m"], slam["ate_rmse_m"])
     np.testing.assert_allclose(seg["map_free_iou"], slam["map_free_iou"])
+
+
+def test_slam_levels_command_refuses_an_unknown_level_in_one_line(capsys):
+    from benchmark.commands.slam_levels import level_settings, main
+
+    assert main(["--levels", "slam_9", "--n", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "level 'slam_9'" in err[0]
+    assert level_settings("lost_3")["wrong_closures"] == 4 and level_settings("slam_1")["alpha1"] == 1e-5
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+def test_slam_levels_command_prints_the_table(procthor_file, capsys, tmp_path):
+    from benchmark.commands.slam_levels import main
+
+    fig = tmp_path / "maps.png"
+    assert main(["--houses", str(procthor_file), "--n", "1", "--levels", "slam_1", "lost_1", "--figure", str(fig)]) == 0
+    out = capsys.readouterr().out
+    rows = {line.split("|")[1].strip(): line for line in out.splitlines() if line.startswith("| ")}
+    assert {"clean", "slam_1", "lost_1"} <= set(rows) and fig.read_bytes()[:4] == b"\x89PNG"
