@@ -50,7 +50,7 @@ def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
     """(rows of statistics per (house, level), {level: house 0's occupancy}) for scan_0..5, slam_1..5."""
     from omegaconf import OmegaConf
 
-    from benchmark.commands.slam_levels import level_settings
+    from benchmark.commands.slam_levels import level_scanner, level_settings
     from benchmark.slam import OdometrySlam
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses
@@ -74,14 +74,14 @@ def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
         poses = Autotrace().generate(scene)
         res = scene.grid.resolution
         for level, settings in scanners.items():
-            obstacles = scan_obstacles(scene, settings.height, wall)
+            obstacles = scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size)
             occ = scan_map(obstacles, scene.grid, trajectory(scene.grid.walkable, scene.grid, poses, settings.spacing),
                            settings).occupancy
             rows.append({"map": level, "house": hid, **map_stats(occ, res)})
             first.setdefault(level, occ)
-        settings = ScanSettings()
-        obstacles = scan_obstacles(scene, settings.height, wall)
         for k in range(1, 6):
+            settings = level_scanner(f"slam_{k}")
+            obstacles = scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size)
             est = OdometrySlam(**level_settings(f"slam_{k}")).estimate(scene.grid, poses, str(hid), settings.spacing)
             occ = scan_map_at_estimate(obstacles, scene.grid, est.true, est.estimate, settings).occupancy
             rows.append({"map": f"slam_{k}", "house": hid, **map_stats(occ, res)})

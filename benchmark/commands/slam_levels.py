@@ -4,7 +4,8 @@ lost-robot level (``corruption=lost_k``) does to a robot's trajectory and map, o
 Per house: the autotrace views (the default viewpoints), the route through them with a node every
 0.5 m, and for each level the :class:`benchmark.slam.OdometrySlam` estimate with that level's
 settings (read from ``conf/corruption/<level>.yaml`` over ``conf/pose_error/odometry.yaml``), and
-the scan map inserted at it (default scanner: 0.25 m plane, 10 m, 1 degree beams, no range noise).
+the scan map inserted at it (the level's scanner: 0.25 m plane, 10 m, 1 degree beams, no range
+noise, legged furniture as legs). The ``clean`` row is the first level's scanner at the true poses.
 Columns (means over houses): the route (m), loop closures found, wrong ones, ATE RMSE after rigid
 alignment (m) of dead reckoning and of the pose-graph estimate, that ATE per 100 m of route, the
 views' mean position error in the world frame (m), and the map's free-space IoU with the floor
@@ -40,21 +41,36 @@ def level_settings(level: str) -> dict:
     return node
 
 
-def measure(scene, house_id: str, levels: tuple[str, ...]) -> tuple[list[dict], dict[str, np.ndarray]]:
+def level_scanner(level: str):
+    """The :class:`envs.maps.scan.ScanSettings` of ``conf/corruption/<level>.yaml``'s ``mapping`` over
+    ``conf/mapping/scan.yaml`` (``clean``: the defaults)."""
+    from omegaconf import OmegaConf
+
+    from envs.maps.scan import ScanSettings
+
+    base = OmegaConf.load(Path(CONF_DIR) / "mapping" / "scan.yaml")
+    path = Path(CONF_DIR) / "corruption" / f"{level}.yaml"
+    over = OmegaConf.load(path).get("mapping", {}) if level != "clean" and path.is_file() else {}
+    node = OmegaConf.to_container(OmegaConf.merge(base, over), resolve=True)
+    node.pop("_target_", None)
+    return ScanSettings(**node).check()
+
+
+def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) -> tuple[list[dict], dict[str, np.ndarray]]:
     """(one row per level, {level: (H, W) int8 occupancy of its map}) for one house."""
     from benchmark.alignment import align_rigid, to_map_frame
     from benchmark.pose_error import pose_error_stats
     from benchmark.slam import OdometrySlam
     from benchmark.viewpoints import Autotrace
-    from envs.maps.scan import ScanSettings, scan_map, scan_obstacles
+    from envs.maps.scan import scan_map, scan_obstacles
     from envs.maps.slam_map import scan_map_at_estimate
 
     poses = Autotrace().generate(scene)
-    settings = ScanSettings()
-    obstacles = scan_obstacles(scene, settings.height)
     walk = scene.grid.walkable
     rows, maps = [], {}
     for level in ("clean", *levels):
+        settings = level_scanner(levels[0] if level == "clean" and levels else level)
+        obstacles = scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size)
         slam = OdometrySlam(**({} if level == "clean" else level_settings(level)))
         est = slam.estimate(scene.grid, poses, house_id, settings.spacing)
         if level == "clean":
@@ -118,11 +134,12 @@ def main(argv: list[str] | None = None) -> int:
         for level in a.levels:
             level_settings(level)
         from envs.datasets.house_files import load_houses
+        from envs.maps.scan import house_wall_height
         from envs.maps.scene import rasterise_house
 
         rows, figure_maps = [], None
         for k, house in enumerate(load_houses(a.houses, 0, a.n)):
-            r, maps = measure(rasterise_house(house), str(k), tuple(a.levels))
+            r, maps = measure(rasterise_house(house), str(k), tuple(a.levels), house_wall_height(house))
             rows.extend(r)
             figure_maps = maps if figure_maps is None else figure_maps
         if a.figure is not None:
@@ -136,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
             "view_error_m", "map_free_iou"]
     print(df.groupby("level", sort=False)[cols].mean().loc[order].reset_index().to_markdown(index=False,
                                                                                                floatfmt=".3f"))
-    print(f"\nMeans over {df['house'].nunique()} houses; autotrace views, a node every 0.5 m, default scanner. "
+    print(f"\nMeans over {df['house'].nunique()} houses; autotrace views, a node every 0.5 m, each level's scanner. "
           f"ATE: RMSE (m) after rigid alignment; ate_per_100m in metres per 100 m of route.")
     return 0
 

@@ -64,7 +64,7 @@ class ScanMapping:
                              f"({wall:g} m)")
         if estimate is not None:
             true, est, views = (np.asarray(a) for a in estimate)
-            obstacles = scan_obstacles(scene, self.settings.height, wall)
+            obstacles = scan_obstacles(scene, self.settings.height, wall, self.settings.legs, self.settings.leg_size)
             scan = scan_map_at_estimate(obstacles, scene.grid, true, est, self.settings)
             grid = GridMap(scan.free, scene.grid.resolution, scene.grid.origin)
             return reachable_mask(scan.free, seed_cells(grid, est[views][:, :2]))

@@ -7,7 +7,7 @@ What it models (issue #25, item 1):
   already cut out: a door opening never blocks), so does everything outside the floor
   (``scene.rooms < 0``), and so does every object whose box spans the height
   (``base < height < top``): a box standing on the floor blocks, a table top above the
-  plane does not (the scan passes under it; table legs are not modelled).
+  plane does not (the scan passes under it; with ``legs``, furniture of :data:`LEGGED_TYPES` blocks with its four legs only).
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
   A beam is the digital (Bresenham) line of :mod:`envs.render.raycast` from that cell to the
@@ -35,7 +35,7 @@ What it models (issue #25, item 1):
 
 What it leaves out: the robot's own pose error while mapping (scans are placed at the true
 poses; pose error is a separate option applied to the views), beam width and incidence angle,
-glass and mirrors, moving people, the scanner's own height above a sloped floor, table legs,
+glass and mirrors, moving people, the scanner's own height above a sloped floor, table legs (without ``legs``),
 and the time a scan takes (all beams of a scan share one pose).
 
 The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.render.raycast.walk_beam`,
@@ -99,6 +99,9 @@ class ScanSettings:
         log_odds_min: lower clamp of a cell's log-odds (-2.0: p = 0.12).
         log_odds_max: upper clamp of a cell's log-odds (3.5: p = 0.97).
         seed: seed of the range noise and dropout draws.
+        legs: furniture that stands on legs (:data:`LEGGED_TYPES`) blocks the plane with its four
+            legs only, not its whole box (issue 37, item 4).
+        leg_size: a leg's square cross-section side, metres.
     """
 
     height: float = 0.25
@@ -114,6 +117,8 @@ class ScanSettings:
     log_odds_min: float = -2.0
     log_odds_max: float = 3.5
     seed: int = 0
+    legs: bool = False
+    leg_size: float = 0.05
 
     def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
@@ -157,6 +162,10 @@ class ScanSettings:
                         f"(else no cell can be occupied)")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or self.seed < 0:
             raise error("seed", self.seed, "an integer >= 0")
+        if not isinstance(self.legs, bool | np.bool_):
+            raise error("legs", self.legs, "true or false")
+        if not (_finite_number(self.leg_size) and 0 < self.leg_size <= 0.5):
+            raise error("leg_size", self.leg_size, "metres, 0 < leg_size <= 0.5")
         return self
 
     @property
@@ -200,7 +209,40 @@ def house_wall_height(house) -> float:
     return min(tops) if tops else DEFAULT_WALL_HEIGHT
 
 
-def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WALL_HEIGHT) -> np.ndarray:
+#: object types that stand on legs: at the scan plane a 2D laser sees their legs, not their box
+LEGGED_TYPES = ("Chair", "CoffeeTable", "Desk", "DiningTable", "SideTable", "Stool")
+
+
+def leg_centres(o, leg_size: float) -> np.ndarray:
+    """(4, 2) world (x, z) centres of an object's legs: squares of side ``leg_size`` in the corners
+    of its footprint box (its centre when the box is narrower than two legs)."""
+    hx, hz = max(o.size[0] / 2 - leg_size / 2, 0.0), max(o.size[2] / 2 - leg_size / 2, 0.0)
+    a = np.deg2rad(o.yaw)
+    ux, uz = np.array([np.cos(a), -np.sin(a)]), np.array([np.sin(a), np.cos(a)])
+    c = np.array(o.center)
+    return np.array([c + sx * hx * ux + sz * hz * uz for sx, sz in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
+def _mark_legs(block: np.ndarray, grid, o, leg_size: float) -> None:
+    """Block each leg's cells: those whose centre lies in the leg's square, and the cell of its centre."""
+    h, w = block.shape
+    a = np.deg2rad(o.yaw)
+    for cx, cz in leg_centres(o, leg_size):
+        r, c = grid.world_to_cell(cx, cz)
+        k = int(math.ceil(leg_size / grid.resolution)) + 1
+        r0, r1, c0, c1 = max(int(r) - k, 0), min(int(r) + k + 1, h), max(int(c) - k, 0), min(int(c) + k + 1, w)
+        if r0 < r1 and c0 < c1:
+            rr, cc = np.mgrid[r0:r1, c0:c1]
+            x, z = grid.pixel_to_world(rr, cc)
+            u = (x - cx) * np.cos(a) - (z - cz) * np.sin(a)
+            v = (x - cx) * np.sin(a) + (z - cz) * np.cos(a)
+            block[r0:r1, c0:c1] |= (np.abs(u) <= leg_size / 2) & (np.abs(v) <= leg_size / 2)
+        if 0 <= r < h and 0 <= c < w:
+            block[int(r), int(c)] = True
+
+
+def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WALL_HEIGHT, legs: bool = False,
+                   leg_size: float = 0.05) -> np.ndarray:
     """What a scan plane ``height`` metres above the floor hits.
 
     Args:
@@ -208,6 +250,8 @@ def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WAL
             has no house to cut: every non-walkable cell blocks.
         height: scan plane height, metres.
         wall_height: the house's lowest wall top, metres (:func:`house_wall_height`).
+        legs: objects of :data:`LEGGED_TYPES` block with their four legs (squares of side
+            ``leg_size`` metres in the corners of their box) instead of their whole footprint.
 
     Returns:
         (H, W) bool: wall bands (door openings are not walls), cells outside the floor
@@ -224,6 +268,9 @@ def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WAL
     h, w = grid.shape
     for o in scene.objects:
         if not (o.base < height < o.top):
+            continue
+        if legs and o.object_type in LEGGED_TYPES:
+            _mark_legs(block, grid, o, leg_size)
             continue
         cs = o.corners()
         r0, c0 = grid.world_to_cell(cs[:, 0].min(), cs[:, 1].max())
@@ -467,7 +514,7 @@ def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
         (the scan map, the (M, 3) scan poses).
     """
     settings.check()
-    obstacles = scan_obstacles(scene, settings.height, wall_height)
+    obstacles = scan_obstacles(scene, settings.height, wall_height, settings.legs, settings.leg_size)
     scans = trajectory(scene.grid.walkable, scene.grid, poses, settings.spacing)
     return scan_map(obstacles, scene.grid, scans, settings), scans
 

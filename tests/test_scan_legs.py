@@ -1,0 +1,63 @@
+"""What a 2D laser sees of furniture (issue 37, item 4): with ``legs`` a table is four leg dots at
+scan height, the scan passes between them, and the map shows the dots."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from envs.maps.scan import ScanSettings, leg_centres, scan_map, scan_obstacles
+from envs.maps.scene import ObjectFootprint
+from tests.maps import pose_at, two_rooms_scene
+
+
+def _scene_with_table(object_type="DiningTable", yaw=0.0):
+    scene = two_rooms_scene()
+    x, z = scene.grid.pixel_to_world(20, 20)  # the left room's centre
+    table = ObjectFootprint("t", "DiningTable_1", object_type, (float(x), float(z)), yaw, (1.0, 0.75, 0.6), 0.0, 0.75)
+    scene.objects = [table]
+    return scene, table
+
+
+@pytest.mark.parametrize("yaw", [0.0, 30.0])
+def test_a_table_is_four_leg_dots_at_its_corners(yaw):
+    scene, table = _scene_with_table(yaw=yaw)
+    box = table.contains(*scene.grid.pixel_to_world(*np.mgrid[0:40, 0:78]))
+    near = ndimage.binary_dilation(box, iterations=2)  # the table and a cell or two around it, far from walls
+    solid = scan_obstacles(scene, 0.25) & box
+    legs = scan_obstacles(scene, 0.25, legs=True, leg_size=0.05) & near
+    assert solid.sum() == box.sum()  # without legs: the whole footprint
+    labels, n = ndimage.label(legs, structure=np.ones((3, 3)))
+    assert n == 4 and legs.sum() <= 4 * 4
+    # each dot holds its leg's centre, in a corner of the box
+    for cx, cz in leg_centres(table, 0.05):
+        r, c = scene.grid.world_to_cell(cx, cz)
+        assert legs[int(r), int(c)]
+    # a sofa stands on its whole box
+    sofa = ObjectFootprint("s", "Sofa_1", "Sofa", table.center, yaw, (1.0, 0.8, 0.8), 0.0, 0.8)
+    scene.objects = [sofa]
+    seat = sofa.contains(*scene.grid.pixel_to_world(*np.mgrid[0:40, 0:78]))
+    assert (scan_obstacles(scene, 0.25, legs=True) & seat).sum() == seat.sum()
+
+
+def test_the_map_shows_leg_dots_and_free_floor_under_the_table():
+    scene, table = _scene_with_table()
+    grid = scene.grid
+    scans = np.array([pose_at(grid, r, c, 0.0) for r, c in ((6, 6), (6, 34), (34, 6), (34, 34), (20, 6))])
+    s = ScanSettings(legs=True, max_range=5.0)
+    m = scan_map(scan_obstacles(scene, 0.25, legs=True), grid, scans, s)
+    box = table.contains(*grid.pixel_to_world(*np.mgrid[0:40, 0:78]))
+    occupied = (m.occupancy == 100) & ndimage.binary_dilation(box, iterations=2)
+    _, n = ndimage.label(occupied, structure=np.ones((3, 3)))
+    assert n == 4
+    assert (m.free & box).sum() > 0.8 * box.sum()  # the laser passes between the legs
+    solid = scan_map(scan_obstacles(scene, 0.25), grid, scans, ScanSettings(max_range=5.0))
+    assert (solid.free & box).sum() == 0  # a box: an occupied outline around an unknown inside
+
+
+def test_leg_settings_are_checked_in_one_line():
+    with pytest.raises(ValueError, match="leg_size"):
+        ScanSettings(leg_size=0.0).check()
+    with pytest.raises(ValueError, match="legs"):
+        ScanSettings(legs="yes").check()
