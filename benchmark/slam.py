@@ -35,6 +35,7 @@ smoothed estimate), and kidnapping (the robot carried while odometry counts noth
 from __future__ import annotations
 
 import math
+import zlib
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -166,7 +167,8 @@ class OdometrySlam:
         """
         poses = np.ascontiguousarray(poses, np.float64).reshape(-1, 3)
         spacing = self.spacing if spacing is None else float(spacing)
-        key = (house_id, poses.tobytes(), spacing, grid.shape, grid.resolution, tuple(grid.origin))
+        key = (house_id, poses.tobytes(), spacing, grid.shape, grid.resolution, tuple(grid.origin),
+               zlib.crc32(np.packbits(grid.walkable).tobytes()))
         if key not in self._memo:
             self._memo[key] = self._estimate(grid, poses, house_id, spacing)
             while len(self._memo) > 4:

@@ -61,3 +61,40 @@ def test_leg_settings_are_checked_in_one_line():
         ScanSettings(leg_size=0.0).check()
     with pytest.raises(ValueError, match="legs"):
         ScanSettings(legs="yes").check()
+    with pytest.raises(ValueError, match="door_closed"):
+        ScanSettings(door_closed=1.5).check()
+
+
+def test_a_closed_door_splits_the_free_space():
+    from envs.maps.scan import closed_doors, robot_scan_map
+
+    scene = two_rooms_scene()
+    door = np.zeros(scene.grid.shape, bool)
+    door[18:22, 38:40] = True  # the opening between the two rooms (tests/maps.py)
+    scene.doors = {"door|0|1": np.argwhere(door)}
+    grid = scene.grid
+    # four views in each room (a cell needs 4 scans to become free)
+    views = np.array([pose_at(grid, r, c, 0.0) for c0 in (20, 57) for r, c in ((12, c0 - 6), (12, c0 + 6),
+                                                                               (28, c0 + 6), (28, c0 - 6))])
+    parts = {}
+    for p in (0.0, 1.0):
+        m, _ = robot_scan_map(scene, views, ScanSettings(door_closed=p, max_range=5.0))
+        _, parts[p] = ndimage.label(m.free)
+        assert not (m.free & door).any() or p == 0.0
+    assert parts[0.0] == 1 and parts[1.0] == 2
+    np.testing.assert_array_equal(closed_doors(scene, 1.0), door)
+    assert not closed_doors(scene, 0.0).any()
+    # the draw is per door: the same door is closed for every probability above its draw
+    u = [closed_doors(scene, q, seed=5).any() for q in np.linspace(0, 1, 11)]
+    assert u == sorted(u)
+
+
+@pytest.mark.shared_data
+def test_shared_houses_record_their_door_openings(shared_scenes):
+    scene = shared_scenes[0]
+    assert scene.doors and all(len(c) for c in scene.doors.values())
+    closed = np.zeros(scene.grid.shape, bool)
+    for cells in scene.doors.values():
+        closed[cells[:, 0], cells[:, 1]] = True
+    # the openings were cut out of the walls, and the floor plan's walkable cells pass through them
+    assert not (closed & scene.walls).any() and (closed & scene.grid.walkable).any()

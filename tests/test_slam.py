@@ -253,6 +253,9 @@ def test_severity_zero_rows_are_the_clean_rows_byte_for_byte(tmp_path):
     # segmenter and method rows share the robot's one map and the one alignment
     np.testing.assert_allclose(seg["ate_rmse_m"], slam["ate_rmse_m"])
     np.testing.assert_allclose(seg["map_free_iou"], slam["map_free_iou"])
+    # closed doors: the route and the scans stop at them, the map changes
+    doors = _run(tmp_path, "d", "corruption=slam_3", "mapping.door_closed=1.0", results="s")
+    assert (doors["status"] == "ok").all() and (doors["map_free_iou"] != slam["map_free_iou"]).any()
 
 
 def test_slam_levels_command_refuses_an_unknown_level_in_one_line(capsys):

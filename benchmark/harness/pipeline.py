@@ -356,7 +356,19 @@ class Pipeline:
         if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
             return None
         spacing = self.mapping.settings.spacing if self.mapping is not None else None
-        return stage.estimate(scene.grid, views, hid, spacing)
+        return stage.estimate(self._route_grid(scene), views, hid, spacing)
+
+    def _route_grid(self, scene):
+        """The cells the robot can drive: the floor plan's walkable cells less the doors its
+        ``mapping`` stage closes (:func:`envs.maps.scan.closed_doors`)."""
+        settings = getattr(self.mapping, "settings", None)
+        if settings is None or not getattr(settings, "door_closed", 0):
+            return scene.grid
+        from envs.maps.gridmap import GridMap
+        from envs.maps.scan import closed_doors
+
+        closed = closed_doors(scene, settings.door_closed, settings.seed)
+        return GridMap(scene.grid.walkable & ~closed, scene.grid.resolution, scene.grid.origin)
 
     def score_path(self, hid: str) -> Path:
         return self.store.score_path(self.keys["score"], hid, content=self.contents(hid)["score"])
@@ -664,7 +676,7 @@ class MethodPipeline(Pipeline):
             return poses, {"pose_error_mean_m": 0.0, "pose_error_max_m": 0.0, "yaw_error_mean_deg": 0.0}
         if hasattr(self.pose_error, "estimate"):  # one SLAM estimate along the whole route, as the map's
             spacing = self.mapping.settings.spacing if self.mapping is not None else None
-            noisy, stats = self.pose_error(poses, scene.grid, hid, route_poses=self._render_poses(hid),
+            noisy, stats = self.pose_error(poses, self._route_grid(scene), hid, route_poses=self._render_poses(hid),
                                            spacing=spacing)
         else:
             noisy, stats = self.pose_error(poses, scene.grid, hid)

@@ -21,6 +21,7 @@ from envs.maps.reachable import reachable_mask, seed_cells
 from envs.maps.scan import (
     DEFAULT_WALL_HEIGHT,
     ScanSettings,
+    closed_doors,
     house_wall_height,
     robot_scan_map,
     scan_obstacles,
@@ -65,6 +66,7 @@ class ScanMapping:
         if estimate is not None:
             true, est, views = (np.asarray(a) for a in estimate)
             obstacles = scan_obstacles(scene, self.settings.height, wall, self.settings.legs, self.settings.leg_size)
+            obstacles |= closed_doors(scene, self.settings.door_closed, self.settings.seed)
             scan = scan_map_at_estimate(obstacles, scene.grid, true, est, self.settings)
             grid = GridMap(scan.free, scene.grid.resolution, scene.grid.origin)
             return reachable_mask(scan.free, seed_cells(grid, est[views][:, :2]))

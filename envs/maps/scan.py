@@ -8,6 +8,8 @@ What it models (issue #25, item 1):
   (``scene.rooms < 0``), and so does every object whose box spans the height
   (``base < height < top``): a box standing on the floor blocks, a table top above the
   plane does not (the scan passes under it; with ``legs``, furniture of :data:`LEGGED_TYPES` blocks with its four legs only).
+* **Closed doors** (``door_closed``, :func:`closed_doors`): each door closed with that probability
+  fills its opening in the wall band: it blocks beams and the route.
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
   A beam is the digital (Bresenham) line of :mod:`envs.render.raycast` from that cell to the
@@ -46,6 +48,7 @@ pure-Python version with its own line walk, used by the tests and ``make perf``.
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -102,6 +105,8 @@ class ScanSettings:
         legs: furniture that stands on legs (:data:`LEGGED_TYPES`) blocks the plane with its four
             legs only, not its whole box (issue 37, item 4).
         leg_size: a leg's square cross-section side, metres.
+        door_closed: probability that each door of the house is closed (drawn per door from
+            ``seed`` and the door's id): a closed door blocks beams and the robot's route.
     """
 
     height: float = 0.25
@@ -119,6 +124,7 @@ class ScanSettings:
     seed: int = 0
     legs: bool = False
     leg_size: float = 0.05
+    door_closed: float = 0.0
 
     def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
@@ -166,6 +172,8 @@ class ScanSettings:
             raise error("legs", self.legs, "true or false")
         if not (_finite_number(self.leg_size) and 0 < self.leg_size <= 0.5):
             raise error("leg_size", self.leg_size, "metres, 0 < leg_size <= 0.5")
+        if not (_finite_number(self.door_closed) and 0 <= self.door_closed <= 1):
+            raise error("door_closed", self.door_closed, "a probability in [0, 1]")
         return self
 
     @property
@@ -239,6 +247,21 @@ def _mark_legs(block: np.ndarray, grid, o, leg_size: float) -> None:
             block[r0:r1, c0:c1] |= (np.abs(u) <= leg_size / 2) & (np.abs(v) <= leg_size / 2)
         if 0 <= r < h and 0 <= c < w:
             block[int(r), int(c)] = True
+
+
+def closed_doors(scene: Scene, door_closed: float, seed: int = 0) -> np.ndarray:
+    """(H, W) bool cells of the doors that are closed: each door of ``scene.doors`` independently
+    with probability ``door_closed``, its draw seeded by ``seed`` and the door's id (CRC-32), so a
+    door is closed or open whatever the other doors and settings; a closed door fills the opening
+    its hole cut out of the wall band."""
+    out = np.zeros(scene.grid.shape, bool)
+    if door_closed <= 0:
+        return out
+    for door_id, cells in (scene.doors or {}).items():
+        u = np.random.default_rng([int(seed), 3, zlib.crc32(str(door_id).encode())]).random()
+        if u < door_closed and len(cells):
+            out[cells[:, 0], cells[:, 1]] = True
+    return out
 
 
 def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WALL_HEIGHT, legs: bool = False,
@@ -515,7 +538,9 @@ def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
     """
     settings.check()
     obstacles = scan_obstacles(scene, settings.height, wall_height, settings.legs, settings.leg_size)
-    scans = trajectory(scene.grid.walkable, scene.grid, poses, settings.spacing)
+    closed = closed_doors(scene, settings.door_closed, settings.seed)
+    obstacles |= closed  # a closed door blocks beams, and the route: the robot cannot pass it
+    scans = trajectory(scene.grid.walkable & ~closed, scene.grid, poses, settings.spacing)
     return scan_map(obstacles, scene.grid, scans, settings), scans
 
 
