@@ -277,3 +277,88 @@ def test_slam_levels_command_prints_the_table(procthor_file, capsys, tmp_path):
     out = capsys.readouterr().out
     rows = {line.split("|")[1].strip(): line for line in out.splitlines() if line.startswith("| ")}
     assert {"clean", "slam_1", "lost_1"} <= set(rows) and fig.read_bytes()[:4] == b"\x89PNG"
+
+
+def _reference_map_at_estimate(obstacles, grid, true, est, s):
+    """scan_map_at_estimate from its definition: lines from envs.maps.scan's reference line,
+    dicts and sets, the same draws (two generators from the seed), no shared kernel code."""
+    from envs.maps.scan import _reference_line
+
+    h, w = obstacles.shape
+    res, nb = grid.resolution, s.n_beams
+    rng_noise, rng_drop = np.random.default_rng([s.seed, 1]), np.random.default_rng([s.seed, 2])
+    noise = rng_noise.normal(0.0, s.range_noise, (len(true), nb)) if s.range_noise > 0 else np.zeros((len(true), nb))
+    drop = rng_drop.random((len(true), nb)) < s.dropout if s.dropout > 0 else np.zeros((len(true), nb), bool)
+    reach = s.max_range / res
+    log_odds: dict = {}
+
+    def cell(p):
+        return int(math.floor((grid.origin[1] - p[1]) / res)), int(math.floor((p[0] - grid.origin[0]) / res))
+
+    def on_map(r, c):
+        return 0 <= r < h and 0 <= c < w
+
+    def line(r0, c0, theta):
+        r1 = int(math.floor(r0 + 0.5 - math.cos(theta) * reach))
+        c1 = int(math.floor(c0 + 0.5 + math.sin(theta) * reach))
+        out = []
+        for rc in _reference_line(r0, c0, r1, c1):
+            if not on_map(*rc):
+                break
+            out.append(rc)
+        return out
+
+    for m in range(len(true)):
+        (r0, c0), (e0, f0) = cell(true[m]), cell(est[m])
+        if not on_map(r0, c0) or obstacles[r0, c0] or not on_map(e0, f0):
+            continue
+        free, hits = set(), set()
+        for b in range(nb):
+            if drop[m, b]:
+                continue
+            theta = 2 * math.pi * b / nb
+            seen = line(r0, c0, theta)
+            k_hit = next((k for k, rc in enumerate(seen) if obstacles[rc]), None)
+            phi = theta + math.radians(est[m, 2] - true[m, 2])
+            cells = line(e0, f0, phi)
+            dist = [math.hypot(r - e0, c - f0) * res for r, c in cells]
+            hit = k_hit is not None
+            if hit:
+                d_true = math.hypot(seen[k_hit][0] - r0, seen[k_hit][1] - c0) * res
+                d_m = max(d_true + noise[m, b], 0.0)
+                if d_m > d_true:
+                    pr = e0 + 0.5 - math.cos(phi) * d_m / res
+                    pc = f0 + 0.5 + math.sin(phi) * d_m / res
+                    hit = d_m <= s.max_range and 0 <= pr < h and 0 <= pc < w
+                else:
+                    hit = dist[-1] >= d_m
+            if hit:
+                k = max(i for i, d in enumerate(dist) if d <= d_m)
+                free.update(cells[:k])
+                hits.add(cells[k])
+            else:
+                free.update(cells)
+        for rc in free | hits:
+            d = (s.log_odds_miss if rc in free else 0.0) + (s.log_odds_hit if rc in hits else 0.0)
+            log_odds[rc] = min(max(log_odds.get(rc, 0.0) + d, s.log_odds_min), s.log_odds_max)
+    out = np.zeros((h, w))
+    for (r, c), v in log_odds.items():
+        out[r, c] = v
+    return out
+
+
+@pytest.mark.slow
+def test_the_estimate_mapper_matches_a_pure_python_reference():
+    scene = two_rooms_scene()
+    grid = scene.grid
+    obstacles = scan_obstacles(scene, 0.25)
+    rng = np.random.default_rng(7)
+    rows, cols = rng.integers(4, 36, 12), rng.integers(4, 74, 12)
+    xs, zs = grid.pixel_to_world(rows, cols)
+    true = np.column_stack([xs, zs, rng.uniform(0, 360, 12)])
+    est = true + np.column_stack([rng.normal(0, 0.1, 12), rng.normal(0, 0.1, 12), rng.normal(0, 5.0, 12)])
+    for s in (ScanSettings(max_range=2.0, angular_step=4.0),
+              ScanSettings(max_range=1.5, angular_step=3.0, range_noise=0.1, dropout=0.2, seed=3)):
+        got = scan_map_at_estimate(obstacles, grid, true, est, s).log_odds
+        want = _reference_map_at_estimate(obstacles, grid, true, est, s)
+        np.testing.assert_allclose(got, want, atol=1e-6)
