@@ -16,6 +16,9 @@ one at every view). Its estimate of where it was at each node is what a graph-SL
 3. **Wrong loop closures** (the lost robot, its own condition): ``wrong_closures`` extra matches
    between places at least ``wrong_min_distance`` metres apart that the matcher takes for the
    same place (relative position ~0, the true relative heading), weighted like real ones.
+   A **kidnapping** (``kidnap_m``): for ``kidnap_m`` metres of route from a point drawn after
+   ``closure_min_travel`` metres the robot is carried: odometry reports no move and no turn
+   (with the confidence of a robot standing still); only loop closures can pull it back.
 4. **Pose-graph solve** (:mod:`benchmark.pose_graph`): odometry edges (information from the
    motion model's covariance of the *reported* moves) and closure edges, least squares with
    SciPy from the dead-reckoning chain, node 0 fixed at the true start (the map's frame is the
@@ -24,12 +27,13 @@ one at every view). Its estimate of where it was at each node is what a graph-SL
 The corrected node poses are the robot's one estimate: the scan map is built by inserting each
 scan (ranges measured from the true pose) at the estimated node pose
 (:func:`envs.maps.slam_map.scan_map_at_estimate`, through ``mapping=scan``), and the views take
-the same estimate. Every alpha 0 and no wrong closures: the true poses unchanged, bit for bit.
+the same estimate. Every alpha 0, no wrong closures and no kidnapping: the true poses unchanged,
+bit for bit.
 
 Leaves out: wheel slip events and bumps (heavy-tailed odometry), a scan matcher's own failure
 modes other than the wrong closures (degenerate corridors), closures found by appearance
-beyond ``closure_radius``, the online (incremental) nature of SLAM (the views take the final,
-smoothed estimate), and kidnapping (the robot carried while odometry counts nothing).
+beyond ``closure_radius``, and the online (incremental) nature of SLAM (the views take the final,
+smoothed estimate).
 """
 
 from __future__ import annotations
@@ -75,6 +79,7 @@ class SlamEstimate:
         closures: (C, 2) node pairs (i, j) of the true loop closures.
         wrong: (W, 2) node pairs of the wrong ones.
         chi2: the solve's final sum of squared whitened residuals; dof its degrees of freedom.
+        kidnapped_m: metres of route driven while carried (the whole moves overlapping the window).
     """
 
     true: np.ndarray
@@ -86,6 +91,7 @@ class SlamEstimate:
     wrong: np.ndarray
     chi2: float = 0.0
     dof: int = 0
+    kidnapped_m: float = 0.0
 
     @property
     def views(self) -> np.ndarray:
@@ -99,6 +105,7 @@ class SlamEstimate:
                 "odometry_ate_rmse_m": ate_rmse(self.odometry[:, :2], self.true[:, :2]),
                 "route_m": float(self.travelled[-1]) if len(self.travelled) else 0.0,
                 "loop_closures": int(len(self.closures)), "wrong_closures": int(len(self.wrong)),
+                "kidnapped_m": self.kidnapped_m,
                 "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0}
 
 
@@ -124,20 +131,21 @@ class OdometrySlam:
         closure_sigma_yaw: degrees, a closure's heading error.
         wrong_closures: number of wrong loop closures (a lost robot).
         wrong_min_distance: metres between the two places a wrong closure joins, at least.
+        kidnap_m: metres of route the robot is carried while odometry reports nothing (a kidnapping).
         spacing: metres of path between nodes when no ``mapping`` stage sets it (the scan spacing).
         seed: with the house id, seeds the draws.
     """
 
-    AMOUNTS = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures")
+    AMOUNTS = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures", "kidnap_m")
 
     def __init__(self, alpha1: float = 0.0, alpha2: float = 0.0, alpha3: float = 0.0, alpha4: float = 0.0,
                  closure_radius: float = 1.0, closure_min_travel: float = 5.0, closure_sigma_xy: float = 0.02,
                  closure_sigma_yaw: float = 0.5, wrong_closures: int = 0, wrong_min_distance: float = 3.0,
-                 spacing: float = 0.5, seed: int = 0):
+                 kidnap_m: float = 0.0, spacing: float = 0.5, seed: int = 0):
         for key, v in (("alpha1", alpha1), ("alpha2", alpha2), ("alpha3", alpha3), ("alpha4", alpha4),
                        ("closure_radius", closure_radius), ("closure_min_travel", closure_min_travel),
                        ("closure_sigma_xy", closure_sigma_xy), ("closure_sigma_yaw", closure_sigma_yaw),
-                       ("wrong_min_distance", wrong_min_distance)):
+                       ("wrong_min_distance", wrong_min_distance), ("kidnap_m", kidnap_m)):
             _number(key, v)
         _number("wrong_closures", wrong_closures, integer=True)
         _number("spacing", spacing, positive=True)
@@ -147,13 +155,14 @@ class OdometrySlam:
         self.closure_radius, self.closure_min_travel = float(closure_radius), float(closure_min_travel)
         self.closure_sigma_xy, self.closure_sigma_yaw = float(closure_sigma_xy), float(closure_sigma_yaw)
         self.wrong_closures, self.wrong_min_distance = int(wrong_closures), float(wrong_min_distance)
+        self.kidnap_m = float(kidnap_m)
         self.spacing, self.seed = float(spacing), seed
         self._memo: OrderedDict = OrderedDict()
 
     @property
     def is_clean(self) -> bool:
         """True when the estimate is the truth (every alpha 0, no wrong closures)."""
-        return all(a == 0 for a in self.alphas) and self.wrong_closures == 0
+        return all(a == 0 for a in self.alphas) and self.wrong_closures == 0 and self.kidnap_m == 0
 
     # ------------------------------------------------------------------ the estimate
     def estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None) -> SlamEstimate:
@@ -187,6 +196,8 @@ class OdometrySlam:
         states = to_se2(true)
         moves = increments(states)
         reported = noisy_moves(moves, self.alphas, rng_moves.standard_normal(moves.shape))
+        kidnapped = self._kidnap(travelled, np.random.default_rng([self.seed, hk, 4]))
+        reported[kidnapped] = 0.0  # carried: the wheels report no move, no turn
         dead = integrate(states[0], reported)
         z, info = move_edge(reported, move_sigmas(reported, self.alphas), SIGMA_FLOOR)
         n = len(states)
@@ -213,7 +224,18 @@ class OdometrySlam:
             graph = PoseGraph(n, np.concatenate(ei), np.concatenate(ej), np.vstack(ez), np.concatenate(einfo))
             est, info_ = solve(graph, dead)
             chi2, dof = info_["chi2"], info_["dof"]
-        return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof)
+        return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
+                            float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()))
+
+    def _kidnap(self, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(M-1,) bool moves made while carried: ``kidnap_m`` metres of route from a point drawn
+        uniformly between ``closure_min_travel`` metres and the end (none when the route is shorter)."""
+        out = np.zeros(len(travelled) - 1, bool)
+        u = rng.random()  # drawn whatever the settings
+        if self.kidnap_m <= 0 or travelled[-1] <= self.closure_min_travel + self.kidnap_m:
+            return out
+        start = self.closure_min_travel + u * (travelled[-1] - self.kidnap_m - self.closure_min_travel)
+        return (travelled[1:] > start) & (travelled[:-1] < start + self.kidnap_m)
 
     def _closures(self, grid: GridMap, states: np.ndarray, travelled: np.ndarray) -> np.ndarray:
         """(C, 2) node pairs (i < j) closing a loop: for each j, the nearest earlier i within

@@ -213,6 +213,22 @@ def test_odometry_slam_clean_is_the_truth_and_errs_with_closures_when_set():
     assert (d >= 1.0).all()
 
 
+def test_a_kidnapped_robot_reports_no_move_while_carried():
+    scene = two_rooms_scene()
+    poses = _loop_poses(scene.grid)
+    kw = dict(alpha1=1e-4, alpha2=1e-4, alpha3=1e-4, alpha4=1e-5, closure_min_travel=2.0)
+    base = OdometrySlam(**kw).estimate(scene.grid, poses, "h")
+    carried = OdometrySlam(**kw, kidnap_m=1.5).estimate(scene.grid, poses, "h")
+    # the whole moves that overlap the 1.5 m window (nodes every 0.5 m)
+    assert 1.5 <= carried.stats()["kidnapped_m"] <= 1.5 + 2 * 0.5 and base.stats()["kidnapped_m"] == 0
+    # dead reckoning stands still while carried: consecutive odometry poses coincide there
+    still = np.hypot(*np.diff(carried.odometry[:, :2], axis=0).T) == 0
+    moved = np.hypot(*np.diff(carried.true[:, :2], axis=0).T) > 0
+    assert (still & moved).sum() >= 2
+    assert carried.stats()["odometry_ate_rmse_m"] > base.stats()["odometry_ate_rmse_m"]
+    assert not OdometrySlam(kidnap_m=1.0).is_clean
+
+
 def test_bad_settings_and_views_off_the_route_are_one_line():
     with pytest.raises(ValueError, match=r"pose_error.alpha3 = -1: expected a number >= 0"):
         OdometrySlam(alpha3=-1)

@@ -1,5 +1,5 @@
 """``python -m benchmark.commands.slam_levels``: what each SLAM severity (``corruption=slam_k``) and
-lost-robot level (``corruption=lost_k``) does to a robot's trajectory and map, on the shared houses.
+lost-robot level (``corruption=lost_k``: wrong loop closures; ``kidnap_k``: carried) does to a robot's trajectory and map, on the shared houses.
 
 Per house: the autotrace views (the default viewpoints), the route through them with a node every
 0.5 m, and for each level the :class:`benchmark.slam.OdometrySlam` estimate with that level's
@@ -25,7 +25,7 @@ import pandas as pd
 from benchmark.commands.errors import cli_errors, one_line
 from benchmark.paths import CONF_DIR, procthor_houses
 
-LEVELS = ("slam_1", "slam_2", "slam_3", "slam_4", "slam_5", "lost_1", "lost_2", "lost_3")
+LEVELS = ("slam_1", "slam_2", "slam_3", "slam_4", "slam_5", "lost_1", "lost_2", "lost_3", "kidnap_1", "kidnap_2")
 
 
 def level_settings(level: str) -> dict:
@@ -83,7 +83,7 @@ def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) ->
         union = int((m.free | aligned).sum())
         st = est.stats()
         rows.append({"house": house_id, "level": level, "route_m": st["route_m"], "loop_closures": st["loop_closures"],
-                     "wrong_closures": st["wrong_closures"], "odometry_ate_m": st["odometry_ate_rmse_m"],
+                     "wrong_closures": st["wrong_closures"], "kidnapped_m": st["kidnapped_m"], "odometry_ate_m": st["odometry_ate_rmse_m"],
                      "ate_rmse_m": st["ate_rmse_m"], "ate_per_100m": 100 * st["ate_rmse_m"] / max(st["route_m"], 1e-9),
                      "view_error_m": pose_error_stats(poses, est.views)["pose_error_mean_m"],
                      "map_free_iou": float((m.free & aligned).sum() / union) if union else 1.0})
@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     df = pd.DataFrame(rows)
     order = list(dict.fromkeys(df["level"]))
-    cols = ["route_m", "loop_closures", "wrong_closures", "odometry_ate_m", "ate_rmse_m", "ate_per_100m",
+    cols = ["route_m", "loop_closures", "wrong_closures", "kidnapped_m", "odometry_ate_m", "ate_rmse_m", "ate_per_100m",
             "view_error_m", "map_free_iou"]
     print(df.groupby("level", sort=False)[cols].mean().loc[order].reset_index().to_markdown(index=False,
                                                                                                floatfmt=".3f"))

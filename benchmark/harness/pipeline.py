@@ -681,7 +681,7 @@ class MethodPipeline(Pipeline):
         else:
             noisy, stats = self.pose_error(poses, scene.grid, hid)
         keep = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg", "ate_rmse_m", "odometry_ate_rmse_m",
-                "route_m", "loop_closures", "wrong_closures")
+                "route_m", "loop_closures", "wrong_closures", "kidnapped_m")
         return noisy, {k: float(stats[k]) for k in keep if k in stats}
 
     def _received_labels(self, scene, received: np.ndarray, poses: np.ndarray,

@@ -95,7 +95,7 @@ def robot_settings(cfg: DictConfig) -> dict[str, Any]:
             continue
         amounts = {"pose_error": ("sigma_xy", "sigma_yaw", "drift_xy", "drift_yaw"), "label_noise": ("share",)}.get(g)
         if g == "pose_error" and shapes_map({g: node}):
-            amounts = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures")
+            amounts = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures", "kidnap_m")
         if amounts and all(not node.get(k) for k in amounts):
             continue
         out[g] = node
