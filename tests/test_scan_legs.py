@@ -98,3 +98,28 @@ def test_shared_houses_record_their_door_openings(shared_scenes):
         closed[cells[:, 0], cells[:, 1]] = True
     # the openings were cut out of the walls, and the floor plan's walkable cells pass through them
     assert not (closed & scene.walls).any() and (closed & scene.grid.walkable).any()
+
+
+def test_grazing_beams_drop_out_and_head_on_ones_do_not():
+    from envs.maps.scan import surface_normals
+    from tests.maps import rect_grid
+
+    grid = rect_grid(40, 200)  # a 1.8 m x 9.8 m corridor
+    obstacles = ~grid.walkable
+    n = surface_normals(obstacles)
+    np.testing.assert_array_equal(n[1, 50], [3, 0])  # the top wall faces the corridor (rows grow downwards)
+    np.testing.assert_array_equal(n[38, 50], [-3, 0])
+    pose = np.array([pose_at(grid, 20, 100, 0.0)])
+    hits = {}
+    for g in (0.0, 1.0):
+        counts = []
+        for seed in range(5):
+            m = scan_map(obstacles, grid, pose, ScanSettings(grazing_dropout=g, max_range=20.0, angular_step=0.5,
+                                                              seed=seed))
+            counts.append(int((m.occupancy == 100).sum()))
+            # the beams straight up and down hit the walls head on: never dropped
+            assert m.occupancy[1, 100] == 100 and m.occupancy[38, 100] == 100
+        hits[g] = np.mean(counts)
+    assert hits[1.0] < 0.8 * hits[0.0]
+    with pytest.raises(ValueError, match="grazing_dropout"):
+        ScanSettings(grazing_dropout=2.0).check()

@@ -305,6 +305,7 @@ def _reference_map_at_estimate(obstacles, grid, true, est, s):
     rng_noise, rng_drop = np.random.default_rng([s.seed, 1]), np.random.default_rng([s.seed, 2])
     noise = rng_noise.normal(0.0, s.range_noise, (len(true), nb)) if s.range_noise > 0 else np.zeros((len(true), nb))
     drop = rng_drop.random((len(true), nb)) < s.dropout if s.dropout > 0 else np.zeros((len(true), nb), bool)
+    graze = np.random.default_rng([s.seed, 4]).random((len(true), nb)) if s.grazing_dropout > 0 else None
     reach = s.max_range / res
     log_odds: dict = {}
 
@@ -335,6 +336,14 @@ def _reference_map_at_estimate(obstacles, grid, true, est, s):
             theta = 2 * math.pi * b / nb
             seen = line(r0, c0, theta)
             k_hit = next((k for k, rc in enumerate(seen) if obstacles[rc]), None)
+            if graze is not None and k_hit is not None:
+                hr, hc = seen[k_hit]
+                nbrs = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
+                        if (dr or dc) and on_map(hr + dr, hc + dc) and not obstacles[hr + dr, hc + dc]]
+                nr, nc = sum(d[0] for d in nbrs), sum(d[1] for d in nbrs)
+                if (nr or nc) and graze[m, b] < s.grazing_dropout * (
+                        1 - abs(-nr * math.cos(theta) + nc * math.sin(theta)) / math.hypot(nr, nc)):
+                    continue
             phi = theta + math.radians(est[m, 2] - true[m, 2])
             cells = line(e0, f0, phi)
             dist = [math.hypot(r - e0, c - f0) * res for r, c in cells]
@@ -374,7 +383,8 @@ def test_the_estimate_mapper_matches_a_pure_python_reference():
     true = np.column_stack([xs, zs, rng.uniform(0, 360, 12)])
     est = true + np.column_stack([rng.normal(0, 0.1, 12), rng.normal(0, 0.1, 12), rng.normal(0, 5.0, 12)])
     for s in (ScanSettings(max_range=2.0, angular_step=4.0),
-              ScanSettings(max_range=1.5, angular_step=3.0, range_noise=0.1, dropout=0.2, seed=3)):
+              ScanSettings(max_range=1.5, angular_step=3.0, range_noise=0.1, dropout=0.2, seed=3),
+              ScanSettings(max_range=2.0, angular_step=2.0, grazing_dropout=0.8, seed=1)):
         got = scan_map_at_estimate(obstacles, grid, true, est, s).log_odds
         want = _reference_map_at_estimate(obstacles, grid, true, est, s)
         np.testing.assert_allclose(got, want, atol=1e-6)

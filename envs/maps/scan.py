@@ -10,6 +10,8 @@ What it models (issue #25, item 1):
   plane does not (the scan passes under it; with ``legs``, furniture of :data:`LEGGED_TYPES` blocks with its four legs only).
 * **Closed doors** (``door_closed``, :func:`closed_doors`): each door closed with that probability
   fills its opening in the wall band: it blocks beams and the route.
+* **Grazing incidence** (``grazing_dropout``): a beam hitting a surface at incidence angle i also
+  returns nothing with probability ``grazing_dropout * (1 - cos i)`` (:func:`surface_normals`).
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
   A beam is the digital (Bresenham) line of :mod:`envs.render.raycast` from that cell to the
@@ -107,6 +109,9 @@ class ScanSettings:
         leg_size: a leg's square cross-section side, metres.
         door_closed: probability that each door of the house is closed (drawn per door from
             ``seed`` and the door's id): a closed door blocks beams and the robot's route.
+        grazing_dropout: extra chance that a beam returns nothing, ``grazing_dropout * (1 - cos i)``
+            at incidence angle ``i`` on the surface it hits (:func:`surface_normals`): 0 head on,
+            the whole amount along the surface.
     """
 
     height: float = 0.25
@@ -125,6 +130,7 @@ class ScanSettings:
     legs: bool = False
     leg_size: float = 0.05
     door_closed: float = 0.0
+    grazing_dropout: float = 0.0
 
     def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
@@ -174,6 +180,8 @@ class ScanSettings:
             raise error("leg_size", self.leg_size, "metres, 0 < leg_size <= 0.5")
         if not (_finite_number(self.door_closed) and 0 <= self.door_closed <= 1):
             raise error("door_closed", self.door_closed, "a probability in [0, 1]")
+        if not (_finite_number(self.grazing_dropout) and 0 <= self.grazing_dropout <= 1):
+            raise error("grazing_dropout", self.grazing_dropout, "a probability in [0, 1]")
         return self
 
     @property
@@ -332,6 +340,31 @@ def _beam_draws(settings: ScanSettings, noise_rng, drop_rng, m: int) -> tuple[np
     return noise, drop
 
 
+def surface_normals(obstacles: np.ndarray) -> np.ndarray:
+    """(H, W, 2) float64 (d_row, d_col) surface direction of each obstacle cell: the sum of the
+    offsets to its free 8-neighbours (off-map neighbours count as blocked), zero for cells with no
+    free neighbour and for free cells. Not normalised."""
+    ob = np.asarray(obstacles, bool)
+    free = np.pad(~ob, 1, constant_values=False)
+    h, w = ob.shape
+    out = np.zeros((h, w, 2))
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr or dc:
+                nb = free[1 + dr:1 + dr + h, 1 + dc:1 + dc + w]
+                out[..., 0] += dr * nb
+                out[..., 1] += dc * nb
+    out[~ob] = 0.0
+    return out
+
+
+def _grazing_draws(settings: ScanSettings, rng, m: int) -> np.ndarray:
+    """(m, n_beams) uniform draws of the grazing dropout (zeros when it is off: nothing drawn)."""
+    if settings.grazing_dropout > 0:
+        return rng.random((m, settings.n_beams))
+    return np.zeros((m, settings.n_beams))
+
+
 def _draw_streams(seed: int):
     """Separate generators for range noise and dropout, so that adding scans in chunks draws
     the same numbers as adding them all at once."""
@@ -368,9 +401,24 @@ def _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min,
         log_odds[rr, cc] = min(max(x, l_min), l_max)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def grazes(normals, r, c, theta, grazing, u):
+    """True when a beam along ``theta`` hitting cell (r, c) returns nothing: ``u`` below
+    ``grazing * (1 - cos i)``, ``i`` the angle between the beam and the cell's surface normal
+    (:func:`surface_normals`; a cell without one never grazes)."""
+    nr = normals[r, c, 0]
+    nc = normals[r, c, 1]
+    nn = np.sqrt(nr * nr + nc * nc)
+    if nn == 0.0:
+        return False
+    cos_i = abs(-nr * np.cos(theta) + nc * np.sin(theta)) / nn
+    return u < grazing * (1.0 - cos_i)
+
+
 @njit(cache=True, nogil=True)
 def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
-                 l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last):
+                 l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last,
+                 normals, grazing, graze_u):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -400,6 +448,8 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
             if noise[m, b] > 0:
                 extra = int(1.4143 * (noise[m, b] / res + 0.125)) + 2
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, extra, lr, lc)
+            if grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, graze_u[m, b]):
+                continue  # a grazing beam returned nothing
             n_free = n
             end_r = -1
             end_c = -1
@@ -464,6 +514,8 @@ class ScanMapper:
         self._touched_c = np.empty(grid.shape[0] * grid.shape[1], np.int32)
         self._last = np.array([-1, -1, 0], np.int64)  # the previous scan's cell and its touched count
         self._noise_rng, self._drop_rng = _draw_streams(settings.seed)
+        self._graze_rng = np.random.default_rng([int(settings.seed), 4])
+        self._normals = surface_normals(self.obstacles) if settings.grazing_dropout > 0 else np.zeros((1, 1, 2))
         self.n_scans = 0
         self.free_level = logit(settings.free_thresh)
         self.occupied_level = logit(settings.occupied_thresh)
@@ -480,12 +532,13 @@ class ScanMapper:
         noise, drop = _beam_draws(s, self._noise_rng, self._drop_rng, len(poses))
         r, c = self.grid.world_to_cell(poses[:, 0], poses[:, 1])
         res = self.grid.resolution
-        exact = s.range_noise == 0 and s.dropout == 0
+        exact = s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0
+        graze_u = _grazing_draws(s, self._graze_rng, len(poses))
         done = _scan_kernel(self.obstacles, r.astype(np.int64), c.astype(np.int64), s.n_beams,
                             _range_px(s, self.grid.shape, res), res, float(s.max_range), noise, drop, exact,
                             float(s.log_odds_hit), float(s.log_odds_miss), float(s.log_odds_min),
                             float(s.log_odds_max), self.log_odds, self._state, self._touched_r, self._touched_c,
-                            self.n_scans, self._last)
+                            self.n_scans, self._last, self._normals, float(s.grazing_dropout), graze_u)
         self.n_scans += int(done)
         return int(done)
 
@@ -582,6 +635,7 @@ class ReferenceScanMapper:
         self.cells: dict[tuple[int, int], float] = {}
         self._noise_rng, self._drop_rng = np.random.default_rng([int(settings.seed), 1]), \
             np.random.default_rng([int(settings.seed), 2])
+        self._graze_rng = np.random.default_rng([int(settings.seed), 4])
         self.n_scans = 0
 
     def _draws(self, m: int):
@@ -597,6 +651,8 @@ class ReferenceScanMapper:
         blocked = self.obstacles.tolist()
         poses = np.asarray(scan_poses, float).reshape(-1, 3)
         noise, drop = self._draws(len(poses))
+        graze_u = (self._graze_rng.random((len(poses), s.n_beams)) if s.grazing_dropout > 0
+                   else np.zeros((len(poses), s.n_beams)))
         length = math.ceil(math.hypot(h, w)) + 2 if math.isinf(s.max_range) else s.max_range / res
         done = 0
         for m, (x, z, _yaw) in enumerate(poses.tolist()):
@@ -623,6 +679,16 @@ class ReferenceScanMapper:
                 if hit is None:  # nothing within range: free evidence up to the line's end
                     passed.update(line)
                     continue
+                if s.grazing_dropout > 0:
+                    hr, hc = line[hit]
+                    nr = sum(dr for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
+                             and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
+                    nc = sum(dc for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
+                             and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
+                    if nr or nc:
+                        cos_i = abs(-nr * math.cos(theta) + nc * math.sin(theta)) / math.hypot(nr, nc)
+                        if graze_u[m, b] < s.grazing_dropout * (1.0 - cos_i):
+                            continue
                 measured = max(dist[hit] + noise[m, b], 0.0)
                 if measured > dist[hit]:
                     px = row + 0.5 - math.cos(theta) * (measured / res)

@@ -36,16 +36,19 @@ from envs.maps.scan import (
     _apply_scan,
     _beam_draws,
     _draw_streams,
+    _grazing_draws,
     _mark,
     _range_px,
+    grazes,
     occupancy_from_log_odds,
+    surface_normals,
 )
 from envs.render.raycast import ray_end, trace_ray, walk_beam
 
 
 @njit(cache=True, nogil=True)
 def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_px, res, max_range_m, noise, drop,
-                     l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c):
+                     l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, normals, grazing, graze_u):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -72,6 +75,8 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             # measure from the true cell
             r1, c1 = ray_end(r0, c0, theta, range_px)
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
+            if grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, graze_u[m, b]):
+                continue  # a grazing beam returned nothing
             hit = k_hit >= 0
             d_m = 0.0
             d_true = 0.0
@@ -130,6 +135,8 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
         raise ValueError(f"obstacles shape {obstacles.shape} != grid shape {grid.shape}")
     noise_rng, drop_rng = _draw_streams(s.seed)
     noise, drop = _beam_draws(s, noise_rng, drop_rng, len(true))
+    graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(true))
+    normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
     r, c = grid.world_to_cell(true[:, 0], true[:, 1])
     er, ec = grid.world_to_cell(est[:, 0], est[:, 1])
     dyaw = np.deg2rad(est[:, 2] - true[:, 2])
@@ -140,7 +147,8 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
                             ec.astype(np.int64), dyaw, s.n_beams, _range_px(s, grid.shape, grid.resolution),
                             grid.resolution, float(s.max_range), noise, drop, float(s.log_odds_hit),
                             float(s.log_odds_miss), float(s.log_odds_min), float(s.log_odds_max), log_odds, state,
-                            np.empty(size, np.int32), np.empty(size, np.int32))
+                            np.empty(size, np.int32), np.empty(size, np.int32), normals,
+                            float(s.grazing_dropout), graze_u)
     occ = occupancy_from_log_odds(log_odds, s)
     return ScanMap(log_odds.astype(np.float32), occ, occ == FREE, s, int(done))
 
