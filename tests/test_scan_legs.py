@@ -123,3 +123,22 @@ def test_grazing_beams_drop_out_and_head_on_ones_do_not():
     assert hits[1.0] < 0.8 * hits[0.0]
     with pytest.raises(ValueError, match="grazing_dropout"):
         ScanSettings(grazing_dropout=2.0).check()
+
+
+def test_people_leave_transient_hits_that_later_scans_clear():
+    from tests.maps import rect_grid
+
+    grid = rect_grid(60, 60)  # an empty 2.8 m square room
+    obstacles = ~grid.walkable
+    inside = np.zeros(grid.shape, bool)
+    inside[6:-6, 6:-6] = True
+    pose = pose_at(grid, 30, 30, 0.0)
+    one = scan_map(obstacles, grid, np.array([pose]), ScanSettings(people=3, seed=1))
+    none = scan_map(obstacles, grid, np.array([pose]), ScanSettings(seed=1))
+    hits_one = int(((one.occupancy == 100) & inside).sum())
+    assert hits_one > 0 and not ((none.occupancy == 100) & inside).any()  # the people, seen once
+    # twenty scans from the same place, the people elsewhere each time: their hits are cleared
+    many = scan_map(obstacles, grid, np.array([pose] * 20), ScanSettings(people=3, seed=1))
+    assert ((many.occupancy == 100) & inside).sum() < hits_one and (many.free & inside).sum() > 0.9 * inside.sum()
+    with pytest.raises(ValueError, match="people"):
+        ScanSettings(people=-1).check()

@@ -306,6 +306,12 @@ def _reference_map_at_estimate(obstacles, grid, true, est, s):
     noise = rng_noise.normal(0.0, s.range_noise, (len(true), nb)) if s.range_noise > 0 else np.zeros((len(true), nb))
     drop = rng_drop.random((len(true), nb)) < s.dropout if s.dropout > 0 else np.zeros((len(true), nb), bool)
     graze = np.random.default_rng([s.seed, 4]).random((len(true), nb)) if s.grazing_dropout > 0 else None
+    people = []
+    if s.people > 0:
+        unblocked = [r * w + c for r in range(h) for c in range(w) if not obstacles[r, c]]
+        idx = np.random.default_rng([s.seed, 5]).integers(0, len(unblocked), (len(true), s.people))
+        people = [[(unblocked[i] // w + 0.5, unblocked[i] % w + 0.5, s.person_radius / res) for i in row]
+                  for row in idx]
     reach = s.max_range / res
     log_odds: dict = {}
 
@@ -336,7 +342,19 @@ def _reference_map_at_estimate(obstacles, grid, true, est, s):
             theta = 2 * math.pi * b / nb
             seen = line(r0, c0, theta)
             k_hit = next((k for k, rc in enumerate(seen) if obstacles[rc]), None)
-            if graze is not None and k_hit is not None:
+            near = [t - math.sqrt(rad * rad - (vr * vr + vc * vc - t * t))
+                    for pr, pc, rad in (people[m] if people else [])
+                    for vr, vc in [(pr - r0 - 0.5, pc - c0 - 0.5)]
+                    for t in [-vr * math.cos(theta) + vc * math.sin(theta)]
+                    if t > 0 and vr * vr + vc * vc - t * t <= rad * rad]
+            near = [d for d in near if d > 0]
+            kp = None
+            if near:
+                upto = len(seen) if k_hit is None else k_hit
+                kp = next((k for k in range(upto) if math.hypot(seen[k][0] - r0, seen[k][1] - c0) >= min(near)), None)
+            if kp is not None:
+                k_hit = kp
+            elif graze is not None and k_hit is not None:
                 hr, hc = seen[k_hit]
                 nbrs = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
                         if (dr or dc) and on_map(hr + dr, hc + dc) and not obstacles[hr + dr, hc + dc]]
@@ -384,7 +402,8 @@ def test_the_estimate_mapper_matches_a_pure_python_reference():
     est = true + np.column_stack([rng.normal(0, 0.1, 12), rng.normal(0, 0.1, 12), rng.normal(0, 5.0, 12)])
     for s in (ScanSettings(max_range=2.0, angular_step=4.0),
               ScanSettings(max_range=1.5, angular_step=3.0, range_noise=0.1, dropout=0.2, seed=3),
-              ScanSettings(max_range=2.0, angular_step=2.0, grazing_dropout=0.8, seed=1)):
+              ScanSettings(max_range=2.0, angular_step=2.0, grazing_dropout=0.8, seed=1),
+              ScanSettings(max_range=2.0, angular_step=2.0, people=3, range_noise=0.05, seed=4)):
         got = scan_map_at_estimate(obstacles, grid, true, est, s).log_odds
         want = _reference_map_at_estimate(obstacles, grid, true, est, s)
         np.testing.assert_allclose(got, want, atol=1e-6)

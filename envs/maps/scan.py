@@ -12,6 +12,8 @@ What it models (issue #25, item 1):
   fills its opening in the wall band: it blocks beams and the route.
 * **Grazing incidence** (``grazing_dropout``): a beam hitting a surface at incidence angle i also
   returns nothing with probability ``grazing_dropout * (1 - cos i)`` (:func:`surface_normals`).
+* **People** (``people``, ``person_radius``): discs drawn anew for every scan on unblocked cells;
+  a beam meeting one first returns from it (transient hits).
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
   A beam is the digital (Bresenham) line of :mod:`envs.render.raycast` from that cell to the
@@ -39,7 +41,7 @@ What it models (issue #25, item 1):
 
 What it leaves out: the robot's own pose error while mapping (scans are placed at the true
 poses; pose error is a separate option applied to the views), beam width and incidence angle,
-glass and mirrors, moving people, the scanner's own height above a sloped floor, table legs (without ``legs``),
+glass and mirrors, people moving during a scan, the scanner's own height above a sloped floor, table legs (without ``legs``),
 and the time a scan takes (all beams of a scan share one pose).
 
 The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.render.raycast.walk_beam`,
@@ -112,6 +114,9 @@ class ScanSettings:
         grazing_dropout: extra chance that a beam returns nothing, ``grazing_dropout * (1 - cos i)``
             at incidence angle ``i`` on the surface it hits (:func:`surface_normals`): 0 head on,
             the whole amount along the surface.
+        people: people standing in the house during each scan (each scan its own draw of places,
+            uniform over the cells the plane does not hit): discs that return a beam first.
+        person_radius: metres, a person's radius at scan height.
     """
 
     height: float = 0.25
@@ -131,6 +136,8 @@ class ScanSettings:
     leg_size: float = 0.05
     door_closed: float = 0.0
     grazing_dropout: float = 0.0
+    people: int = 0
+    person_radius: float = 0.2
 
     def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
@@ -182,6 +189,10 @@ class ScanSettings:
             raise error("door_closed", self.door_closed, "a probability in [0, 1]")
         if not (_finite_number(self.grazing_dropout) and 0 <= self.grazing_dropout <= 1):
             raise error("grazing_dropout", self.grazing_dropout, "a probability in [0, 1]")
+        if isinstance(self.people, bool) or not isinstance(self.people, int | np.integer) or self.people < 0:
+            raise error("people", self.people, "an integer >= 0")
+        if not (_finite_number(self.person_radius) and 0 < self.person_radius <= 1):
+            raise error("person_radius", self.person_radius, "metres, 0 < person_radius <= 1")
         return self
 
     @property
@@ -365,6 +376,22 @@ def _grazing_draws(settings: ScanSettings, rng, m: int) -> np.ndarray:
     return np.zeros((m, settings.n_beams))
 
 
+def people_draws(settings: ScanSettings, rng, obstacles: np.ndarray, resolution: float, m: int) -> np.ndarray:
+    """(m, people, 3) per scan the people's (row, col) centres in continuous pixels (a uniform
+    cell the plane does not hit, its centre) and radius in pixels; (m, 0, 3) without people."""
+    if settings.people <= 0:
+        return np.zeros((m, 0, 3))
+    free = np.flatnonzero(~np.asarray(obstacles, bool).ravel())
+    if len(free) == 0:
+        return np.zeros((m, 0, 3))
+    cells = free[rng.integers(0, len(free), (m, settings.people))]
+    w = obstacles.shape[1]
+    out = np.empty((m, settings.people, 3))
+    out[..., 0], out[..., 1] = cells // w + 0.5, cells % w + 0.5
+    out[..., 2] = settings.person_radius / resolution
+    return out
+
+
 def _draw_streams(seed: int):
     """Separate generators for range noise and dropout, so that adding scans in chunks draws
     the same numbers as adding them all at once."""
@@ -401,6 +428,32 @@ def _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min,
         log_odds[rr, cc] = min(max(x, l_min), l_max)
 
 
+@njit(cache=True, nogil=True)
+def person_first(persons, m, r0, c0, theta, lr, lc, n):
+    """Index of the first of the ``n`` line cells at or past the nearest person disc the beam
+    from cell (r0, c0) along ``theta`` meets (distances between cell centres), -1 if none."""
+    dr = -np.cos(theta)
+    dc = np.sin(theta)
+    best = np.inf
+    for p in range(persons.shape[1]):
+        vr = persons[m, p, 0] - (r0 + 0.5)
+        vc = persons[m, p, 1] - (c0 + 0.5)
+        rad = persons[m, p, 2]
+        t = vr * dr + vc * dc
+        perp2 = vr * vr + vc * vc - t * t
+        if t <= 0.0 or perp2 > rad * rad:
+            continue
+        d = t - np.sqrt(rad * rad - perp2)
+        if 0.0 < d < best:
+            best = d
+    if best == np.inf:
+        return -1
+    for j in range(n):
+        if np.hypot(lr[j] - r0, lc[j] - c0) >= best:
+            return j
+    return -1
+
+
 @njit(cache=True, nogil=True, inline="always")
 def grazes(normals, r, c, theta, grazing, u):
     """True when a beam along ``theta`` hitting cell (r, c) returns nothing: ``u`` below
@@ -418,7 +471,7 @@ def grazes(normals, r, c, theta, grazing, u):
 @njit(cache=True, nogil=True)
 def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
                  l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last,
-                 normals, grazing, graze_u):
+                 normals, grazing, graze_u, persons):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -448,7 +501,12 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
             if noise[m, b] > 0:
                 extra = int(1.4143 * (noise[m, b] / res + 0.125)) + 2
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, extra, lr, lc)
-            if grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, graze_u[m, b]):
+            kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) \
+                if persons.shape[1] > 0 else -1
+            if kp >= 0:
+                k_hit = kp  # a person stands in the beam's way: it returns from them
+            elif grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing,
+                                                          graze_u[m, b]):
                 continue  # a grazing beam returned nothing
             n_free = n
             end_r = -1
@@ -515,6 +573,7 @@ class ScanMapper:
         self._last = np.array([-1, -1, 0], np.int64)  # the previous scan's cell and its touched count
         self._noise_rng, self._drop_rng = _draw_streams(settings.seed)
         self._graze_rng = np.random.default_rng([int(settings.seed), 4])
+        self._people_rng = np.random.default_rng([int(settings.seed), 5])
         self._normals = surface_normals(self.obstacles) if settings.grazing_dropout > 0 else np.zeros((1, 1, 2))
         self.n_scans = 0
         self.free_level = logit(settings.free_thresh)
@@ -532,13 +591,14 @@ class ScanMapper:
         noise, drop = _beam_draws(s, self._noise_rng, self._drop_rng, len(poses))
         r, c = self.grid.world_to_cell(poses[:, 0], poses[:, 1])
         res = self.grid.resolution
-        exact = s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0
+        exact = s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0 and s.people == 0
         graze_u = _grazing_draws(s, self._graze_rng, len(poses))
+        persons = people_draws(s, self._people_rng, self.obstacles, self.grid.resolution, len(poses))
         done = _scan_kernel(self.obstacles, r.astype(np.int64), c.astype(np.int64), s.n_beams,
                             _range_px(s, self.grid.shape, res), res, float(s.max_range), noise, drop, exact,
                             float(s.log_odds_hit), float(s.log_odds_miss), float(s.log_odds_min),
                             float(s.log_odds_max), self.log_odds, self._state, self._touched_r, self._touched_c,
-                            self.n_scans, self._last, self._normals, float(s.grazing_dropout), graze_u)
+                            self.n_scans, self._last, self._normals, float(s.grazing_dropout), graze_u, persons)
         self.n_scans += int(done)
         return int(done)
 
@@ -636,6 +696,7 @@ class ReferenceScanMapper:
         self._noise_rng, self._drop_rng = np.random.default_rng([int(settings.seed), 1]), \
             np.random.default_rng([int(settings.seed), 2])
         self._graze_rng = np.random.default_rng([int(settings.seed), 4])
+        self._people_rng = np.random.default_rng([int(settings.seed), 5])
         self.n_scans = 0
 
     def _draws(self, m: int):
@@ -653,6 +714,13 @@ class ReferenceScanMapper:
         noise, drop = self._draws(len(poses))
         graze_u = (self._graze_rng.random((len(poses), s.n_beams)) if s.grazing_dropout > 0
                    else np.zeros((len(poses), s.n_beams)))
+        persons = []  # per scan: [(row, col, radius px)], centres of uniformly drawn unblocked cells
+        if s.people > 0:
+            unblocked = [r * w + c for r in range(h) for c in range(w) if not blocked[r][c]]
+            idx = self._people_rng.integers(0, len(unblocked), (len(poses), s.people)) if unblocked else None
+            for m in range(len(poses)):
+                persons.append([] if idx is None else [(unblocked[i] // w + 0.5, unblocked[i] % w + 0.5,
+                                                        s.person_radius / res) for i in idx[m]])
         length = math.ceil(math.hypot(h, w)) + 2 if math.isinf(s.max_range) else s.max_range / res
         done = 0
         for m, (x, z, _yaw) in enumerate(poses.tolist()):
@@ -676,10 +744,25 @@ class ReferenceScanMapper:
                     line.append((r, c))
                 dist = [math.hypot(r - row, c - col) * res for r, c in line]
                 hit = next((k for k, (r, c) in enumerate(line) if blocked[r][c]), None)
+                person = None
+                for pr, pc, rad in (persons[m] if persons else []):
+                    vr, vc = pr - (row + 0.5), pc - (col + 0.5)
+                    t = -vr * math.cos(theta) + vc * math.sin(theta)
+                    perp2 = vr * vr + vc * vc - t * t
+                    if t > 0 and perp2 <= rad * rad and 0 < t - math.sqrt(rad * rad - perp2):
+                        d = t - math.sqrt(rad * rad - perp2)
+                        person = d if person is None else min(person, d)
+                if person is not None:
+                    upto = len(line) if hit is None else hit
+                    kp = next((k for k in range(upto) if math.hypot(line[k][0] - row, line[k][1] - col) >= person),
+                              None)
+                    if kp is not None:
+                        hit = kp
+                        person = True
                 if hit is None:  # nothing within range: free evidence up to the line's end
                     passed.update(line)
                     continue
-                if s.grazing_dropout > 0:
+                if s.grazing_dropout > 0 and person is not True:
                     hr, hc = line[hit]
                     nr = sum(dr for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
                              and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])

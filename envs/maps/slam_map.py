@@ -41,6 +41,8 @@ from envs.maps.scan import (
     _range_px,
     grazes,
     occupancy_from_log_odds,
+    people_draws,
+    person_first,
     surface_normals,
 )
 from envs.render.raycast import ray_end, trace_ray, walk_beam
@@ -48,7 +50,8 @@ from envs.render.raycast import ray_end, trace_ray, walk_beam
 
 @njit(cache=True, nogil=True)
 def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_px, res, max_range_m, noise, drop,
-                     l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, normals, grazing, graze_u):
+                     l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, normals, grazing, graze_u,
+                     persons):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -75,7 +78,12 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             # measure from the true cell
             r1, c1 = ray_end(r0, c0, theta, range_px)
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
-            if grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, graze_u[m, b]):
+            kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) \
+                if persons.shape[1] > 0 else -1
+            if kp >= 0:
+                k_hit = kp  # a person stands in the beam's way: it returns from them
+            elif grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing,
+                                                          graze_u[m, b]):
                 continue  # a grazing beam returned nothing
             hit = k_hit >= 0
             d_m = 0.0
@@ -137,6 +145,7 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
     noise, drop = _beam_draws(s, noise_rng, drop_rng, len(true))
     graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(true))
     normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
+    persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(true))
     r, c = grid.world_to_cell(true[:, 0], true[:, 1])
     er, ec = grid.world_to_cell(est[:, 0], est[:, 1])
     dyaw = np.deg2rad(est[:, 2] - true[:, 2])
@@ -148,7 +157,7 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
                             grid.resolution, float(s.max_range), noise, drop, float(s.log_odds_hit),
                             float(s.log_odds_miss), float(s.log_odds_min), float(s.log_odds_max), log_odds, state,
                             np.empty(size, np.int32), np.empty(size, np.int32), normals,
-                            float(s.grazing_dropout), graze_u)
+                            float(s.grazing_dropout), graze_u, persons)
     occ = occupancy_from_log_odds(log_odds, s)
     return ScanMap(log_odds.astype(np.float32), occ, occ == FREE, s, int(done))
 
