@@ -89,6 +89,7 @@ def test_a_closed_door_splits_the_free_space():
     assert u == sorted(u)
 
 
+@pytest.mark.slow
 @pytest.mark.shared_data
 def test_shared_houses_record_their_door_openings(shared_scenes):
     scene = shared_scenes[0]
