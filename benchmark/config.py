@@ -197,10 +197,25 @@ def robot_settings(cfg) -> dict:
         if node is None:
             continue
         amounts = IDENTITY_AMOUNTS.get(g)
+        if g == "pose_error" and shapes_map({g: node}):
+            amounts = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures", "kidnap_m")
         if amounts and all(not node.get(k) for k in amounts):
             continue
         out[g] = node
     return out
+
+
+#: pose-error stages whose one estimate also places the robot's scans (benchmark/conditions/slam.py)
+MAP_POSE_ERRORS = ("benchmark.conditions.slam.OdometrySlam",)
+
+
+def shapes_map(robot) -> bool:
+    """True when the robot's pose error is a SLAM estimate that its map is built at too.
+
+    Args:
+        robot: group -> plain config (:func:`robot_settings`' output, or a config's groups)."""
+    node = robot.get("pose_error")
+    return isinstance(node, dict) and node.get("_target_") in MAP_POSE_ERRORS
 
 
 def build_method(cfg, stage=None, transforms=(), names=None):
@@ -273,4 +288,4 @@ def build_classifier(model: str, overrides: Sequence[str] = ()):
     return instantiate(cfg.classifier), cfg
 
 
-__all__ = ["build_method", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]
+__all__ = ["build_method", "shapes_map", "MAP_POSE_ERRORS", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]

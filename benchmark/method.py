@@ -114,11 +114,15 @@ class Context:
         scene: the house (ground truth; the benchmark's noise models need it), or None.
         house_id: the house's id (seeds the pose-error draws; stamped on the views for
             classifiers that read per-house files), or None.
+        route: for a SLAM pose error that estimates the whole route (one estimate for the map
+            and the views): a function giving (every view's true pose in capture order (N, 3),
+            the map the robot drives on, the scan spacing in metres or None), or None.
     """
 
     grid: GridMap | None = None
     scene: Any = None
     house_id: str | None = None
+    route: Callable[[], tuple[np.ndarray, GridMap, float | None]] | None = None
 
 
 @dataclass
@@ -171,16 +175,24 @@ class ViewTransform(Protocol):
 @dataclass
 class PoseErrorTransform:
     """The robot's pose estimate: ``stage(true poses, the house's map, house id) -> (noisy
-    poses, stats)`` (:class:`benchmark.conditions.pose_error.PoseError`); records the mean and largest
-    position error (m) and the mean heading error (degrees)."""
+    poses, stats)`` (:class:`benchmark.conditions.pose_error.PoseError`; a SLAM stage with
+    ``estimate``, :class:`benchmark.conditions.slam.OdometrySlam`, also gets the whole route from
+    the context); records the mean and largest position error (m), the mean heading error
+    (degrees) and what a SLAM stage reports (ATE, loop closures, ...)."""
 
     stage: Any
-    KEEP = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg")
+    KEEP = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg", "ate_rmse_m", "odometry_ate_rmse_m",
+            "route_m", "loop_closures", "wrong_closures", "kidnapped_m")
 
     def __call__(self, views: Views, ctx: Context) -> tuple[Views, dict[str, Any]]:
         stage = _resolve(self.stage)
         grid = ctx.scene.grid if ctx.scene is not None else ctx.grid
-        noisy, stats = stage(views.true_poses, grid, ctx.house_id or "")
+        if hasattr(stage, "estimate") and ctx.route is not None:  # one SLAM estimate along the route, as the map's
+            route_poses, route_grid, spacing = ctx.route()
+            noisy, stats = stage(views.true_poses, route_grid, ctx.house_id or "", route_poses=route_poses,
+                                 spacing=spacing)
+        else:
+            noisy, stats = stage(views.true_poses, grid, ctx.house_id or "")
         return replace(views, poses=noisy), {k: float(stats[k]) for k in self.KEEP if k in stats}
 
 

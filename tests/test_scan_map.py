@@ -192,6 +192,10 @@ def test_door_openings_never_block():
     ScanSettings(dropout=0.3, range_noise=0.1, max_range=1.0, seed=1),
     ScanSettings(max_range=INF, range_noise=0.2, angular_step=2.5),
     ScanSettings(max_range=0.6, angular_step=7.0, log_odds_hit=2.0, log_odds_miss=-1.0),
+    ScanSettings(grazing_dropout=0.7, range_noise=0.05, seed=2),
+    ScanSettings(grazing_dropout=1.0, dropout=0.2, max_range=INF, angular_step=2.0, seed=5),
+    ScanSettings(people=4, person_radius=0.15, range_noise=0.05, seed=6),
+    ScanSettings(people=2, grazing_dropout=0.5, max_range=INF, angular_step=3.0, seed=7),
 ])
 def test_fast_equals_reference_hand_made(settings):
     grid = two_rooms_grid()

@@ -171,6 +171,7 @@ class Pipeline:
     env_key: str | None = None
     _stages: dict[str, Any] = field(default_factory=dict, repr=False)
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
+    _frames: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
 
     #: the stage groups whose input files feed each cached stage, in order.
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = ()
@@ -294,6 +295,18 @@ class Pipeline:
             return scene.grid, {"map_free_iou": 1.0, "map_missed_share": 0.0}
         from envs.maps.gridmap import GridMap
 
+        made: dict[str, np.ndarray] = {}
+
+        def views() -> np.ndarray:  # the true views in capture order, made once when needed
+            if "v" not in made:
+                if poses is not None:
+                    made["v"] = poses
+                else:
+                    t = time.perf_counter()
+                    made["v"] = poses_array(self.stage("viewpoints").generate(scene))
+                    timings["t_viewpoints"] = time.perf_counter() - t
+            return made["v"]
+
         def load(path: Path) -> np.ndarray:
             free = load_npz(path)["free"]
             if free.shape != scene.grid.shape or free.dtype != np.bool_:
@@ -301,13 +314,10 @@ class Pipeline:
             return free
 
         def compute() -> np.ndarray:
-            views = poses
-            if views is None:
-                t = time.perf_counter()
-                views = poses_array(self.stage("viewpoints").generate(scene))
-                timings["t_viewpoints"] = time.perf_counter() - t
             t = time.perf_counter()
-            free = np.asarray(self.mapping(scene, views, house=self.env.house(hid)), dtype=bool)
+            est = self._slam_estimate(hid, scene, views())  # a SLAM robot's scans sit at its estimate
+            kw = {} if est is None else {"estimate": (est.true, est.estimate, est.view_index)}
+            free = np.asarray(self.mapping(scene, views(), house=self.env.house(hid), **kw), dtype=bool)
             timings["t_map"] = time.perf_counter() - t
             return free
 
@@ -316,10 +326,54 @@ class Pipeline:
 
         free = self._cached("map", self.robot_map_path(hid), load, compute, save)
         walk = scene.grid.walkable
+        info: dict[str, Any] = {}
+        est = self._slam_estimate(hid, scene, views()) if self._slam_shapes_map() else None
+        if est is not None:
+            # the map is in the robot's frame: the ground truth comes to it (issue 37, item 2)
+            from benchmark.conditions.alignment import align_rigid, to_map_frame
+
+            theta, shift = align_rigid(est.estimate[:, :2], est.true[:, :2])
+            inst = to_map_frame(scene.instances, scene.grid, theta, shift, fill=-1)
+            walk = to_map_frame(walk.astype(np.int8), scene.grid, theta, shift, fill=0).astype(bool)
+            self._frames[hid] = (inst, walk)
+            info["ate_rmse_m"] = est.stats()["ate_rmse_m"]
+            info["map_align_deg"], info["map_align_m"] = float(np.degrees(theta)), float(np.hypot(*shift))
         union = int((free | walk).sum())
-        info = {"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
-                "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))}
+        info.update({"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
+                     "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))})
         return GridMap(free, scene.grid.resolution, scene.grid.origin), info
+
+    def _slam_shapes_map(self) -> bool:
+        """True when the robot's map is built at a SLAM estimate that errs (``pose_error=odometry``)."""
+        stage = self.stage("pose_error")
+        return (self.inputs.get("mapping") is not None and stage is not None and hasattr(stage, "estimate")
+                and not stage.is_clean)
+
+    def _ground_truth(self, hid: str, scene) -> tuple[np.ndarray, np.ndarray]:
+        """(instances (H, W), walkable (H, W)) of the ground truth in the frame of the robot's
+        map: the house's own unless the map was built at a SLAM estimate (:meth:`_robot_grid`)."""
+        return self._frames.get(hid, (scene.instances, scene.grid.walkable))
+
+    def _slam_estimate(self, hid: str, scene, views: np.ndarray):
+        """The robot's one pose estimate (:class:`benchmark.conditions.slam.SlamEstimate`) along its views,
+        when its ``pose_error`` stage is a SLAM that makes one and errs; else None."""
+        stage = self.stage("pose_error")
+        if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
+            return None
+        spacing = self.mapping.settings.spacing if self.mapping is not None else None
+        return stage.estimate(self._route_grid(scene), views, hid, spacing)
+
+    def _route_grid(self, scene):
+        """The cells the robot can drive: the floor plan's walkable cells less the doors its
+        ``mapping`` stage closes (:func:`envs.maps.scan.closed_doors`)."""
+        settings = getattr(self.mapping, "settings", None)
+        if settings is None or not getattr(settings, "door_closed", 0):
+            return scene.grid
+        from envs.maps.gridmap import GridMap
+        from envs.maps.scan import closed_doors
+
+        closed = closed_doors(scene, settings.door_closed, settings.seed)
+        return GridMap(scene.grid.walkable & ~closed, scene.grid.resolution, scene.grid.origin)
 
     def score_path(self, hid: str) -> Path:
         return self.store.score_path(self.keys["score"], hid, content=self.contents(hid)["score"])
@@ -536,14 +590,20 @@ class MethodPipeline(Pipeline):
 
         # the camera saw from the true poses; the method receives the poses as the robot's SLAM
         # gives them and the classes as its classifier (and the classifier-noise stage) gives them
+        def route():  # a SLAM pose error's route: every view's true pose, the cells it can drive, the scan spacing
+            spacing = self.mapping.settings.spacing if self.mapping is not None else None
+            return self._render_poses(hid), self._route_grid(scene), spacing
+
         result = self.method.run(lambda: self._observations(hid, scene, timings), robot_grid,
-                                 method.Context(scene=scene, house_id=hid), _HouseCache(self, hid, scene), timings)
+                                 method.Context(scene=scene, house_id=hid, route=route), _HouseCache(self, hid, scene),
+                                 timings)
         grid, poses, proba_in, seen = result.grid, result.classified.poses, result.proba, result.classified.seen
         t = time.perf_counter()
         # scored on the ground truth's walkable area: cells the robot's map calls free beyond it
         # are not scored; walkable cells it leaves unknown or occupied are unlabelled (-1)
-        scored = np.where(scene.grid.walkable, result.labels, -1)
-        out: dict[str, Any] = score_semantic(scored, scene.instances, scene.instance_classes, self.metric_params,
+        gt_instances, gt_walkable = self._ground_truth(hid, scene)  # in the robot map's frame
+        scored = np.where(gt_walkable, result.labels, -1)
+        out: dict[str, Any] = score_semantic(scored, gt_instances, scene.instance_classes, self.metric_params,
                                              classes=list(scene.classes), resolution=scene.grid.resolution)
         timings["t_score"] = time.perf_counter() - t
         out["n_views"] = int(len(poses))
@@ -677,13 +737,14 @@ class SegmenterPipeline(Pipeline):
         # every segmenter sees the robot's map only
         inst = (self.segmenter(grid, scene=scene) if getattr(self.segmenter, "uses_scene", False)
                 else self.segmenter(grid))
-        inst = np.where(grid.walkable & scene.grid.walkable, inst, -1)
+        gt_instances, gt_walkable = self._ground_truth(hid, scene)  # in the robot map's frame
+        inst = np.where(grid.walkable & gt_walkable, inst, -1)
         # a segmenter that runs elsewhere (ROSE² in its own environment) says how long it took
         timings.update({k: float(v) for k, v in (getattr(self.segmenter, "last_info", None) or {}).items()
                         if k.startswith("t_")})
         timings["t_segment"] = time.perf_counter() - t
         t = time.perf_counter()
-        out = dict(score_instances(inst, scene.instances, self.metric_params, resolution=scene.grid.resolution))
+        out = dict(score_instances(inst, gt_instances, self.metric_params, resolution=scene.grid.resolution))
         timings["t_score"] = time.perf_counter() - t
         out.update(robot)
         if self.save_maps:

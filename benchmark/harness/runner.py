@@ -37,7 +37,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from benchmark.config import ROBOT_STAGES, robot_settings
+from benchmark.config import ROBOT_STAGES, robot_settings, shapes_map
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
 from benchmark.harness.executor import (
@@ -92,7 +92,8 @@ def stage_keys(cfg: DictConfig) -> dict[str, str]:
     classify = config_key("classify", render, _plain(cfg.get("classifier")))
     keys = {"render": render, "classify": classify}
     if "mapping" in robot:  # the robot's map: the house, the views it drove through, the mapping
-        keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"])
+        slam = [{"pose_error": robot["pose_error"]}] if shapes_map(robot) else []
+        keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"], *slam)
     if cfg.get("segmenter") is not None:
         parts = [{"mapping": keys["map"]}] if "mapping" in robot else []
         keys["score"] = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics), *parts)
@@ -210,7 +211,8 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     if seg is not None and "mapping" in robot:  # the robot's map is built along its views
         groups = (*groups, "viewpoints")
         names["viewpoints"] = choices.get("viewpoints", "")
-    robot_groups = tuple(g for g in ROBOT_STAGES if g in robot and (seg is None or g == "mapping"))
+    robot_groups = tuple(g for g in ROBOT_STAGES if g in robot and (
+        seg is None or g == "mapping" or (g == "pose_error" and "mapping" in robot and shapes_map(robot))))
     common = dict(
         env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg), names=names,
         metric_params=metric_params, force=expand_force(cfg.run.get("force")),

@@ -18,8 +18,16 @@ import numpy as np
 
 from envs.maps.gridmap import GridMap
 from envs.maps.reachable import reachable_mask, seed_cells
-from envs.maps.scan import DEFAULT_WALL_HEIGHT, ScanSettings, house_wall_height, robot_scan_map
+from envs.maps.scan import (
+    DEFAULT_WALL_HEIGHT,
+    ScanSettings,
+    closed_doors,
+    house_wall_height,
+    robot_scan_map,
+    scan_obstacles,
+)
 from envs.maps.scene import Scene
+from envs.maps.slam_map import scan_map_at_estimate
 
 
 class ScanMapping:
@@ -37,9 +45,17 @@ class ScanMapping:
             raise ValueError(f"mapping: unknown setting(s) {unknown}; expected {sorted(ScanSettings.__dataclass_fields__)}")
         self.settings = ScanSettings(**settings).check({k: f"mapping.{k}" for k in ScanSettings.__dataclass_fields__})
 
-    def __call__(self, scene: Scene, poses: np.ndarray, house=None) -> np.ndarray:
+    def __call__(self, scene: Scene, poses: np.ndarray, house=None,
+                 estimate: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(H, W) bool free cells of the scan map built along ``poses`` (capture order), those
         4-connected to a view (a view within 1 m of free space snaps to it).
+
+        Args:
+            estimate: a SLAM robot's ``(true (M, 3), estimated (M, 3), view index (N,))`` scan
+                poses (:class:`benchmark.conditions.slam.OdometrySlam`): scans are measured at the true
+                poses and inserted at the estimated ones
+                (:func:`envs.maps.slam_map.scan_map_at_estimate`), and the views' estimated
+                positions seed the reachable area. None: scans at the true poses.
 
         Raises:
             ValueError: the scan plane is not below the house's walls (one line)."""
@@ -47,6 +63,13 @@ class ScanMapping:
         if not self.settings.height < wall:
             raise ValueError(f"mapping.height = {self.settings.height!r}: expected metres below the house's walls "
                              f"({wall:g} m)")
+        if estimate is not None:
+            true, est, views = (np.asarray(a) for a in estimate)
+            obstacles = scan_obstacles(scene, self.settings.height, wall, self.settings.legs, self.settings.leg_size)
+            obstacles |= closed_doors(scene, self.settings.door_closed, self.settings.seed)
+            scan = scan_map_at_estimate(obstacles, scene.grid, true, est, self.settings)
+            grid = GridMap(scan.free, scene.grid.resolution, scene.grid.origin)
+            return reachable_mask(scan.free, seed_cells(grid, est[views][:, :2]))
         scan, _ = robot_scan_map(scene, poses, self.settings, wall)
         # free pockets the laser saw but the robot cannot drive to (under a table, behind a
         # ring of chairs) are left out, as the environment's reachable-area rule does

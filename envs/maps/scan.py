@@ -7,7 +7,13 @@ What it models (issue #25, item 1):
   already cut out: a door opening never blocks), so does everything outside the floor
   (``scene.rooms < 0``), and so does every object whose box spans the height
   (``base < height < top``): a box standing on the floor blocks, a table top above the
-  plane does not (the scan passes under it; table legs are not modelled).
+  plane does not (the scan passes under it; with ``legs``, furniture of :data:`LEGGED_TYPES` blocks with its four legs only).
+* **Closed doors** (``door_closed``, :func:`closed_doors`): each door closed with that probability
+  fills its opening in the wall band: it blocks beams and the route.
+* **Grazing incidence** (``grazing_dropout``): a beam hitting a surface at incidence angle i also
+  returns nothing with probability ``grazing_dropout * (1 - cos i)`` (:func:`surface_normals`).
+* **People** (``people``, ``person_radius``): discs drawn anew for every scan on unblocked cells;
+  a beam meeting one first returns from it (transient hits).
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
   A beam is the digital (Bresenham) line of :mod:`envs.maps.rays` from that cell to the
@@ -35,7 +41,7 @@ What it models (issue #25, item 1):
 
 What it leaves out: the robot's own pose error while mapping (scans are placed at the true
 poses; pose error is a separate option applied to the views), beam width and incidence angle,
-glass and mirrors, moving people, the scanner's own height above a sloped floor, table legs,
+glass and mirrors, people moving during a scan, the scanner's own height above a sloped floor, table legs (without ``legs``),
 and the time a scan takes (all beams of a scan share one pose).
 
 The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.maps.rays.walk_beam`,
@@ -46,6 +52,7 @@ pure-Python version with its own line walk, used by the tests and ``make perf``.
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -99,6 +106,17 @@ class ScanSettings:
         log_odds_min: lower clamp of a cell's log-odds (-2.0: p = 0.12).
         log_odds_max: upper clamp of a cell's log-odds (3.5: p = 0.97).
         seed: seed of the range noise and dropout draws.
+        legs: furniture that stands on legs (:data:`LEGGED_TYPES`) blocks the plane with its four
+            legs only, not its whole box (issue 37, item 4).
+        leg_size: a leg's square cross-section side, metres.
+        door_closed: probability that each door of the house is closed (drawn per door from
+            ``seed`` and the door's id): a closed door blocks beams and the robot's route.
+        grazing_dropout: extra chance that a beam returns nothing, ``grazing_dropout * (1 - cos i)``
+            at incidence angle ``i`` on the surface it hits (:func:`surface_normals`): 0 head on,
+            the whole amount along the surface.
+        people: people standing in the house during each scan (each scan its own draw of places,
+            uniform over the cells the plane does not hit): discs that return a beam first.
+        person_radius: metres, a person's radius at scan height.
     """
 
     height: float = 0.25
@@ -114,6 +132,12 @@ class ScanSettings:
     log_odds_min: float = -2.0
     log_odds_max: float = 3.5
     seed: int = 0
+    legs: bool = False
+    leg_size: float = 0.05
+    door_closed: float = 0.0
+    grazing_dropout: float = 0.0
+    people: int = 0
+    person_radius: float = 0.2
 
     def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
@@ -157,6 +181,18 @@ class ScanSettings:
                         f"(else no cell can be occupied)")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or self.seed < 0:
             raise error("seed", self.seed, "an integer >= 0")
+        if not isinstance(self.legs, bool | np.bool_):
+            raise error("legs", self.legs, "true or false")
+        if not (_finite_number(self.leg_size) and 0 < self.leg_size <= 0.5):
+            raise error("leg_size", self.leg_size, "metres, 0 < leg_size <= 0.5")
+        if not (_finite_number(self.door_closed) and 0 <= self.door_closed <= 1):
+            raise error("door_closed", self.door_closed, "a probability in [0, 1]")
+        if not (_finite_number(self.grazing_dropout) and 0 <= self.grazing_dropout <= 1):
+            raise error("grazing_dropout", self.grazing_dropout, "a probability in [0, 1]")
+        if isinstance(self.people, bool) or not isinstance(self.people, int | np.integer) or self.people < 0:
+            raise error("people", self.people, "an integer >= 0")
+        if not (_finite_number(self.person_radius) and 0 < self.person_radius <= 1):
+            raise error("person_radius", self.person_radius, "metres, 0 < person_radius <= 1")
         return self
 
     @property
@@ -200,7 +236,55 @@ def house_wall_height(house) -> float:
     return min(tops) if tops else DEFAULT_WALL_HEIGHT
 
 
-def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WALL_HEIGHT) -> np.ndarray:
+#: object types that stand on legs: at the scan plane a 2D laser sees their legs, not their box
+LEGGED_TYPES = ("Chair", "CoffeeTable", "Desk", "DiningTable", "SideTable", "Stool")
+
+
+def leg_centres(o, leg_size: float) -> np.ndarray:
+    """(4, 2) world (x, z) centres of an object's legs: squares of side ``leg_size`` in the corners
+    of its footprint box (its centre when the box is narrower than two legs)."""
+    hx, hz = max(o.size[0] / 2 - leg_size / 2, 0.0), max(o.size[2] / 2 - leg_size / 2, 0.0)
+    a = np.deg2rad(o.yaw)
+    ux, uz = np.array([np.cos(a), -np.sin(a)]), np.array([np.sin(a), np.cos(a)])
+    c = np.array(o.center)
+    return np.array([c + sx * hx * ux + sz * hz * uz for sx, sz in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
+def _mark_legs(block: np.ndarray, grid, o, leg_size: float) -> None:
+    """Block each leg's cells: those whose centre lies in the leg's square, and the cell of its centre."""
+    h, w = block.shape
+    a = np.deg2rad(o.yaw)
+    for cx, cz in leg_centres(o, leg_size):
+        r, c = grid.world_to_cell(cx, cz)
+        k = int(math.ceil(leg_size / grid.resolution)) + 1
+        r0, r1, c0, c1 = max(int(r) - k, 0), min(int(r) + k + 1, h), max(int(c) - k, 0), min(int(c) + k + 1, w)
+        if r0 < r1 and c0 < c1:
+            rr, cc = np.mgrid[r0:r1, c0:c1]
+            x, z = grid.pixel_to_world(rr, cc)
+            u = (x - cx) * np.cos(a) - (z - cz) * np.sin(a)
+            v = (x - cx) * np.sin(a) + (z - cz) * np.cos(a)
+            block[r0:r1, c0:c1] |= (np.abs(u) <= leg_size / 2) & (np.abs(v) <= leg_size / 2)
+        if 0 <= r < h and 0 <= c < w:
+            block[int(r), int(c)] = True
+
+
+def closed_doors(scene: Scene, door_closed: float, seed: int = 0) -> np.ndarray:
+    """(H, W) bool cells of the doors that are closed: each door of ``scene.doors`` independently
+    with probability ``door_closed``, its draw seeded by ``seed`` and the door's id (CRC-32), so a
+    door is closed or open whatever the other doors and settings; a closed door fills the opening
+    its hole cut out of the wall band."""
+    out = np.zeros(scene.grid.shape, bool)
+    if door_closed <= 0:
+        return out
+    for door_id, cells in (scene.doors or {}).items():
+        u = np.random.default_rng([int(seed), 3, zlib.crc32(str(door_id).encode())]).random()
+        if u < door_closed and len(cells):
+            out[cells[:, 0], cells[:, 1]] = True
+    return out
+
+
+def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WALL_HEIGHT, legs: bool = False,
+                   leg_size: float = 0.05) -> np.ndarray:
     """What a scan plane ``height`` metres above the floor hits.
 
     Args:
@@ -208,6 +292,8 @@ def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WAL
             has no house to cut: every non-walkable cell blocks.
         height: scan plane height, metres.
         wall_height: the house's lowest wall top, metres (:func:`house_wall_height`).
+        legs: objects of :data:`LEGGED_TYPES` block with their four legs (squares of side
+            ``leg_size`` metres in the corners of their box) instead of their whole footprint.
 
     Returns:
         (H, W) bool: wall bands (door openings are not walls), cells outside the floor
@@ -224,6 +310,9 @@ def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WAL
     h, w = grid.shape
     for o in scene.objects:
         if not (o.base < height < o.top):
+            continue
+        if legs and o.object_type in LEGGED_TYPES:
+            _mark_legs(block, grid, o, leg_size)
             continue
         cs = o.corners()
         r0, c0 = grid.world_to_cell(cs[:, 0].min(), cs[:, 1].max())
@@ -260,6 +349,47 @@ def _beam_draws(settings: ScanSettings, noise_rng, drop_rng, m: int) -> tuple[np
              else np.zeros((m, nb)))
     drop = drop_rng.random((m, nb)) < settings.dropout if settings.dropout > 0 else np.zeros((m, nb), np.bool_)
     return noise, drop
+
+
+def surface_normals(obstacles: np.ndarray) -> np.ndarray:
+    """(H, W, 2) float64 (d_row, d_col) surface direction of each obstacle cell: the sum of the
+    offsets to its free 8-neighbours (off-map neighbours count as blocked), zero for cells with no
+    free neighbour and for free cells. Not normalised."""
+    ob = np.asarray(obstacles, bool)
+    free = np.pad(~ob, 1, constant_values=False)
+    h, w = ob.shape
+    out = np.zeros((h, w, 2))
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr or dc:
+                nb = free[1 + dr:1 + dr + h, 1 + dc:1 + dc + w]
+                out[..., 0] += dr * nb
+                out[..., 1] += dc * nb
+    out[~ob] = 0.0
+    return out
+
+
+def _grazing_draws(settings: ScanSettings, rng, m: int) -> np.ndarray:
+    """(m, n_beams) uniform draws of the grazing dropout (zeros when it is off: nothing drawn)."""
+    if settings.grazing_dropout > 0:
+        return rng.random((m, settings.n_beams))
+    return np.zeros((m, settings.n_beams))
+
+
+def people_draws(settings: ScanSettings, rng, obstacles: np.ndarray, resolution: float, m: int) -> np.ndarray:
+    """(m, people, 3) per scan the people's (row, col) centres in continuous pixels (a uniform
+    cell the plane does not hit, its centre) and radius in pixels; (m, 0, 3) without people."""
+    if settings.people <= 0:
+        return np.zeros((m, 0, 3))
+    free = np.flatnonzero(~np.asarray(obstacles, bool).ravel())
+    if len(free) == 0:
+        return np.zeros((m, 0, 3))
+    cells = free[rng.integers(0, len(free), (m, settings.people))]
+    w = obstacles.shape[1]
+    out = np.empty((m, settings.people, 3))
+    out[..., 0], out[..., 1] = cells // w + 0.5, cells % w + 0.5
+    out[..., 2] = settings.person_radius / resolution
+    return out
 
 
 def _draw_streams(seed: int):
@@ -299,8 +429,49 @@ def _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min,
 
 
 @njit(cache=True, nogil=True)
+def person_first(persons, m, r0, c0, theta, lr, lc, n):
+    """Index of the first of the ``n`` line cells at or past the nearest person disc the beam
+    from cell (r0, c0) along ``theta`` meets (distances between cell centres), -1 if none."""
+    dr = -np.cos(theta)
+    dc = np.sin(theta)
+    best = np.inf
+    for p in range(persons.shape[1]):
+        vr = persons[m, p, 0] - (r0 + 0.5)
+        vc = persons[m, p, 1] - (c0 + 0.5)
+        rad = persons[m, p, 2]
+        t = vr * dr + vc * dc
+        perp2 = vr * vr + vc * vc - t * t
+        if t <= 0.0 or perp2 > rad * rad:
+            continue
+        d = t - np.sqrt(rad * rad - perp2)
+        if 0.0 < d < best:
+            best = d
+    if best == np.inf:
+        return -1
+    for j in range(n):
+        if np.hypot(lr[j] - r0, lc[j] - c0) >= best:
+            return j
+    return -1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def grazes(normals, r, c, theta, grazing, u):
+    """True when a beam along ``theta`` hitting cell (r, c) returns nothing: ``u`` below
+    ``grazing * (1 - cos i)``, ``i`` the angle between the beam and the cell's surface normal
+    (:func:`surface_normals`; a cell without one never grazes)."""
+    nr = normals[r, c, 0]
+    nc = normals[r, c, 1]
+    nn = np.sqrt(nr * nr + nc * nc)
+    if nn == 0.0:
+        return False
+    cos_i = abs(-nr * np.cos(theta) + nc * np.sin(theta)) / nn
+    return u < grazing * (1.0 - cos_i)
+
+
+@njit(cache=True, nogil=True)
 def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
-                 l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last):
+                 l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last,
+                 normals, grazing, graze_u, persons):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -330,6 +501,13 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
             if noise[m, b] > 0:
                 extra = int(1.4143 * (noise[m, b] / res + 0.125)) + 2
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, extra, lr, lc)
+            kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) \
+                if persons.shape[1] > 0 else -1
+            if kp >= 0:
+                k_hit = kp  # a person stands in the beam's way: it returns from them
+            elif grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing,
+                                                          graze_u[m, b]):
+                continue  # a grazing beam returned nothing
             n_free = n
             end_r = -1
             end_c = -1
@@ -394,6 +572,9 @@ class ScanMapper:
         self._touched_c = np.empty(grid.shape[0] * grid.shape[1], np.int32)
         self._last = np.array([-1, -1, 0], np.int64)  # the previous scan's cell and its touched count
         self._noise_rng, self._drop_rng = _draw_streams(settings.seed)
+        self._graze_rng = np.random.default_rng([int(settings.seed), 4])
+        self._people_rng = np.random.default_rng([int(settings.seed), 5])
+        self._normals = surface_normals(self.obstacles) if settings.grazing_dropout > 0 else np.zeros((1, 1, 2))
         self.n_scans = 0
         self.free_level = logit(settings.free_thresh)
         self.occupied_level = logit(settings.occupied_thresh)
@@ -410,12 +591,14 @@ class ScanMapper:
         noise, drop = _beam_draws(s, self._noise_rng, self._drop_rng, len(poses))
         r, c = self.grid.world_to_cell(poses[:, 0], poses[:, 1])
         res = self.grid.resolution
-        exact = s.range_noise == 0 and s.dropout == 0
+        exact = s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0 and s.people == 0
+        graze_u = _grazing_draws(s, self._graze_rng, len(poses))
+        persons = people_draws(s, self._people_rng, self.obstacles, self.grid.resolution, len(poses))
         done = _scan_kernel(self.obstacles, r.astype(np.int64), c.astype(np.int64), s.n_beams,
                             _range_px(s, self.grid.shape, res), res, float(s.max_range), noise, drop, exact,
                             float(s.log_odds_hit), float(s.log_odds_miss), float(s.log_odds_min),
                             float(s.log_odds_max), self.log_odds, self._state, self._touched_r, self._touched_c,
-                            self.n_scans, self._last)
+                            self.n_scans, self._last, self._normals, float(s.grazing_dropout), graze_u, persons)
         self.n_scans += int(done)
         return int(done)
 
@@ -467,8 +650,10 @@ def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
         (the scan map, the (M, 3) scan poses).
     """
     settings.check()
-    obstacles = scan_obstacles(scene, settings.height, wall_height)
-    scans = trajectory(scene.grid.walkable, scene.grid, poses, settings.spacing)
+    obstacles = scan_obstacles(scene, settings.height, wall_height, settings.legs, settings.leg_size)
+    closed = closed_doors(scene, settings.door_closed, settings.seed)
+    obstacles |= closed  # a closed door blocks beams, and the route: the robot cannot pass it
+    scans = trajectory(scene.grid.walkable & ~closed, scene.grid, poses, settings.spacing)
     return scan_map(obstacles, scene.grid, scans, settings), scans
 
 
@@ -510,6 +695,8 @@ class ReferenceScanMapper:
         self.cells: dict[tuple[int, int], float] = {}
         self._noise_rng, self._drop_rng = np.random.default_rng([int(settings.seed), 1]), \
             np.random.default_rng([int(settings.seed), 2])
+        self._graze_rng = np.random.default_rng([int(settings.seed), 4])
+        self._people_rng = np.random.default_rng([int(settings.seed), 5])
         self.n_scans = 0
 
     def _draws(self, m: int):
@@ -525,6 +712,15 @@ class ReferenceScanMapper:
         blocked = self.obstacles.tolist()
         poses = np.asarray(scan_poses, float).reshape(-1, 3)
         noise, drop = self._draws(len(poses))
+        graze_u = (self._graze_rng.random((len(poses), s.n_beams)) if s.grazing_dropout > 0
+                   else np.zeros((len(poses), s.n_beams)))
+        persons = []  # per scan: [(row, col, radius px)], centres of uniformly drawn unblocked cells
+        if s.people > 0:
+            unblocked = [r * w + c for r in range(h) for c in range(w) if not blocked[r][c]]
+            idx = self._people_rng.integers(0, len(unblocked), (len(poses), s.people)) if unblocked else None
+            for m in range(len(poses)):
+                persons.append([] if idx is None else [(unblocked[i] // w + 0.5, unblocked[i] % w + 0.5,
+                                                        s.person_radius / res) for i in idx[m]])
         length = math.ceil(math.hypot(h, w)) + 2 if math.isinf(s.max_range) else s.max_range / res
         done = 0
         for m, (x, z, _yaw) in enumerate(poses.tolist()):
@@ -548,9 +744,34 @@ class ReferenceScanMapper:
                     line.append((r, c))
                 dist = [math.hypot(r - row, c - col) * res for r, c in line]
                 hit = next((k for k, (r, c) in enumerate(line) if blocked[r][c]), None)
+                person = None
+                for pr, pc, rad in (persons[m] if persons else []):
+                    vr, vc = pr - (row + 0.5), pc - (col + 0.5)
+                    t = -vr * math.cos(theta) + vc * math.sin(theta)
+                    perp2 = vr * vr + vc * vc - t * t
+                    if t > 0 and perp2 <= rad * rad and 0 < t - math.sqrt(rad * rad - perp2):
+                        d = t - math.sqrt(rad * rad - perp2)
+                        person = d if person is None else min(person, d)
+                if person is not None:
+                    upto = len(line) if hit is None else hit
+                    kp = next((k for k in range(upto) if math.hypot(line[k][0] - row, line[k][1] - col) >= person),
+                              None)
+                    if kp is not None:
+                        hit = kp
+                        person = True
                 if hit is None:  # nothing within range: free evidence up to the line's end
                     passed.update(line)
                     continue
+                if s.grazing_dropout > 0 and person is not True:
+                    hr, hc = line[hit]
+                    nr = sum(dr for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
+                             and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
+                    nc = sum(dc for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
+                             and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
+                    if nr or nc:
+                        cos_i = abs(-nr * math.cos(theta) + nc * math.sin(theta)) / math.hypot(nr, nc)
+                        if graze_u[m, b] < s.grazing_dropout * (1.0 - cos_i):
+                            continue
                 measured = max(dist[hit] + noise[m, b], 0.0)
                 if measured > dist[hit]:
                     px = row + 0.5 - math.cos(theta) * (measured / res)

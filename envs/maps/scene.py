@@ -102,6 +102,8 @@ class Scene:
             (floor objects drawn over raised ones), -1 for none.
         start: the robot's start pose (world x, z metres, yaw degrees) from the house's
             ``metadata.agent``, or None when the house gives none.
+        doors: door id -> (K, 2) int (row, col) cells its opening cut out of the wall band
+            (what a closed door fills again; :func:`envs.maps.scan.closed_doors`).
     """
 
     house_id: str
@@ -115,6 +117,7 @@ class Scene:
     objects: list[ObjectFootprint] = field(default_factory=list)
     object_map: np.ndarray | None = None
     start: tuple[float, float, float] | None = None
+    doors: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def semantic(self) -> np.ndarray:
@@ -272,15 +275,19 @@ def rasterise_house(
             sl, band = _segment_band(grid0, p0, p1, half)
             if sl is not None:
                 walls[sl] |= band
-    for door in data.get("doors", []) or []:
+    doors: dict[str, np.ndarray] = {}
+    for k, door in enumerate(data.get("doors", []) or []):
         hole = door["holePolygon"]
         t0, t1 = sorted((float(hole[0]["x"]), float(hole[-1]["x"])))
+        cut = np.zeros((h, w), bool)
         for key in ("wall0", "wall1"):
             if door.get(key) in wall_seg:
                 p0, p1 = wall_seg[door[key]]
                 sl, band = _segment_band(grid0, p0, p1, half + 1.5 * resolution, (t0, t1))
                 if sl is not None:
+                    cut[sl] |= walls[sl] & band
                     walls[sl] &= ~band
+        doors[str(door.get("id", k))] = np.argwhere(cut)
 
     # objects
     object_map = np.full((h, w), -1, dtype=np.int32)
@@ -305,7 +312,7 @@ def rasterise_house(
     return Scene(
         house_id=hid, grid=grid, rooms=rooms, instances=instances, instance_classes=instance_classes,
         room_ids=[str(r["id"]) for r in data["rooms"]], classes=tuple(classes), walls=walls,
-        objects=objects, object_map=object_map, start=_agent_start(data),
+        objects=objects, object_map=object_map, start=_agent_start(data), doors=doors,
     )
 
 

@@ -178,8 +178,9 @@ def segment_yaw(dx, dz) -> np.ndarray:
     return np.mod(np.rad2deg(np.arctan2(dx, dz)), 360.0)
 
 
-def trajectory(walkable: np.ndarray, grid: GridMap, poses: np.ndarray, spacing: float) -> np.ndarray:
-    """The robot's scan poses: its route through the views sampled every ``spacing`` metres.
+def trajectory_with_views(walkable: np.ndarray, grid: GridMap, poses: np.ndarray,
+                          spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`trajectory` and (N,) the index of each view among its scan poses.
 
     Args:
         walkable: (H, W) bool cells the robot may drive on.
@@ -196,7 +197,7 @@ def trajectory(walkable: np.ndarray, grid: GridMap, poses: np.ndarray, spacing: 
         raise ValueError(f"trajectory spacing = {spacing!r}: expected metres > 0")
     poses = np.asarray(poses, np.float64).reshape(-1, 3)
     if len(poses) == 0:
-        return np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros(0, np.int64)
     r = route(walkable, grid, poses)
     seg_len = np.diff(r.travelled)
     moving = r.driven[1:] & (seg_len > 0)
@@ -214,8 +215,32 @@ def trajectory(walkable: np.ndarray, grid: GridMap, poses: np.ndarray, spacing: 
     dist = np.concatenate([s, r.travelled[r.view_index]])
     kind = np.concatenate([np.zeros(len(s), np.int64), np.ones(len(poses), np.int64)])
     order = np.lexsort((kind, dist))
-    return np.vstack([samples, poses])[order]
+    return np.vstack([samples, poses])[order], _positions(order, len(s))
 
 
-__all__ = ["Route", "route", "view_distances", "trajectory", "shortest_path", "straight_clear", "segment_yaw",
+def _positions(order: np.ndarray, n_samples: int) -> np.ndarray:
+    """Where each view (rows ``n_samples..`` before sorting) lands in the sorted scan poses."""
+    where = np.empty(len(order), np.int64)
+    where[order] = np.arange(len(order))
+    return where[n_samples:]
+
+
+def trajectory(walkable: np.ndarray, grid: GridMap, poses: np.ndarray, spacing: float) -> np.ndarray:
+    """The robot's scan poses: its route through the views sampled every ``spacing`` metres.
+
+    Args:
+        walkable: (H, W) bool cells the robot may drive on.
+        grid: the map's geometry.
+        poses: (N, 3) views (x, z metres, yaw degrees) in capture order.
+        spacing: metres of route between samples.
+
+    Returns:
+        (M, 3) poses in travel order: a sample at every multiple of ``spacing`` along the route
+        that falls on a driven segment (yaw = that segment's direction of travel), and every
+        view pose (its own yaw); at equal distance the sample comes first.
+    """
+    return trajectory_with_views(walkable, grid, poses, spacing)[0]
+
+
+__all__ = ["Route", "route", "view_distances", "trajectory", "trajectory_with_views", "shortest_path", "straight_clear", "segment_yaw",
            "STEPS", "STEP_COST"]

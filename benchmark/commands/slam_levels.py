@@ -1,0 +1,162 @@
+"""``python -m benchmark.commands.slam_levels``: what each SLAM severity (``corruption=slam_k``) and
+lost-robot level (``corruption=lost_k``: wrong loop closures; ``kidnap_k``: carried) does to a robot's trajectory and map, on the shared houses.
+
+Per house: the autotrace views (the default viewpoints), the route through them with a node every
+0.5 m, and for each level the :class:`benchmark.conditions.slam.OdometrySlam` estimate with that level's
+settings (read from ``conf/corruption/<level>.yaml`` over ``conf/pose_error/odometry.yaml``), and
+the scan map inserted at it (the level's scanner: 0.25 m plane, 10 m, 1 degree beams, no range
+noise, legged furniture as legs). The ``clean`` row is the first level's scanner at the true poses.
+Columns (means over houses): the route (m), loop closures found, wrong ones, ATE RMSE after rigid
+alignment (m) of dead reckoning and of the pose-graph estimate, that ATE per 100 m of route, the
+views' mean position error in the world frame (m), and the map's free-space IoU with the floor
+plan's walkable cells brought into the map's frame (``map_free_iou``; severity 0 is the scan map at
+the true poses). ``--figure PATH`` draws one house's maps at every level.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmark.commands.errors import cli_errors, one_line
+from benchmark.paths import CONF_DIR, procthor_houses
+
+LEVELS = ("slam_1", "slam_2", "slam_3", "slam_4", "slam_5", "lost_1", "lost_2", "lost_3", "kidnap_1", "kidnap_2")
+
+
+def level_settings(level: str) -> dict:
+    """The ``pose_error`` settings of ``conf/corruption/<level>.yaml`` over the odometry defaults."""
+    from omegaconf import OmegaConf
+
+    base = OmegaConf.load(Path(CONF_DIR) / "pose_error" / "odometry.yaml")
+    path = Path(CONF_DIR) / "corruption" / f"{level}.yaml"
+    if not path.is_file():
+        raise ValueError(f"level {level!r}: no {path}; expected one of {', '.join(LEVELS)}")
+    node = OmegaConf.to_container(OmegaConf.merge(base, OmegaConf.load(path).get("pose_error", {})), resolve=True)
+    node.pop("_target_", None)
+    return node
+
+
+def level_scanner(level: str):
+    """The :class:`envs.maps.scan.ScanSettings` of ``conf/corruption/<level>.yaml``'s ``mapping`` over
+    ``conf/mapping/scan.yaml`` (``clean``: the defaults)."""
+    from omegaconf import OmegaConf
+
+    from envs.maps.scan import ScanSettings
+
+    base = OmegaConf.load(Path(CONF_DIR) / "mapping" / "scan.yaml")
+    path = Path(CONF_DIR) / "corruption" / f"{level}.yaml"
+    over = OmegaConf.load(path).get("mapping", {}) if level != "clean" and path.is_file() else {}
+    node = OmegaConf.to_container(OmegaConf.merge(base, over), resolve=True)
+    node.pop("_target_", None)
+    return ScanSettings(**node).check()
+
+
+def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) -> tuple[list[dict], dict[str, np.ndarray]]:
+    """(one row per level, {level: (H, W) int8 occupancy of its map}) for one house."""
+    from benchmark.conditions.alignment import align_rigid, to_map_frame
+    from benchmark.conditions.slam import OdometrySlam
+    from benchmark.pose_error import pose_error_stats
+    from benchmark.viewpoints import Autotrace
+    from envs.maps.scan import scan_map, scan_obstacles
+    from envs.maps.slam_map import scan_map_at_estimate
+
+    poses = Autotrace().generate(scene)
+    walk = scene.grid.walkable
+    rows, maps = [], {}
+    for level in ("clean", *levels):
+        settings = level_scanner(levels[0] if level == "clean" and levels else level)
+        obstacles = scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size)
+        slam = OdometrySlam(**({} if level == "clean" else level_settings(level)))
+        est = slam.estimate(scene.grid, poses, house_id, settings.spacing)
+        if level == "clean":
+            m = scan_map(obstacles, scene.grid, est.true, settings)
+            aligned = walk
+        else:
+            m = scan_map_at_estimate(obstacles, scene.grid, est.true, est.estimate, settings)
+            theta, t = align_rigid(est.estimate[:, :2], est.true[:, :2])
+            aligned = to_map_frame(walk.astype(np.int8), scene.grid, theta, t, fill=0).astype(bool)
+        union = int((m.free | aligned).sum())
+        st = est.stats()
+        rows.append({"house": house_id, "level": level, "route_m": st["route_m"], "loop_closures": st["loop_closures"],
+                     "wrong_closures": st["wrong_closures"], "kidnapped_m": st["kidnapped_m"], "odometry_ate_m": st["odometry_ate_rmse_m"],
+                     "ate_rmse_m": st["ate_rmse_m"], "ate_per_100m": 100 * st["ate_rmse_m"] / max(st["route_m"], 1e-9),
+                     "view_error_m": pose_error_stats(poses, est.views)["pose_error_mean_m"],
+                     "map_free_iou": float((m.free & aligned).sum() / union) if union else 1.0})
+        maps[level] = m.occupancy
+    return rows, maps
+
+
+def draw(maps: dict[str, np.ndarray], out: Path) -> None:
+    """One panel per level: free white, occupied black, unknown grey."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from envs.atomic import atomic_write_bytes
+
+    n = len(maps)
+    cols = min(n, 3)
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 4 * rows), squeeze=False)
+    for ax, (level, occ) in zip(axes.ravel(), maps.items(), strict=False):
+        img = np.full(occ.shape, 0.6)
+        img[occ == 0], img[occ == 100] = 1.0, 0.0
+        ax.imshow(img, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+        ax.set_title(level if level != "clean" else "true poses (severity 0)")
+        ax.axis("off")
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    fig.tight_layout()
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=80)
+    plt.close(fig)
+    atomic_write_bytes(out, buf.getvalue())
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--houses", type=Path, default=procthor_houses(), help=".json/.jsonl/.jsonl.gz house file")
+    ap.add_argument("--n", type=int, default=10, help="first N houses")
+    ap.add_argument("--levels", nargs="+", default=list(LEVELS), help="corruption levels (conf/corruption names)")
+    ap.add_argument("--figure", type=Path, default=None, help="PNG of the first house's maps at every level")
+    a = ap.parse_args(argv)
+    try:
+        if a.n < 1:
+            raise ValueError(f"--n {a.n}: expected at least 1 house")
+        for level in a.levels:
+            level_settings(level)
+        from envs.datasets.house_files import load_houses
+        from envs.maps.scan import house_wall_height
+        from envs.maps.scene import rasterise_house
+
+        rows, figure_maps = [], None
+        for k, house in enumerate(load_houses(a.houses, 0, a.n)):
+            r, maps = measure(rasterise_house(house), str(k), tuple(a.levels), house_wall_height(house))
+            rows.extend(r)
+            figure_maps = maps if figure_maps is None else figure_maps
+        if a.figure is not None:
+            draw(figure_maps, a.figure)
+    except cli_errors() as e:
+        print(f"error: {one_line(e)}", file=sys.stderr)
+        return 2
+    df = pd.DataFrame(rows)
+    order = list(dict.fromkeys(df["level"]))
+    cols = ["route_m", "loop_closures", "wrong_closures", "kidnapped_m", "odometry_ate_m", "ate_rmse_m", "ate_per_100m",
+            "view_error_m", "map_free_iou"]
+    print(df.groupby("level", sort=False)[cols].mean().loc[order].reset_index().to_markdown(index=False,
+                                                                                               floatfmt=".3f"))
+    print(f"\nMeans over {df['house'].nunique()} houses; autotrace views, a node every 0.5 m, each level's scanner. "
+          f"ATE: RMSE (m) after rigid alignment; ate_per_100m in metres per 100 m of route.")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

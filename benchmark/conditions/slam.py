@@ -1,0 +1,322 @@
+"""One robot, one pose estimate: odometry along the driven path, loop closures, a pose-graph solve.
+
+``pose_error=odometry`` (:class:`OdometrySlam`). The robot drives its route through the views
+(:func:`envs.maps.trajectory.trajectory_with_views`: a node every ``spacing`` metres of path and
+one at every view). Its estimate of where it was at each node is what a graph-SLAM system gives:
+
+1. **Odometry** (:mod:`benchmark.conditions.odometry`): the moves between consecutive nodes reported with
+   the coupled rot1 / trans / rot2 noise of Probabilistic Robotics (``alpha1..alpha4``), so a
+   heading error bends every later move.
+2. **Loop closures**: node ``j`` is matched to an earlier node ``i`` when the robot is back
+   within ``closure_radius`` metres of where it was (true positions), has driven at least
+   ``closure_min_travel`` metres since, and the two places see each other (the digital line
+   between them is walkable). Of the nodes within reach, the nearest is matched. The match
+   measures j's pose relative to i with Gaussian error (``closure_sigma_xy`` metres per axis,
+   ``closure_sigma_yaw`` degrees): what scan matching gives.
+3. **Wrong loop closures** (the lost robot, its own condition): ``wrong_closures`` extra matches
+   between places at least ``wrong_min_distance`` metres apart that the matcher takes for the
+   same place (relative position ~0, the true relative heading), weighted like real ones.
+   A **kidnapping** (``kidnap_m``): for ``kidnap_m`` metres of route from a point drawn after
+   ``closure_min_travel`` metres the robot is carried: odometry reports no move and no turn
+   (with the confidence of a robot standing still); only loop closures can pull it back.
+4. **Pose-graph solve** (:mod:`benchmark.conditions.pose_graph`): odometry edges (information from the
+   motion model's covariance of the *reported* moves) and closure edges, least squares with
+   SciPy from the dead-reckoning chain, node 0 fixed at the true start (the map's frame is the
+   robot's start pose). Noisy edges leave a residual.
+
+The corrected node poses are the robot's one estimate: the scan map is built by inserting each
+scan (ranges measured from the true pose) at the estimated node pose
+(:func:`envs.maps.slam_map.scan_map_at_estimate`, through ``mapping=scan``), and the views take
+the same estimate. Every alpha 0, no wrong closures and no kidnapping: the true poses unchanged,
+bit for bit.
+
+Leaves out: wheel slip events and bumps (heavy-tailed odometry), a scan matcher's own failure
+modes other than the wrong closures (degenerate corridors), closures found by appearance
+beyond ``closure_radius``, and the online (incremental) nature of SLAM (the views take the final,
+smoothed estimate).
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from benchmark.classifiers.noise import text_key
+from benchmark.conditions.alignment import ate_rmse
+from benchmark.conditions.odometry import (
+    from_se2,
+    increments,
+    integrate,
+    move_sigmas,
+    noisy_moves,
+    to_se2,
+    wrap,
+)
+from benchmark.conditions.pose_graph import PoseGraph, move_edge, relative, solve
+from benchmark.pose_error import pose_error_stats
+from envs.maps.gridmap import GridMap
+from envs.maps.trajectory import straight_clear, trajectory_with_views
+
+#: sigma floor (metres, radians) for an edge measured exactly, so its information is finite
+SIGMA_FLOOR = 1e-3
+
+
+@dataclass
+class SlamEstimate:
+    """The robot's trajectory and its estimate.
+
+    Attributes:
+        true: (M, 3) true node poses (x, z metres, yaw degrees) in travel order.
+        estimate: (M, 3) the corrected estimate (same units).
+        odometry: (M, 3) dead reckoning (before the solve).
+        view_index: (N,) node index of each view.
+        travelled: (M,) metres driven up to each node.
+        closures: (C, 2) node pairs (i, j) of the true loop closures.
+        wrong: (W, 2) node pairs of the wrong ones.
+        chi2: the solve's final sum of squared whitened residuals; dof its degrees of freedom.
+        kidnapped_m: metres of route driven while carried (the whole moves overlapping the window).
+    """
+
+    true: np.ndarray
+    estimate: np.ndarray
+    odometry: np.ndarray
+    view_index: np.ndarray
+    travelled: np.ndarray
+    closures: np.ndarray
+    wrong: np.ndarray
+    chi2: float = 0.0
+    dof: int = 0
+    kidnapped_m: float = 0.0
+
+    @property
+    def views(self) -> np.ndarray:
+        """(N, 3) the views' estimated poses."""
+        return self.estimate[self.view_index]
+
+    def stats(self) -> dict[str, float]:
+        """Row columns: ATE RMSE after rigid alignment of the whole trajectory (metres), the same
+        for dead reckoning, route length, closures found and wrong, chi2 per degree of freedom."""
+        return {"ate_rmse_m": ate_rmse(self.estimate[:, :2], self.true[:, :2]),
+                "odometry_ate_rmse_m": ate_rmse(self.odometry[:, :2], self.true[:, :2]),
+                "route_m": float(self.travelled[-1]) if len(self.travelled) else 0.0,
+                "loop_closures": int(len(self.closures)), "wrong_closures": int(len(self.wrong)),
+                "kidnapped_m": self.kidnapped_m,
+                "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0}
+
+
+def _number(key: str, value, *, integer: bool = False, positive: bool = False) -> None:
+    ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    ok = ok and (value > 0 if positive else value >= 0) and (not integer or float(value).is_integer())
+    if not ok:
+        want = ("an integer >= 0" if integer else "a number > 0" if positive else "a number >= 0")
+        raise ValueError(f"pose_error.{key} = {value!r}: expected {want}")
+
+
+class OdometrySlam:
+    """``pose_error=odometry``: the graph-SLAM estimate of map and views (module docstring).
+
+    Args:
+        alpha1: rad^2 of turn noise per rad^2 turned.
+        alpha2: rad^2 of turn noise per m^2 driven.
+        alpha3: m^2 of translation noise per m^2 driven.
+        alpha4: m^2 of translation noise per rad^2 turned.
+        closure_radius: metres within which a revisit is recognised (0: no loop closures).
+        closure_min_travel: metres driven between two nodes before they may close a loop.
+        closure_sigma_xy: metres, a closure's error per axis.
+        closure_sigma_yaw: degrees, a closure's heading error.
+        wrong_closures: number of wrong loop closures (a lost robot).
+        wrong_min_distance: metres between the two places a wrong closure joins, at least.
+        kidnap_m: metres of route the robot is carried while odometry reports nothing (a kidnapping).
+        spacing: metres of path between nodes when no ``mapping`` stage sets it (the scan spacing).
+        seed: with the house id, seeds the draws.
+    """
+
+    AMOUNTS = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures", "kidnap_m")
+
+    def __init__(self, alpha1: float = 0.0, alpha2: float = 0.0, alpha3: float = 0.0, alpha4: float = 0.0,
+                 closure_radius: float = 1.0, closure_min_travel: float = 5.0, closure_sigma_xy: float = 0.02,
+                 closure_sigma_yaw: float = 0.5, wrong_closures: int = 0, wrong_min_distance: float = 3.0,
+                 kidnap_m: float = 0.0, spacing: float = 0.5, seed: int = 0):
+        for key, v in (("alpha1", alpha1), ("alpha2", alpha2), ("alpha3", alpha3), ("alpha4", alpha4),
+                       ("closure_radius", closure_radius), ("closure_min_travel", closure_min_travel),
+                       ("closure_sigma_xy", closure_sigma_xy), ("closure_sigma_yaw", closure_sigma_yaw),
+                       ("wrong_min_distance", wrong_min_distance), ("kidnap_m", kidnap_m)):
+            _number(key, v)
+        _number("wrong_closures", wrong_closures, integer=True)
+        _number("spacing", spacing, positive=True)
+        if isinstance(seed, bool) or not isinstance(seed, int):
+            raise ValueError(f"pose_error.seed = {seed!r}: expected an integer")
+        self.alphas = (float(alpha1), float(alpha2), float(alpha3), float(alpha4))
+        self.closure_radius, self.closure_min_travel = float(closure_radius), float(closure_min_travel)
+        self.closure_sigma_xy, self.closure_sigma_yaw = float(closure_sigma_xy), float(closure_sigma_yaw)
+        self.wrong_closures, self.wrong_min_distance = int(wrong_closures), float(wrong_min_distance)
+        self.kidnap_m = float(kidnap_m)
+        self.spacing, self.seed = float(spacing), seed
+        self._memo: OrderedDict = OrderedDict()
+
+    @property
+    def is_clean(self) -> bool:
+        """True when the estimate is the truth (every alpha 0, no wrong closures)."""
+        return all(a == 0 for a in self.alphas) and self.wrong_closures == 0 and self.kidnap_m == 0
+
+    # ------------------------------------------------------------------ the estimate
+    def estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None) -> SlamEstimate:
+        """The estimate along the route through ``poses`` (memoised per house, views, spacing).
+
+        Args:
+            grid: the house's map (the route runs on its walkable cells).
+            poses: (N, 3) true view poses in capture order (every view, refused ones included).
+            house_id: seeds the draws.
+            spacing: metres between nodes (the scan map's spacing); default ``self.spacing``.
+        """
+        poses = np.ascontiguousarray(poses, np.float64).reshape(-1, 3)
+        spacing = self.spacing if spacing is None else float(spacing)
+        key = (house_id, poses.tobytes(), spacing, grid.shape, grid.resolution, tuple(grid.origin),
+               zlib.crc32(np.packbits(grid.walkable).tobytes()))
+        if key not in self._memo:
+            self._memo[key] = self._estimate(grid, poses, house_id, spacing)
+            while len(self._memo) > 4:
+                self._memo.popitem(last=False)
+        return self._memo[key]
+
+    def _estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float) -> SlamEstimate:
+        true, view_index = trajectory_with_views(grid.walkable, grid, poses, spacing)
+        steps = np.hypot(*np.diff(true[:, :2], axis=0).T) if len(true) > 1 else np.zeros(0)
+        travelled = np.concatenate([[0.0], np.cumsum(steps)])
+        none = np.zeros((0, 2), np.int64)
+        if self.is_clean or len(true) < 2:
+            return SlamEstimate(true, true.copy(), true.copy(), view_index, travelled, none, none)
+        hk = text_key("slam", house_id)
+        rng_moves, rng_close, rng_wrong = (np.random.default_rng([self.seed, hk, k]) for k in (1, 2, 3))
+        states = to_se2(true)
+        moves = increments(states)
+        reported = noisy_moves(moves, self.alphas, rng_moves.standard_normal(moves.shape))
+        kidnapped = self._kidnap(travelled, np.random.default_rng([self.seed, hk, 4]))
+        reported[kidnapped] = 0.0  # carried: the wheels report no move, no turn
+        dead = integrate(states[0], reported)
+        z, info = move_edge(reported, move_sigmas(reported, self.alphas), SIGMA_FLOOR)
+        n = len(states)
+        ei, ej, ez, einfo = [np.arange(n - 1)], [np.arange(1, n)], [z], [info]
+        closures = self._closures(grid, states, travelled)
+        wrong = self._wrong(states, travelled, rng_wrong)
+        sig = np.array([max(self.closure_sigma_xy, SIGMA_FLOOR), max(self.closure_sigma_xy, SIGMA_FLOOR),
+                        max(math.radians(self.closure_sigma_yaw), SIGMA_FLOOR)])
+        for pairs, rng in ((closures, rng_close), (wrong, rng_wrong)):
+            if len(pairs) == 0:
+                continue
+            zc = relative(states, pairs[:, 0], pairs[:, 1])
+            if pairs is wrong:
+                zc[:, :2] = 0.0  # the matcher takes the two places for one
+            zc = zc + rng.standard_normal(zc.shape) * np.array([self.closure_sigma_xy, self.closure_sigma_xy,
+                                                                  math.radians(self.closure_sigma_yaw)])
+            zc[:, 2] = wrap(zc[:, 2])
+            ei.append(pairs[:, 0])
+            ej.append(pairs[:, 1])
+            ez.append(zc)
+            einfo.append(np.broadcast_to(np.diag(1.0 / sig), (len(pairs), 3, 3)))
+        chi2, dof, est = 0.0, 0, dead
+        if len(ei) > 1:
+            graph = PoseGraph(n, np.concatenate(ei), np.concatenate(ej), np.vstack(ez), np.concatenate(einfo))
+            est, info_ = solve(graph, dead)
+            chi2, dof = info_["chi2"], info_["dof"]
+        return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
+                            float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()))
+
+    def _kidnap(self, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(M-1,) bool moves made while carried: ``kidnap_m`` metres of route from a point drawn
+        uniformly between ``closure_min_travel`` metres and the end (none when the route is shorter)."""
+        out = np.zeros(len(travelled) - 1, bool)
+        u = rng.random()  # drawn whatever the settings
+        if self.kidnap_m <= 0 or travelled[-1] <= self.closure_min_travel + self.kidnap_m:
+            return out
+        start = self.closure_min_travel + u * (travelled[-1] - self.kidnap_m - self.closure_min_travel)
+        return (travelled[1:] > start) & (travelled[:-1] < start + self.kidnap_m)
+
+    def _closures(self, grid: GridMap, states: np.ndarray, travelled: np.ndarray) -> np.ndarray:
+        """(C, 2) node pairs (i < j) closing a loop: for each j, the nearest earlier i within
+        ``closure_radius`` m, ``closure_min_travel`` m of driving before, in sight of it."""
+        if self.closure_radius <= 0 or len(states) < 2:
+            return np.zeros((0, 2), np.int64)
+        pairs = cKDTree(states[:, :2]).query_pairs(self.closure_radius, output_type="ndarray")
+        if len(pairs) == 0:
+            return np.zeros((0, 2), np.int64)
+        pairs = np.sort(pairs, axis=1)
+        pairs = pairs[travelled[pairs[:, 1]] - travelled[pairs[:, 0]] >= self.closure_min_travel]
+        d = np.hypot(*(states[pairs[:, 1], :2] - states[pairs[:, 0], :2]).T)
+        order = np.lexsort((pairs[:, 0], d, pairs[:, 1]))  # per j: nearest, then earliest
+        rows, cols = grid.world_to_cell(states[:, 0], states[:, 1])
+        out, done = [], set()
+        for i, j in pairs[order]:
+            if j in done:
+                continue
+            if straight_clear(grid.walkable, (int(rows[i]), int(cols[i])), (int(rows[j]), int(cols[j]))):
+                out.append((i, j))
+                done.add(j)
+        return np.array(out, np.int64).reshape(-1, 2)
+
+    def _wrong(self, states: np.ndarray, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(W, 2) node pairs a lost robot takes for one place (module docstring)."""
+        out = []
+        late = np.flatnonzero(travelled >= self.closure_min_travel)
+        for _ in range(self.wrong_closures):
+            if len(late) == 0:
+                break
+            j = int(rng.choice(late))
+            far = np.hypot(*(states[:, :2] - states[j, :2]).T) >= self.wrong_min_distance
+            cand = np.flatnonzero(far & (travelled <= travelled[j] - self.closure_min_travel))
+            if len(cand):
+                out.append((int(rng.choice(cand)), j))
+        return np.array(out, np.int64).reshape(-1, 2)
+
+    # ------------------------------------------------------------------ the stage
+    def __call__(self, poses: np.ndarray, grid: GridMap, house_id: str, travelled: np.ndarray | None = None,
+                 route_poses: np.ndarray | None = None, spacing: float | None = None) -> tuple[np.ndarray, dict]:
+        """(estimated (N, 3) poses of ``poses``, stats).
+
+        Args:
+            poses: (N, 3) the true poses of the views the method receives, in capture order.
+            grid: the house's map.
+            house_id: seeds the draws.
+            travelled: unused (the route is measured here); accepted for the stage's signature.
+            route_poses: (N', 3) every view the robot took in capture order, of which ``poses``
+                is a subsequence (default ``poses``): the route the estimate is made along.
+            spacing: metres between nodes (default ``self.spacing``).
+        """
+        poses = np.asarray(poses, np.float64).reshape(-1, 3)
+        route_poses = poses if route_poses is None else np.asarray(route_poses, np.float64).reshape(-1, 3)
+        if self.is_clean:
+            noisy = poses.copy()
+            extra = {"ate_rmse_m": 0.0}
+        else:
+            est = self.estimate(grid, route_poses, house_id, spacing)
+            noisy = est.views[subsequence(route_poses, poses)]
+            extra = est.stats()
+        stats = pose_error_stats(poses, noisy, grid)
+        stats.update(extra)
+        return noisy, stats
+
+
+def subsequence(route: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(N,) index into ``route`` of each of ``poses``, a subsequence of it (in order).
+
+    Raises:
+        ValueError: a pose is not in ``route`` after the previous one (one line).
+    """
+    out = np.empty(len(poses), np.int64)
+    k = 0
+    for n, p in enumerate(poses):
+        while k < len(route) and not np.array_equal(route[k], p):
+            k += 1
+        if k == len(route):
+            raise ValueError(f"view {n} at {p.tolist()} is not among the robot's route poses in order")
+        out[n] = k
+        k += 1
+    return out
+
+
+__all__ = ["OdometrySlam", "SlamEstimate", "subsequence"]

@@ -1,0 +1,165 @@
+"""The map a SLAM robot builds: ranges measured from where it was, inserted where it thinks it was.
+
+:func:`scan_map_at_estimate` is :func:`envs.maps.scan.scan_map` with two poses per scan: the
+*true* pose, from which each beam's range is measured (the same scanner: fixed beam headings in
+the world, range noise, dropout, max-range readings, the same draws), and the *estimated* pose,
+at which the reading is inserted. A beam leaving the true pose at map heading ``theta`` left the
+robot at ``theta - yaw_true``; it is inserted at heading ``theta - yaw_true + yaw_est`` from the
+estimated pose's cell, along the digital line to ``max_range`` (obstacles play no part in the
+insertion: the mapper only knows its ranges). The end cell is the last cell of that line not
+farther than the measured range; cells before it get free evidence and the end cell hit evidence
+(a max-range reading, or a reading whose end lies past ``max_range`` or off the map: free along
+the whole line, no hit). The log-odds update, clamping and thresholds are
+:mod:`envs.maps.scan`'s.
+
+With the estimate equal to the truth the map is :func:`envs.maps.scan.scan_map`'s, cell for cell
+(distances along a digital line grow strictly, so the last cell within the true range is the
+obstacle cell). With pose error a wall seen twice from poses that disagree shows twice (a
+doubled or bent wall), as in a real SLAM map.
+
+The map lives in the estimate's frame (the robot's start pose is exact, :mod:`benchmark.conditions.slam`),
+on the house grid's cells; a scan whose true cell is off the map or on an obstacle measures
+nothing, and one whose estimated cell is off the map inserts nothing (their draws are consumed
+all the same).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from envs.maps.gridmap import GridMap
+from envs.maps.scan import (
+    FREE,
+    ScanMap,
+    ScanSettings,
+    _apply_scan,
+    _beam_draws,
+    _draw_streams,
+    _grazing_draws,
+    _mark,
+    _range_px,
+    grazes,
+    occupancy_from_log_odds,
+    people_draws,
+    person_first,
+    surface_normals,
+)
+from envs.render.raycast import ray_end, trace_ray, walk_beam
+
+
+@njit(cache=True, nogil=True)
+def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_px, res, max_range_m, noise, drop,
+                     l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, normals, grazing, graze_u,
+                     persons):
+    h, w = obstacles.shape
+    cap = int(np.ceil(range_px)) + 2
+    lr = np.empty(cap, np.int32)
+    lc = np.empty(cap, np.int32)
+    nothing = np.zeros((h, w), np.bool_)
+    two_pi = 2.0 * np.pi
+    done = 0
+    for m in range(rows.shape[0]):
+        r0 = rows[m]
+        c0 = cols[m]
+        if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w or obstacles[r0, c0]:
+            continue
+        e0 = erows[m]
+        f0 = ecols[m]
+        if e0 < 0 or e0 >= h or f0 < 0 or f0 >= w:
+            continue
+        done += 1
+        s = done - 1
+        nt = 0
+        for b in range(n_beams):
+            if drop[m, b]:
+                continue
+            theta = two_pi * b / n_beams
+            # measure from the true cell
+            r1, c1 = ray_end(r0, c0, theta, range_px)
+            n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
+            kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) \
+                if persons.shape[1] > 0 else -1
+            if kp >= 0:
+                k_hit = kp  # a person stands in the beam's way: it returns from them
+            elif grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing,
+                                                          graze_u[m, b]):
+                continue  # a grazing beam returned nothing
+            hit = k_hit >= 0
+            d_m = 0.0
+            d_true = 0.0
+            if hit:
+                d_true = np.hypot(lr[k_hit] - r0, lc[k_hit] - c0) * res
+                d_m = max(d_true + noise[m, b], 0.0)
+            # insert from the estimated cell
+            phi = theta + dyaw[m]
+            r1, c1 = ray_end(e0, f0, phi, range_px)
+            n, _, _ = trace_ray(nothing, e0, f0, r1, c1, lr, lc)
+            if hit and d_m > d_true:
+                # a long reading (as scan.py): its end must lie within max_range and on the map
+                pr = e0 + 0.5 - np.cos(phi) * (d_m / res)
+                pc = f0 + 0.5 + np.sin(phi) * (d_m / res)
+                if not (d_m <= max_range_m and pr >= 0.0 and pr < h and pc >= 0.0 and pc < w):
+                    hit = False
+            elif hit:
+                # the inserted line must reach the measured range before leaving the map
+                hit = np.hypot(lr[n - 1] - e0, lc[n - 1] - f0) * res >= d_m
+            n_free = n
+            if hit:
+                k = n - 1
+                while k > 0 and np.hypot(lr[k] - e0, lc[k] - f0) * res > d_m:
+                    k -= 1
+                n_free = k
+            for j in range(n_free):
+                nt = _mark(state, touched_r, touched_c, nt, lr[j], lc[j], s, 1)
+            if hit:
+                nt = _mark(state, touched_r, touched_c, nt, lr[n_free], lc[n_free], s, 2)
+        _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min, l_max)
+    return done
+
+
+def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.ndarray, est_poses: np.ndarray,
+                         settings: ScanSettings) -> ScanMap:
+    """The occupancy map of scans measured at ``true_poses`` and inserted at ``est_poses``.
+
+    Args:
+        obstacles: (H, W) bool, what the scan plane hits (:func:`envs.maps.scan.scan_obstacles`).
+        grid: the map's geometry.
+        true_poses: (M, 3) x, z (metres), yaw (degrees): where each scan was taken.
+        est_poses: (M, 3) the same scans' estimated poses (same units, same order).
+        settings: scanner and mapper settings (the draws follow ``settings.seed`` as in
+            :func:`envs.maps.scan.scan_map`).
+
+    Returns:
+        :class:`envs.maps.scan.ScanMap` on ``grid``'s cells, in the estimate's frame.
+    """
+    s = settings.check()
+    true = np.asarray(true_poses, np.float64).reshape(-1, 3)
+    est = np.asarray(est_poses, np.float64).reshape(-1, 3)
+    if true.shape != est.shape:
+        raise ValueError(f"true poses {true.shape} and estimated poses {est.shape} must both be (M, 3)")
+    obstacles = np.ascontiguousarray(obstacles, np.bool_)
+    if obstacles.shape != grid.shape:
+        raise ValueError(f"obstacles shape {obstacles.shape} != grid shape {grid.shape}")
+    noise_rng, drop_rng = _draw_streams(s.seed)
+    noise, drop = _beam_draws(s, noise_rng, drop_rng, len(true))
+    graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(true))
+    normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
+    persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(true))
+    r, c = grid.world_to_cell(true[:, 0], true[:, 1])
+    er, ec = grid.world_to_cell(est[:, 0], est[:, 1])
+    dyaw = np.deg2rad(est[:, 2] - true[:, 2])
+    log_odds = np.zeros(grid.shape, np.float64)
+    state = np.full(grid.shape, -1, np.int32)
+    size = grid.shape[0] * grid.shape[1]
+    done = _estimate_kernel(obstacles, r.astype(np.int64), c.astype(np.int64), er.astype(np.int64),
+                            ec.astype(np.int64), dyaw, s.n_beams, _range_px(s, grid.shape, grid.resolution),
+                            grid.resolution, float(s.max_range), noise, drop, float(s.log_odds_hit),
+                            float(s.log_odds_miss), float(s.log_odds_min), float(s.log_odds_max), log_odds, state,
+                            np.empty(size, np.int32), np.empty(size, np.int32), normals,
+                            float(s.grazing_dropout), graze_u, persons)
+    occ = occupancy_from_log_odds(log_odds, s)
+    return ScanMap(log_odds.astype(np.float32), occ, occ == FREE, s, int(done))
+
+
+__all__ = ["scan_map_at_estimate"]
