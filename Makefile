@@ -74,13 +74,13 @@ bench-publish: setup  ## fresh timed `make bench`, its metrics -> results/publis
 	@# as on a fresh clone: numba's cache empty, then filled by make setup's compile step (timed apart)
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/compile-time.txt $(PY) -m benchmark.commands.compile_kernels
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory bench RESULTS=$(PUBLISH_TMP) BENCH_OUT=$(PUBLISH_TMP)/bench
-	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/bench --name bench --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt
+	$(PY) -m benchmark.commands.maintainer.readme_tables publish $(PUBLISH_TMP)/runs/bench --name bench --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt
 
 robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results/published/robustness (then: make readme-tables)
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/compile-time.txt $(PY) -m benchmark.commands.compile_kernels
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
-	$(PY) -m benchmark.commands.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness" --columns robustness
+	$(PY) -m benchmark.commands.maintainer.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness" --columns robustness
 
 # make leaderboard: every method on the same maps (shared ProcTHOR houses from 75, after the
 # objects_procthor classifier's training houses): view-based methods, geometric segmenters,
@@ -105,21 +105,21 @@ rose2-env:  ## ROSE²'s isolated environment in .venv-rose2 (then: segmenter=ros
 	@echo "ROSE2 environment ready in $(ROSE2_VENV); point segmenter.checkout (or ROOMSEG_ROSE2) at your ROSE2 checkout$(if $(ROSE2), ($(ROSE2)),)"
 
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
-	$(PY) -m benchmark.commands.readme_tables write
+	$(PY) -m benchmark.commands.maintainer.readme_tables write
 
 scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000 generated houses on 1 and 2 workers
-	$(PY) -m benchmark.commands.scaling --houses 100 1000 --workers 1 2
+	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2
 
 scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
-	$(PY) -m benchmark.commands.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
+	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
 
 # roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 2.3 GB), extrapolated to 16000^2 px
 PERF_SEGMENT_ROOMS ?= 20 40
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --segment-rooms $(PERF_SEGMENT_ROOMS)
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.maintainer.perf --segment-rooms $(PERF_SEGMENT_ROOMS)
 
 perf-publish: setup  ## make perf's tables -> results/published/perf.md (included by docs/robot-conditions.md)
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.perf --robot-houses 10 --out results/published/perf.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.maintainer.perf --robot-houses 10 --out results/published/perf.md
 
 # the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
 # fails when it writes other numbers)
@@ -131,7 +131,7 @@ docs-numbers: setup  ## robot coverage, house statistics -> results/published/{r
 GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)
 
 gpu-check:  ## GPU workstation, first step: CUDA, AI2-THOR render, Habitat, real classifier weights, 1-house run (pass/FAIL/skipped table)
-	$(GPU_PY) -m benchmark.commands.gpu_check
+	$(GPU_PY) -m benchmark.commands.maintainer.gpu_check
 
 # make robustness: every method under the robot conditions of conf/corruption (5 families x 5
 # severities + clean) on ROBUST_HOUSES houses per dataset; tables and figures -> ROBUST_OUT.
@@ -162,7 +162,7 @@ $(VENV)/.installed-docs: $(VENV)/.installed
 	touch $@
 
 docs: setup-docs  ## the docs site: generated reference pages (commands, config) + MkDocs build, strict -> site/ (no torch needed)
-	$(PY) -m benchmark.commands.docs reference
+	$(PY) -m benchmark.commands.maintainer.docs reference
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 clean:  ## remove caches (keeps .venv and results/)

@@ -7,8 +7,8 @@
 
 ``roomseg --help`` lists the commands. Each runs the module that has always run it
 (``python -m benchmark.commands.<name>`` still works, and on a terminal says what replaced it);
-the maintainers' tools (docs, perf, scaling, README tables, GPU check, VLM timing) are left out
-of this list: ``make help`` names them.
+the maintainers' tools (``benchmark/commands/maintainer/``: docs, perf, scaling, README tables,
+GPU check, VLM timing) are left out of this list: ``make help`` names them.
 """
 
 from __future__ import annotations
@@ -38,6 +38,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "houses": ("house_stats", "statistics of the houses of an environment"),
     "draw-house": ("draw_house", "draw one house: floor plan, rooms, doors, furniture"),
     "annotations": ("annotations", "import ArchitecTHOR room annotations"),
+    "map-stats": ("map_stats", "an occupancy map's statistics (walls, speckle, clutter), beside real laser maps"),
+    "compile": ("compile_kernels", "compile the numba kernels into numba's cache (make setup runs it)"),
 }
 
 

@@ -126,22 +126,22 @@ def test_every_entry_kind_is_verified_on_read(tmp_path, caplog):
     good = run(cfg, tmp_path / "job", ch)
     pipe = build_pipeline(cfg, ch)
     h0, h1, h2 = good["house_id"]
-    for p in (pipe.score_path(h0), pipe.score_path(h1), pipe.score_path(h2)):
+    for p in (pipe.entry("score", h0), pipe.entry("score", h1), pipe.entry("score", h2)):
         p.unlink()  # rows must be recomputed from the damaged entries below
     # a classification with its classes' columns swapped (still probabilities)
-    c = load_npz(pipe.classify_path(h0))
-    np.savez(pipe.classify_path(h0), poses=c["poses"], proba=c["proba"][:, ::-1], n_refused=c["n_refused"])
+    c = load_npz(pipe.entry("classify", h0))
+    np.savez(pipe.entry("classify", h0), poses=c["poses"], proba=c["proba"][:, ::-1], n_refused=c["n_refused"])
     # an aggregation with every label moved by one class (still in range)
-    a = load_npz(pipe.aggregate_path(h1))["raw"]
-    np.savez(pipe.aggregate_path(h1), raw=np.where(a >= 0, (a + 1) % 7, a).astype(np.int16))
+    a = load_npz(pipe.entry("aggregate", h1))["raw"]
+    np.savez(pipe.entry("aggregate", h1), raw=np.where(a >= 0, (a + 1) % 7, a).astype(np.int16))
     # a render whose first view lists another object (still valid JSON); its classification is
     # removed so that the render must be read
-    obs = pipe.render_dir(h2) / "observations.jsonl"
+    obs = pipe.entry("render", h2) / "observations.jsonl"
     text = obs.read_text()
     i = text.index('[["') + 3
     obs.write_text(text[:i] + "Toilet" + text[text.index('"', i):])
     assert obs.read_text() != text
-    pipe.classify_path(h2).unlink()
+    pipe.entry("classify", h2).unlink()
     # the fitted objects classifier, its counts doubled
     model = next((tmp_path / "R" / "cache" / "models").rglob("*.npz"))
     m = load_npz(model)
@@ -151,7 +151,7 @@ def test_every_entry_kind_is_verified_on_read(tmp_path, caplog):
         again = run(cfg, tmp_path / "job", ch)
     pd.testing.assert_frame_equal(again[METRICS], good[METRICS])
     warned = "\n".join(r.getMessage() for r in caplog.records if r.levelno == logging.WARNING)
-    for f in (pipe.classify_path(h0), pipe.aggregate_path(h1), obs.parent, model):
+    for f in (pipe.entry("classify", h0), pipe.entry("aggregate", h1), obs.parent, model):
         assert str(f) in warned, f
     assert "observations.jsonl: content does not match the render's checksum" in warned
 

@@ -35,7 +35,7 @@ def test_sweep_from_a_copied_ai2thor_render_cache(tmp_path):
     obs = [Observation(pose=tuple(p), image=rng.integers(0, 256, (32, 32, 3), dtype=np.uint8),
                        objects=[("Sofa", 0.2)]) for p in poses]
     obs[3] = Observation(pose=tuple(poses[3]), meta={"refused": True, "error": "not reachable"})
-    folder = build_pipeline(cfg, choices).render_dir(hid)  # where the run store keeps this house's render
+    folder = build_pipeline(cfg, choices).entry("render", hid)  # where the run store keeps this house's render
     assert folder.is_relative_to(tmp_path / "results" / "cache" / "render")
     write_observations(folder, obs)  # "copied from the GPU box"
     df = run(cfg, tmp_path / "out", choices)  # ai2thor is never started: the render is cached

@@ -20,9 +20,9 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.slow
 def test_generated_reference_pages_are_current():
     for path, text in docs.pages().items():
-        assert path.exists(), f"{path} missing: run `python -m benchmark.commands.docs reference`"
+        assert path.exists(), f"{path} missing: run `python -m benchmark.commands.maintainer.docs reference`"
         assert path.read_text(encoding="utf-8") == text, (
-            f"{path.relative_to(ROOT)} is stale: run `python -m benchmark.commands.docs reference`")
+            f"{path.relative_to(ROOT)} is stale: run `python -m benchmark.commands.maintainer.docs reference`")
 
 
 def test_the_reference_lists_every_command_and_group():

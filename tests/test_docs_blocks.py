@@ -1,4 +1,4 @@
-"""The runner of a page's command blocks (``python -m benchmark.commands.docs run-blocks``), and
+"""The runner of a page's command blocks (``python -m benchmark.commands.maintainer.docs run-blocks``), and
 the getting-started page run through it from a fresh copy of the working tree."""
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def test_blocks_run_in_one_clean_shell_in_a_fresh_copy(tmp_path, capsys, monkeyp
     monkeypatch.setenv("PYTHONPATH", "/somewhere")
     page = _page(tmp_path, """
 ```bash
-test -f Makefile -a -f benchmark/commands/docs.py   # the copy holds the tree's files
+test -f Makefile -a -f benchmark/commands/maintainer/docs.py   # the copy holds the tree's files
 test ! -e .venv -a ! -e results/runs                 # and nothing git ignores
 test -z "${PYTHONPATH:-}" -a -z "${VIRTUAL_ENV:-}"   # a clean shell
 test "$(pwd)" != "$ROOT_OF_TREE"

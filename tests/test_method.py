@@ -143,7 +143,7 @@ def test_harness_and_roomseg_segment_give_the_same_map(tmp_path, aggregator):
     hid = pipe.env.house_ids()[0]
     row = pipe.run_house(hid)
     assert row["status"] == "ok", row.get("error")
-    maps = load_npz(pipe.maps_path(hid))
+    maps = load_npz(pipe.entry("maps", hid))
     scene = pipe.scene(hid)
     classes = list(scene.classes)
     yaml = write_grid_ros(tmp_path / "in" / "map.yaml", scene.grid)

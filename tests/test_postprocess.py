@@ -374,7 +374,11 @@ def test_bad_input():
 
 
 def test_timing_helpers(procthor_file, tmp_path, capsys):
-    from benchmark.commands.perf_postprocess import main, time_postprocess, time_postprocess_job
+    from benchmark.commands.maintainer.perf_postprocess import (
+        main,
+        time_postprocess,
+        time_postprocess_job,
+    )
 
     rows = time_postprocess(procthor_file, houses=2, repeat=1)
     assert len(rows) == 2 and all(r["ms"] > 0 and r["agree_after"] > r["agree_before"] for r in rows)
@@ -388,7 +392,7 @@ def test_timing_on_a_job_that_ran_part_of_its_environment(tmp_path):
     """``--job`` times the houses the job ran (here 1 of 3), not every house of its env."""
     from hydra import compose, initialize_config_dir
 
-    from benchmark.commands.perf_postprocess import time_postprocess_job
+    from benchmark.commands.maintainer.perf_postprocess import time_postprocess_job
     from benchmark.harness.runner import CONF_DIR, run
 
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):

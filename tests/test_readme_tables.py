@@ -105,7 +105,7 @@ def test_bad_markers_and_missing_inputs(tmp_path):
         rt.update_text("<!-- BEGIN generated: nope -->\nx\n<!-- END generated: nope -->\n", tmp_path)
     with pytest.raises(FileNotFoundError, match="publish the run first"):
         rt.update_text("<!-- BEGIN generated: bench-table3 -->\n<!-- END generated: bench-table3 -->\n", tmp_path)
-    from benchmark.commands.readme_tables import main
+    from benchmark.commands.maintainer.readme_tables import main
 
     readme = tmp_path / "R.md"
     readme.write_text("<!-- BEGIN generated: bench-table3 -->\n<!-- END generated: bench-table3 -->\n")

@@ -88,7 +88,7 @@ def test_the_scan_map_is_what_methods_and_segmenters_see_and_the_score_stays_on_
     pipe = build_pipeline(cfg, ch)
     for hid, row in zip(df["house_id"], df.itertuples()):
         scene = pipe.scene(hid)
-        m = load_npz(Path(pipe.maps_path(hid)))
+        m = load_npz(Path(pipe.entry("maps", hid)))
         free = m["free"]
         assert free.shape == scene.grid.shape and not free.all()
         assert (m["post"][~free] == -1).all()  # nothing labelled where the robot's map is not free
@@ -99,7 +99,7 @@ def test_the_scan_map_is_what_methods_and_segmenters_see_and_the_score_stays_on_
     cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", "corruption=scan_5", "segmenter=distance"])
     spipe = build_pipeline(cfg, ch)
     for hid in seg["house_id"]:
-        m = load_npz(spipe.maps_path(hid))
+        m = load_npz(spipe.entry("maps", hid))
         assert (m["instances"][~m["free"]] == -1).all() and (m["instances"][m["free"]] >= 0).mean() > 0.5
     assert (seg["map_free_iou"] < 1).all() and set(seg["viewpoints"]) == {"autotrace"}
 

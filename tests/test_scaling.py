@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 from procs import NEEDS_PROC, wait_for
 
-from benchmark.commands.scaling import descendants, main, tree_memory
+from benchmark.commands.maintainer.scaling import descendants, main, tree_memory
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -76,7 +76,7 @@ def test_a_tiny_scaling_run_prints_the_table(tmp_path, capsys):
 def test_perf_writes_its_tables_with_where_and_when(tmp_path, capsys):
     """make perf-publish's file: the tables under a line with the date, machine, commit and command
     (the docs include it as it is)."""
-    from benchmark.commands.perf import main as perf
+    from benchmark.commands.maintainer.perf import main as perf
 
     out = tmp_path / "perf.md"
     args = ["--houses", "0", "--robot-houses", "0", "--synthetic", "1", "--resolutions", "0.1",
@@ -98,7 +98,7 @@ def test_perf_segment_memory_measures_each_size_in_its_own_process(tmp_path):
     """make perf's large-map rows: roomseg-segment run on two example buildings, each peak
     is the child's own (at least the size of its map arrays, far below the parent's), the
     marginal bytes per pixel and the 16000^2 extrapolation on the last row."""
-    from benchmark.commands.perf import run_segment_memory
+    from benchmark.commands.maintainer.perf import run_segment_memory
 
     df = run_segment_memory([2, 4], tmp_path)
     assert list(df["pixels"]) == [420 ** 2, 820 ** 2]  # 10 m rooms at 0.05 m/px, 0.1 m outer walls

@@ -688,7 +688,7 @@ def test_gpu_check_runs_on_a_bare_python(tmp_path):
             " 'procthor', 'torch', 'ai2thor', 'habitat_sim'}: raise ImportError('No module named ' + repr(name))\n"
             "    return real(name, *a, **k)\n"
             "builtins.__import__ = no\n"
-            "from benchmark.commands.gpu_check import main\n"
+            "from benchmark.commands.maintainer.gpu_check import main\n"
             "sys.exit(main([]))\n")
     root = inspect.getfile(gpu_check).rsplit("/benchmark/", 1)[0]
     p = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, timeout=120)

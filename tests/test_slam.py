@@ -282,7 +282,7 @@ def test_severity_zero_rows_are_the_clean_rows_byte_for_byte(tmp_path):
 
 
 def test_slam_levels_command_refuses_an_unknown_level_in_one_line(capsys):
-    from benchmark.commands.slam_levels import level_settings, main
+    from benchmark.commands.maintainer.slam_levels import level_settings, main
 
     assert main(["--levels", "slam_9", "--n", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -293,7 +293,7 @@ def test_slam_levels_command_refuses_an_unknown_level_in_one_line(capsys):
 @pytest.mark.slow
 @pytest.mark.shared_data
 def test_slam_levels_command_prints_the_table(procthor_file, capsys, tmp_path):
-    from benchmark.commands.slam_levels import main
+    from benchmark.commands.maintainer.slam_levels import main
 
     fig = tmp_path / "maps.png"
     assert main(["--houses", str(procthor_file), "--n", "1", "--levels", "slam_1", "lost_1", "--figure", str(fig)]) == 0

@@ -115,15 +115,15 @@ def test_bad_cache_entries_are_recomputed_with_a_warning_naming_the_file(tmp_pat
     # house 0: truncated score JSON; house 1: "{}" score JSON and a classify npz with pickled
     # objects; house 2: off-map poses in the render (its checksum catches the edit) and a
     # classify npz that is not a zip
-    s0, s1 = pipe.score_path(ids[0]), pipe.score_path(ids[1])
+    s0, s1 = pipe.entry("score", ids[0]), pipe.entry("score", ids[1])
     s0.write_text(s0.read_text()[:40])
     s1.write_text("{}")
-    c1, c2 = pipe.classify_path(ids[1]), pipe.classify_path(ids[2])
+    c1, c2 = pipe.entry("classify", ids[1]), pipe.entry("classify", ids[2])
     np.savez(c1, poses=np.zeros((2, 3)), proba=np.array([{"a": 1}, {"b": 2}], dtype=object),
              n_refused=np.array(0))
     c2.write_bytes(b"not a zip file at all")
-    pipe.score_path(ids[2]).unlink()
-    poses_csv = pipe.render_dir(ids[2]) / "poses.csv"
+    pipe.entry("score", ids[2]).unlink()
+    poses_csv = pipe.entry("render", ids[2]) / "poses.csv"
     lines = poses_csv.read_text().splitlines()
     i, x, z, *rest = lines[1].split(",")
     lines[1] = ",".join([i, repr(float(x) + 1000.0), z, *rest])
@@ -133,7 +133,7 @@ def test_bad_cache_entries_are_recomputed_with_a_warning_naming_the_file(tmp_pat
     cols = ["house_id", "status", "iou", "precision", "recall", "accuracy", "n_views"]
     pd.testing.assert_frame_equal(again[cols], good[cols])
     warned = "\n".join(r.getMessage() for r in caplog.records if r.levelno == logging.WARNING)
-    for f in (s0, s1, c1, c2, pipe.render_dir(ids[2])):
+    for f in (s0, s1, c1, c2, pipe.entry("render", ids[2])):
         assert str(f) in warned, f
     assert "does not match the render's checksum" in warned and "not a readable .npz" in warned
     # every warning is one line

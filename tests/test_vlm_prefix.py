@@ -11,7 +11,7 @@ pytest.importorskip("transformers")
 pytest.importorskip("tokenizers")
 
 from benchmark.classifiers.vlm import VLMClassifier, class_spellings  # noqa: E402
-from benchmark.commands.vlm_bench import (  # noqa: E402
+from benchmark.commands.maintainer.vlm_bench import (  # noqa: E402
     Counter,
     full_sequence_log_likelihoods,
     tiny_qwen,
@@ -168,7 +168,7 @@ def test_spelling_errors_are_one_line():
 
 @pytest.mark.slow
 def test_the_bench_command_prints_before_and_after(capsys):
-    from benchmark.commands.vlm_bench import main
+    from benchmark.commands.maintainer.vlm_bench import main
 
     assert main(["--images", "2", "--batch-size", "2", "--image-size", "28", "--repeats", "1", "--layers", "1",
                  "--width", "32"]) == 0

@@ -29,7 +29,7 @@ once, against that cache (copied per spelling, continuations right-padded, posit
 continuing each image's prefix; for Qwen2.5-VL the 3D rope positions from the model's own
 ``get_rope_index``). When every spelling is one token, the second pass is skipped. The
 result equals scoring each full sequence from scratch to floating-point tolerance
-(``tests/test_vlm_prefix.py``; ``python -m benchmark.commands.vlm_bench`` measures both).
+(``tests/test_vlm_prefix.py``; ``python -m benchmark.commands.maintainer.vlm_bench`` measures both).
 
 ``mode="text"`` generates a free-text answer (greedy, batched; ``generate`` keeps the
 prefix's key/value cache, so the image is encoded once per image there too) and parses it:

@@ -16,7 +16,8 @@ if _sys.argv[:1] == ["-m"] or (_sys.argv and _os.path.basename(_sys.argv[0]).sta
 _MOVED = {"tables": "tables", "report": "report", "figures": "figures", "robustness": "robustness",
           "baselines": "baselines", "baselines_score": "score", "data": "data", "doctor": "doctor",
           "evaluate": "evaluate", "train": "train", "view_confusion": "confusion", "robot_coverage": "coverage",
-          "house_stats": "houses", "draw_house": "draw-house", "annotations": "annotations", "bench": "bench", "bag_info": "bag-info",
+          "house_stats": "houses", "draw_house": "draw-house", "annotations": "annotations", "bench": "bench", "bag_info": "bag-info", "map_stats": "map-stats",
+          "compile_kernels": "compile",
           "segment": "segment"}
 
 
@@ -34,3 +35,30 @@ def _say_what_replaced() -> None:
 
 
 _say_what_replaced()
+
+
+#: maintainer tools that moved to ``benchmark/commands/maintainer/``: their old module names
+#: (``python -m benchmark.commands.perf``) keep working, and say where they went on a terminal.
+_MAINTAINER = ("docs", "gpu_check", "vlm_bench", "perf", "perf_metrics", "perf_postprocess", "scaling",
+               "readme_tables", "bag_memory", "slam_levels")
+
+
+class _MovedTools:
+    """A finder that resolves ``benchmark.commands.<tool>`` to ``benchmark.commands.maintainer.<tool>``."""
+
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        import importlib.util
+
+        prefix = "benchmark.commands."
+        tool = name[len(prefix):] if name.startswith(prefix) else ""
+        if tool not in _MAINTAINER:
+            return None
+        if _sys.stderr.isatty():
+            print(f"note: `{name}` is now `benchmark.commands.maintainer.{tool}` (both work)", file=_sys.stderr)
+        moved = importlib.util.find_spec(f"benchmark.commands.maintainer.{tool}")
+        return importlib.util.spec_from_file_location(name, moved.origin) if moved is not None else None
+
+
+if not any(isinstance(f, _MovedTools) for f in _sys.meta_path):
+    _sys.meta_path.append(_MovedTools())

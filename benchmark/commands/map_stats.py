@@ -50,7 +50,7 @@ def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
     """(rows of statistics per (house, level), {level: house 0's occupancy}) for scan_0..5, slam_1..5."""
     from omegaconf import OmegaConf
 
-    from benchmark.commands.slam_levels import level_scanner, level_settings
+    from benchmark.commands.maintainer.slam_levels import level_scanner, level_settings
     from benchmark.conditions.slam import OdometrySlam
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses

@@ -57,8 +57,8 @@ from benchmark.conditions.odometry import (
     to_se2,
     wrap,
 )
+from benchmark.conditions.pose_error import pose_error_stats
 from benchmark.conditions.pose_graph import PoseGraph, move_edge, relative, solve
-from benchmark.pose_error import pose_error_stats
 from envs.maps.gridmap import GridMap
 from envs.maps.trajectory import straight_clear, trajectory_with_views
 

@@ -136,11 +136,12 @@ def run_house(pipe: Any, hid: str) -> HouseResult:
     renames, so a recomputed entry is a new file)."""
     force = getattr(pipe, "force", set()) or set()
     use_failures = bool(getattr(pipe, "cache_failures", False))
-    before = (_stamp(pipe.score_path, hid), _stamp(pipe.failure_path, hid) if use_failures else None)
+    score, failure = (lambda h: pipe.entry("score", h)), (lambda h: pipe.entry("failure", h))
+    before = (_stamp(score, hid), _stamp(failure, hid) if use_failures else None)
     t = time.perf_counter()
     row = pipe.run_house(hid)
     seconds = time.perf_counter() - t
-    after = (_stamp(pipe.score_path, hid), _stamp(pipe.failure_path, hid) if use_failures else None)
+    after = (_stamp(score, hid), _stamp(failure, hid) if use_failures else None)
     which = 0 if row.get("status") == "ok" else 1
     cached = "score" not in force and before[which] is not None and before[which] == after[which]
     try:

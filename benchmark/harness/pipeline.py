@@ -271,13 +271,15 @@ class Pipeline:
     def store(self) -> CacheStore:
         return CacheStore(Path(self.cache_dir))
 
+    def entry(self, kind: str, hid: str) -> Path:
+        """Where house ``hid``'s cache entry of ``kind`` lives (:meth:`CacheStore.entry`: render,
+        classify, aggregate, score, failure, maps, robot_map, coverage)."""
+        return self.store.entry(kind, self.keys, self.contents(hid), hid)
+
     # ---- the robot's map (mapping=scan ...), shared by the method and the segmenters
     @property
     def mapping(self) -> Any:
         return self.stage("mapping")
-
-    def robot_map_path(self, hid: str) -> Path:
-        return self.store.robot_map_path(self.keys["map"], hid, content=self.contents(hid)["map"])
 
     def _robot_grid(self, hid: str, scene, poses: np.ndarray | None, timings: dict) -> tuple[Any, dict[str, Any]]:
         """The occupancy map the robot has: the house's floor plan without a ``mapping`` stage,
@@ -324,7 +326,7 @@ class Pipeline:
         def save(path: Path, free: np.ndarray) -> None:
             atomic_save_npz(path, free=free)
 
-        free = self._cached("map", self.robot_map_path(hid), load, compute, save)
+        free = self._cached("map", self.entry("robot_map", hid), load, compute, save)
         walk = scene.grid.walkable
         info: dict[str, Any] = {}
         est = self._slam_estimate(hid, scene, views()) if self._slam_shapes_map() else None
@@ -375,15 +377,6 @@ class Pipeline:
         closed = closed_doors(scene, settings.door_closed, settings.seed)
         return GridMap(scene.grid.walkable & ~closed, scene.grid.resolution, scene.grid.origin)
 
-    def score_path(self, hid: str) -> Path:
-        return self.store.score_path(self.keys["score"], hid, content=self.contents(hid)["score"])
-
-    def failure_path(self, hid: str) -> Path:
-        return self.store.failure_path(self.keys["score"], hid, content=self.contents(hid)["score"])
-
-    def maps_path(self, hid: str) -> Path:
-        return self.store.maps_path(self.keys["score"], hid, content=self.contents(hid)["score"])
-
     # ---- the one cached-stage helper
     def _cached(self, stage: str, path: Path, load: Callable[[Path], T], compute: Callable[[], T],
                 save: Callable[[Path, T], None], exists: Callable[[Path], bool] = Path.exists) -> T:
@@ -410,15 +403,15 @@ class Pipeline:
         row = self._row_base(hid)
         timings: dict[str, float] = {}
         try:
-            path = self.score_path(hid)
+            path = self.entry("score", hid)
         except Exception as e:  # noqa: BLE001 - the house itself is unreadable: it fails alone
             return self._failed(row, e, timings)
         if "score" not in self.force:
             with contextlib.suppress(Exception):  # fast path without the lock; checked again under it
                 return self._load_row(path, hid)
-            if self.cache_failures and self.failure_path(hid).exists():
+            if self.cache_failures and self.entry("failure", hid).exists():
                 with contextlib.suppress(Exception):
-                    failed = dict(read_entry(self.failure_path(hid)))
+                    failed = dict(read_entry(self.entry("failure", hid)))
                     if failed.get("house_id") == hid and failed.get("status") == "failed":
                         failed.pop("failed_at", None)
                         return failed
@@ -437,12 +430,12 @@ class Pipeline:
 
         def save(p: Path, r: dict[str, Any]) -> None:
             if r["status"] == "ok":
-                maps = self.maps_path(hid)
+                maps = self.entry("maps", hid)
                 write_entry(p, r, {"maps": maps} if self.save_maps and maps.exists() else None)
                 with contextlib.suppress(FileNotFoundError):
-                    self.failure_path(hid).unlink()
+                    self.entry("failure", hid).unlink()
             else:
-                write_entry(self.failure_path(hid), {**r, "failed_at": time.strftime("%Y-%m-%dT%H:%M:%S")})
+                write_entry(self.entry("failure", hid), {**r, "failed_at": time.strftime("%Y-%m-%dT%H:%M:%S")})
 
         try:
             return self._cached("score", path, lambda p: self._load_row(p, hid), compute, save)
@@ -525,15 +518,6 @@ class MethodPipeline(Pipeline):
     def postprocess(self) -> PostProcessor | None:
         return self.stage("postprocess")
 
-    def render_dir(self, hid: str) -> Path:
-        return self.store.render_dir(self.keys["render"], hid, content=self.contents(hid)["render"])
-
-    def classify_path(self, hid: str) -> Path:
-        return self.store.classify_path(self.keys["classify"], hid, content=self.contents(hid)["classify"])
-
-    def aggregate_path(self, hid: str) -> Path:
-        return self.store.aggregate_path(self.keys["aggregate"], hid, content=self.contents(hid)["aggregate"])
-
     def _observations(self, hid: str, scene, timings: dict) -> list:
         from envs.render import cache as render_cache
 
@@ -555,7 +539,7 @@ class MethodPipeline(Pipeline):
             timings["t_render"] = time.perf_counter() - t
             return obs
 
-        return self._cached("render", self.render_dir(hid), load, compute, render_cache.write_observations,
+        return self._cached("render", self.entry("render", hid), load, compute, render_cache.write_observations,
                             exists=render_cache.is_complete)
 
     @property
@@ -610,7 +594,7 @@ class MethodPipeline(Pipeline):
         out["n_refused"] = int(result.classified.n_refused)
         out["view_accuracy"] = view_accuracy(scene.grid, scene.semantic, poses, proba_in)
         if seen is None:  # a classification cached before it kept what the views see: from the render
-            seen = seen_from_render(self.render_dir(hid), poses)
+            seen = seen_from_render(self.entry("render", hid), poses)
         out["view_accuracy_seen"] = seen_accuracy(seen, proba_in) if seen is not None else float("nan")
         out.update(self._coverage(hid, scene, timings))
         out.update({**ROBOT_VIEW_DEFAULTS, **result.info})
@@ -619,7 +603,7 @@ class MethodPipeline(Pipeline):
             extra = {} if grid is scene.grid else {"free": grid.walkable}
             if result.poses is not poses:
                 extra["true_poses"] = poses
-            atomic_save_npz(self.maps_path(hid), raw=result.raw.astype(np.int16), post=result.labels.astype(np.int16),
+            atomic_save_npz(self.entry("maps", hid), raw=result.raw.astype(np.int16), post=result.labels.astype(np.int16),
                             poses=result.poses, proba=proba_in.astype(np.float32), **extra)
         return out
 
@@ -628,10 +612,7 @@ class MethodPipeline(Pipeline):
         """Every view's true pose in capture order (refused ones included): the robot's path."""
         from envs.render import cache as render_cache
 
-        return render_cache.read_poses(self.render_dir(hid))[0]
-
-    def coverage_path(self, hid: str) -> Path:
-        return self.store.coverage_path(self.keys["render"], hid, content=self.contents(hid)["render"])
+        return render_cache.read_poses(self.entry("render", hid))[0]
 
     def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
         """How much of the house the views saw (:func:`benchmark.conditions.coverage.view_coverage`) with
@@ -657,7 +638,7 @@ class MethodPipeline(Pipeline):
             timings["t_coverage"] = time.perf_counter() - t
             return {"coverage_area": float(cov["coverage_area"]), "coverage_rooms": float(cov["coverage_rooms"])}
 
-        return self._cached("render", self.coverage_path(hid), load, compute, lambda p, v: write_entry(p, v))
+        return self._cached("render", self.entry("coverage", hid), load, compute, lambda p, v: write_entry(p, v))
 
 
 #: the view-transform columns of a row when no transform records them (the perfect robot).
@@ -683,7 +664,7 @@ class _HouseCache:
 
         def load(path: Path) -> method.Classified:
             z = load_npz(path)
-            render = pipe.render_dir(hid)
+            render = pipe.entry("render", hid)
             views = render_cache.read_poses(render) if render_cache.is_complete(render) else None
             poses, proba, n_refused = check_classified(z, len(pipe.classes) if pipe.classes is not None else None,
                                                        views)
@@ -700,7 +681,7 @@ class _HouseCache:
             extra = {} if c.seen is None else {"seen": np.asarray(c.seen, np.int64)}
             atomic_save_npz(path, poses=c.poses, proba=c.proba, n_refused=np.array(c.n_refused), **extra)
 
-        return pipe._cached("classify", pipe.classify_path(hid), load, compute_seen, save)
+        return pipe._cached("classify", pipe.entry("classify", hid), load, compute_seen, save)
 
     def aggregated(self, grid, views: method.Views, compute: Callable[[], np.ndarray]) -> np.ndarray:
         n_classes = views.proba.shape[1]
@@ -711,7 +692,7 @@ class _HouseCache:
         def save(path: Path, raw: np.ndarray) -> None:
             atomic_save_npz(path, raw=raw.astype(np.int16))
 
-        return self.pipe._cached("aggregate", self.pipe.aggregate_path(self.hid), load, compute, save)
+        return self.pipe._cached("aggregate", self.pipe.entry("aggregate", self.hid), load, compute, save)
 
 
 @dataclass
@@ -749,7 +730,7 @@ class SegmenterPipeline(Pipeline):
         out.update(robot)
         if self.save_maps:
             extra = {} if grid is scene.grid else {"free": grid.walkable}
-            atomic_save_npz(self.maps_path(hid), instances=inst.astype(np.int32), **extra)
+            atomic_save_npz(self.entry("maps", hid), instances=inst.astype(np.int32), **extra)
         return out
 
 

@@ -37,7 +37,7 @@ edited house or input file gets new entries and nothing stale is served.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -94,32 +94,25 @@ class CacheStore:
 
     root: Path
 
-    def render_dir(self, key: str, house_id: str, *, content: str) -> Path:
-        return self.root / "render" / key / entry_name(house_id, content)
+    #: kind of entry -> (folder, suffix, the stage whose config key and content name it):
+    #: render (a folder of views), classify, aggregate (raw label map), score (the row), failure
+    #: (a house's last failure, kept as a log; not served as a result by default), maps (saved
+    #: label maps), robot_map (the map the robot built: its free cells), coverage (how much of a
+    #: house a render's views saw, keyed like the render).
+    KINDS = {"render": ("render", "", "render"), "classify": ("classify", ".npz", "classify"),
+             "aggregate": ("aggregate", ".npz", "aggregate"), "score": ("scores", ".json", "score"),
+             "failure": ("failures", ".json", "score"), "maps": ("maps", ".npz", "score"),
+             "robot_map": ("robot_maps", ".npz", "map"), "coverage": ("coverage", ".json", "render")}
 
-    def classify_path(self, key: str, house_id: str, *, content: str) -> Path:
-        return self.root / "classify" / key / f"{entry_name(house_id, content)}.npz"
+    def entry(self, kind: str, keys: Mapping[str, str], contents: Mapping[str, str], house_id: str) -> Path:
+        """Where one house's entry of ``kind`` (:data:`KINDS`) lives for a configuration.
 
-    def aggregate_path(self, key: str, house_id: str, *, content: str) -> Path:
-        return self.root / "aggregate" / key / f"{entry_name(house_id, content)}.npz"
-
-    def score_path(self, key: str, house_id: str, *, content: str) -> Path:
-        return self.root / "scores" / key / f"{entry_name(house_id, content)}.json"
-
-    def failure_path(self, key: str, house_id: str, *, content: str) -> Path:
-        """The last failure of a house (kept as a log; not served as a result by default)."""
-        return self.root / "failures" / key / f"{entry_name(house_id, content)}.json"
-
-    def maps_path(self, key: str, house_id: str, *, content: str) -> Path:
-        return self.root / "maps" / key / f"{entry_name(house_id, content)}.npz"
-
-    def robot_map_path(self, key: str, house_id: str, *, content: str) -> Path:
-        """The map the robot built of a house (``mapping=scan``...): its free cells."""
-        return self.root / "robot_maps" / key / f"{entry_name(house_id, content)}.npz"
-
-    def coverage_path(self, key: str, house_id: str, *, content: str) -> Path:
-        """How much of a house a render's views saw (keyed like the render)."""
-        return self.root / "coverage" / key / f"{entry_name(house_id, content)}.json"
+        Args:
+            keys: stage -> config key (``runner.stage_keys``).
+            contents: stage -> the house's content hash at that stage.
+        """
+        folder, suffix, stage = self.KINDS[kind]
+        return self.root / folder / keys[stage] / f"{entry_name(house_id, contents[stage])}{suffix}"
 
     def model_path(self, kind: str, key: str, suffix: str = ".npz") -> Path:
         """A fitted model (e.g. the objects classifier) cached by the content of its training set."""
@@ -226,7 +219,7 @@ class Job:
         if house_id not in contents:
             raise KeyError(f"{self.summary_path}: no house {house_id!r} in this job "
                            f"({len(contents)} houses, e.g. {list(contents)[:3]})")
-        return self.cache().maps_path(summary["keys"]["score"], house_id, content=contents[house_id])
+        return self.cache().entry("maps", summary["keys"], {"score": contents[house_id]}, house_id)
 
     @property
     def identity_path(self) -> Path:

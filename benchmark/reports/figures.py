@@ -346,12 +346,12 @@ def house_maps(overrides: Sequence[str], house_index: int
     hid = ids[house_index]
     if hasattr(pipe.classifier, "setup"):
         pipe.classifier.setup([hid])
-    if not pipe.maps_path(hid).exists():
+    if not pipe.entry("maps", hid).exists():
         pipe.force = set(pipe.force) | {"score"}
     row = pipe.run_house(hid)
     if row.get("status") != "ok":
         raise RuntimeError(f"house {hid!r} failed in the pipeline: {row.get('error')}")
-    maps = load_npz(pipe.maps_path(hid))
+    maps = load_npz(pipe.entry("maps", hid))
     maps["raw"], maps["post"] = maps["raw"].astype(np.int32), maps["post"].astype(np.int32)
     return pipe.env.scene(hid), maps, dict(pipe.names), row
 

@@ -12,9 +12,9 @@ run is a copy of a sweep's per-house ``metrics.csv`` files (timing columns dropp
 peak memory, commit), committed so that the blocks can be regenerated, and checked by
 ``tests/test_readme_tables.py``, without running the sweep. Commands::
 
-    python -m benchmark.commands.readme_tables publish results/runs/bench --name bench [--time FILE]
-    python -m benchmark.commands.readme_tables write      # README.md blocks from results/published
-    python -m benchmark.commands.readme_tables check      # exit 1 when a block differs
+    python -m benchmark.commands.maintainer.readme_tables publish results/runs/bench --name bench [--time FILE]
+    python -m benchmark.commands.maintainer.readme_tables write      # README.md blocks from results/published
+    python -m benchmark.commands.maintainer.readme_tables check      # exit 1 when a block differs
 """
 
 from __future__ import annotations
@@ -186,7 +186,7 @@ def provenance(root: str | Path, name: str) -> dict:
     p = Path(root) / PUBLISHED / name / PROVENANCE
     if not p.exists():
         raise FileNotFoundError(f"{p} is missing: publish the run first "
-                                f"(python -m benchmark.commands.readme_tables publish results/runs/{name} --name {name})")
+                                f"(python -m benchmark.commands.maintainer.readme_tables publish results/runs/{name} --name {name})")
     return json.loads(p.read_text(encoding="utf-8"))
 
 

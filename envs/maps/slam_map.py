@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from envs.maps.gridmap import GridMap
+from envs.maps.rays import ray_end, trace_ray, walk_beam
 from envs.maps.scan import (
     FREE,
     ScanMap,
@@ -45,7 +46,6 @@ from envs.maps.scan import (
     person_first,
     surface_normals,
 )
-from envs.render.raycast import ray_end, trace_ray, walk_beam
 
 
 @njit(cache=True, nogil=True)

@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.perf_postprocess``: post-processing time per house, on noisy
+"""``python -m benchmark.commands.maintainer.perf_postprocess``: post-processing time per house, on noisy
 ground truth of the shared ProcTHOR houses or on a runner job's cached raw maps."""
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def time_postprocess_job(job_dir: str | Path, repeat: int = 3) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m benchmark.commands.perf_postprocess``: post-processing time per house."""
+    """``python -m benchmark.commands.maintainer.perf_postprocess``: post-processing time per house."""
     default = procthor_houses()
     ap = cli.ArgumentParser(from_root=True, description="time the default post-processing per house: on noisy ground truth "
                                  "of the shared ProcTHOR houses, or on a runner job's cached raw maps (--job)")

@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.vlm_bench``: what the VLM costs per image, before and after
+"""``python -m benchmark.commands.maintainer.vlm_bench``: what the VLM costs per image, before and after
 the shared prefix, measured on CPU with tiny random-initialised models built offline.
 
 Rows (for each model: a 2-layer Qwen2.5-VL with its vision encoder, and a 2-layer GPT-2

@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.slam_levels``: what each SLAM severity (``corruption=slam_k``) and
+"""``python -m benchmark.commands.maintainer.slam_levels``: what each SLAM severity (``corruption=slam_k``) and
 lost-robot level (``corruption=lost_k``: wrong loop closures; ``kidnap_k``: carried) does to a robot's trajectory and map, on the shared houses.
 
 Per house: the autotrace views (the default viewpoints), the route through them with a node every
@@ -59,8 +59,8 @@ def level_scanner(level: str):
 def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) -> tuple[list[dict], dict[str, np.ndarray]]:
     """(one row per level, {level: (H, W) int8 occupancy of its map}) for one house."""
     from benchmark.conditions.alignment import align_rigid, to_map_frame
+    from benchmark.conditions.pose_error import pose_error_stats
     from benchmark.conditions.slam import OdometrySlam
-    from benchmark.pose_error import pose_error_stats
     from benchmark.viewpoints import Autotrace
     from envs.maps.scan import scan_map, scan_obstacles
     from envs.maps.slam_map import scan_map_at_estimate

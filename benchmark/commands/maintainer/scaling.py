@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.scaling``: how a run scales with houses and workers.
+"""``python -m benchmark.commands.maintainer.scaling``: how a run scales with houses and workers.
 
 For each number of houses N (``--houses``) and of workers W (``--workers``) it runs one
 configuration, by default the oracle classifier (80 %), vision cone and post-processing on N
@@ -39,7 +39,7 @@ import pandas as pd
 
 from benchmark.commands import cli
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 #: the configuration measured (issue #27): overridable by trailing key=value arguments.
 DEFAULTS = ("env=synthetic", "classifier=oracle", "aggregator=vision_cone", "postprocess=default")
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
     from benchmark.harness.processes import available_cores
 
     ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0].split(": ", 1)[1],
-                                 epilog="e.g. python -m benchmark.commands.scaling --houses 100 1000 --workers 1 2")
+                                 epilog="e.g. python -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2")
     ap.add_argument("--houses", type=int, nargs="+", default=[100], help="numbers of houses (default 100)")
     ap.add_argument("--workers", type=int, nargs="+", default=None,
                     help=f"numbers of workers (default: 1 and the cores available, here {available_cores()})")
@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
         from benchmark.harness.cache import atomic_write_text
         from benchmark.reports.readme_tables import measured_line
 
-        head = measured_line("benchmark.commands.scaling", list(argv if argv is not None else sys.argv[1:])) + "\n\n"
+        head = measured_line("benchmark.commands.maintainer.scaling", list(argv if argv is not None else sys.argv[1:])) + "\n\n"
         atomic_write_text(a.out, head + md + "\n" + note + "\n")
         atomic_write_text(a.out.with_suffix(".csv"), table.to_csv(index=False))
     return 0 if all(r["rows identical"] == "yes" for r in rows) else 1

@@ -341,7 +341,7 @@ def _write(out: Path | None, parts: list[str], argv: list[str] | None) -> int:
     from benchmark.reports.readme_tables import measured_line
     from envs.atomic import atomic_write_text
 
-    head = measured_line("benchmark.commands.perf", list(argv if argv is not None else sys.argv[1:]))
+    head = measured_line("benchmark.commands.maintainer.perf", list(argv if argv is not None else sys.argv[1:]))
     atomic_write_text(out, "\n\n".join([head, *parts]) + "\n")
     return 0
 

@@ -1,9 +1,9 @@
-"""``python -m benchmark.commands.readme_tables``: the README's generated results blocks
+"""``python -m benchmark.commands.maintainer.readme_tables``: the README's generated results blocks
 (:mod:`benchmark.reports.readme_tables`).
 
-    python -m benchmark.commands.readme_tables publish results/runs/bench --name bench [--time FILE]
-    python -m benchmark.commands.readme_tables write     # rewrite the blocks of README.md and the docs pages
-    python -m benchmark.commands.readme_tables check     # exit 1 and name the blocks that differ
+    python -m benchmark.commands.maintainer.readme_tables publish results/runs/bench --name bench [--time FILE]
+    python -m benchmark.commands.maintainer.readme_tables write     # rewrite the blocks of README.md and the docs pages
+    python -m benchmark.commands.maintainer.readme_tables check     # exit 1 and name the blocks that differ
 """
 
 from __future__ import annotations

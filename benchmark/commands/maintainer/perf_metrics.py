@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.perf_metrics``: time the segment labelling of the metrics.
+"""``python -m benchmark.commands.maintainer.perf_metrics``: time the segment labelling of the metrics.
 
 On each shared ProcTHOR house (first ``--houses``, rasterised at ``--resolution``) and its
 ground-truth class map (a label map as our method's output is: adjacent rooms of one class

@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.gpu_check`` (``make gpu-check``): the first step on a GPU
+"""``python -m benchmark.commands.maintainer.gpu_check`` (``make gpu-check``): the first step on a GPU
 workstation. Checks each real dependency of the paper's runs in order and prints a table:
 one line per check, ``pass``, ``FAIL: why`` or ``skipped: why``, with its time in seconds.
 

@@ -1,4 +1,4 @@
-"""``python -m benchmark.commands.bag_memory``: peak memory of ``roomseg-segment bag=...`` on a
+"""``python -m benchmark.commands.maintainer.bag_memory``: peak memory of ``roomseg-segment bag=...`` on a
 long recording (issue 36: a one-hour bag with 30,000 images in under 1 GB).
 
 Writes a ROS 1 bag (or MCAP) of a robot driving the autotrace route of the example building
@@ -99,7 +99,7 @@ def measure(bag: Path, out: Path) -> dict:
            "import resource, sys; from benchmark.commands.segment import main; rc = main(sys.argv[1:]); "
            "print('MAXRSS_KB', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss); sys.exit(rc)",
            f"bag={bag}", f"out={out}", "overwrite=true", "off_map=drop", "bag_options.progress=false",
-           "classifier._target_=benchmark.commands.bag_memory.ClassColourClassifier", "classifier.path=none"]
+           "classifier._target_=benchmark.commands.maintainer.bag_memory.ClassColourClassifier", "classifier.path=none"]
     t = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t
@@ -156,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         from envs.atomic import atomic_write_text  # noqa: PLC0415
 
         args = list(argv if argv is not None else sys.argv[1:])
-        text = measured_line("benchmark.commands.bag_memory", args) + "\n\n" + "".join(f"- {x}\n" for x in lines)
+        text = measured_line("benchmark.commands.maintainer.bag_memory", args) + "\n\n" + "".join(f"- {x}\n" for x in lines)
         Path(a.out).parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(a.out, text)
     return 0
