@@ -52,6 +52,7 @@ from benchmark.harness.entries import (
     check_seen,
     seen_from_render,
 )
+from benchmark.harness.robot_stages import RobotStages
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
 from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy
@@ -74,9 +75,6 @@ _HOUSE_CONTENTS: dict[tuple[str, str], str] = {}
 #: metrics every successful row carries, each in [0, 1] (accuracy may be NaN: segmenters).
 ROW_METRICS = ("iou", "precision", "recall")
 
-#: the camera of the coverage columns when the renderer does not say (the floorplan
-#: renderer's defaults): field of view (degrees), range (metres), occluding height (metres).
-COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 
 
 class StageError(RuntimeError):
@@ -132,7 +130,7 @@ def house_content(env: Environment, house_id: str) -> str:
 
 
 @dataclass
-class Pipeline:
+class Pipeline(RobotStages):
     """The stages of one configuration, built on first use, and where their caches live.
 
     Args:
@@ -275,107 +273,6 @@ class Pipeline:
         """Where house ``hid``'s cache entry of ``kind`` lives (:meth:`CacheStore.entry`: render,
         classify, aggregate, score, failure, maps, robot_map, coverage)."""
         return self.store.entry(kind, self.keys, self.contents(hid), hid)
-
-    # ---- the robot's map (mapping=scan ...), shared by the method and the segmenters
-    @property
-    def mapping(self) -> Any:
-        return self.stage("mapping")
-
-    def _robot_grid(self, hid: str, scene, poses: np.ndarray | None, timings: dict) -> tuple[Any, dict[str, Any]]:
-        """The occupancy map the robot has: the house's floor plan without a ``mapping`` stage,
-        else the map it builds along its views (cached per house, views and mapping settings).
-
-        Args:
-            poses: (N, 3) the true poses of the views in capture order (None: the viewpoints
-                stage makes them, for segmenters).
-
-        Returns:
-            (GridMap on the scene's grid, row columns describing it: agreement with the floor
-            plan's walkable space).
-        """
-        if self.inputs.get("mapping") is None:
-            return scene.grid, {"map_free_iou": 1.0, "map_missed_share": 0.0}
-        from envs.maps.gridmap import GridMap
-
-        made: dict[str, np.ndarray] = {}
-
-        def views() -> np.ndarray:  # the true views in capture order, made once when needed
-            if "v" not in made:
-                if poses is not None:
-                    made["v"] = poses
-                else:
-                    t = time.perf_counter()
-                    made["v"] = poses_array(self.stage("viewpoints").generate(scene))
-                    timings["t_viewpoints"] = time.perf_counter() - t
-            return made["v"]
-
-        def load(path: Path) -> np.ndarray:
-            free = load_npz(path)["free"]
-            if free.shape != scene.grid.shape or free.dtype != np.bool_:
-                raise BadEntry(f"free has {free.dtype} {free.shape}, expected bool {scene.grid.shape}")
-            return free
-
-        def compute() -> np.ndarray:
-            t = time.perf_counter()
-            est = self._slam_estimate(hid, scene, views())  # a SLAM robot's scans sit at its estimate
-            kw = {} if est is None else {"estimate": (est.true, est.estimate, est.view_index)}
-            free = np.asarray(self.mapping(scene, views(), house=self.env.house(hid), **kw), dtype=bool)
-            timings["t_map"] = time.perf_counter() - t
-            return free
-
-        def save(path: Path, free: np.ndarray) -> None:
-            atomic_save_npz(path, free=free)
-
-        free = self._cached("map", self.entry("robot_map", hid), load, compute, save)
-        walk = scene.grid.walkable
-        info: dict[str, Any] = {}
-        est = self._slam_estimate(hid, scene, views()) if self._slam_shapes_map() else None
-        if est is not None:
-            # the map is in the robot's frame: the ground truth comes to it (issue 37, item 2)
-            from benchmark.conditions.alignment import align_rigid, to_map_frame
-
-            theta, shift = align_rigid(est.estimate[:, :2], est.true[:, :2])
-            inst = to_map_frame(scene.instances, scene.grid, theta, shift, fill=-1)
-            walk = to_map_frame(walk.astype(np.int8), scene.grid, theta, shift, fill=0).astype(bool)
-            self._frames[hid] = (inst, walk)
-            info["ate_rmse_m"] = est.stats()["ate_rmse_m"]
-            info["map_align_deg"], info["map_align_m"] = float(np.degrees(theta)), float(np.hypot(*shift))
-        union = int((free | walk).sum())
-        info.update({"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
-                     "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))})
-        return GridMap(free, scene.grid.resolution, scene.grid.origin), info
-
-    def _slam_shapes_map(self) -> bool:
-        """True when the robot's map is built at a SLAM estimate that errs (``pose_error=odometry``)."""
-        stage = self.stage("pose_error")
-        return (self.inputs.get("mapping") is not None and stage is not None and hasattr(stage, "estimate")
-                and not stage.is_clean)
-
-    def _ground_truth(self, hid: str, scene) -> tuple[np.ndarray, np.ndarray]:
-        """(instances (H, W), walkable (H, W)) of the ground truth in the frame of the robot's
-        map: the house's own unless the map was built at a SLAM estimate (:meth:`_robot_grid`)."""
-        return self._frames.get(hid, (scene.instances, scene.grid.walkable))
-
-    def _slam_estimate(self, hid: str, scene, views: np.ndarray):
-        """The robot's one pose estimate (:class:`benchmark.conditions.slam.SlamEstimate`) along its views,
-        when its ``pose_error`` stage is a SLAM that makes one and errs; else None."""
-        stage = self.stage("pose_error")
-        if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
-            return None
-        spacing = self.mapping.settings.spacing if self.mapping is not None else None
-        return stage.estimate(self._route_grid(scene), views, hid, spacing)
-
-    def _route_grid(self, scene):
-        """The cells the robot can drive: the floor plan's walkable cells less the doors its
-        ``mapping`` stage closes (:func:`envs.maps.scan.closed_doors`)."""
-        settings = getattr(self.mapping, "settings", None)
-        if settings is None or not getattr(settings, "door_closed", 0):
-            return scene.grid
-        from envs.maps.gridmap import GridMap
-        from envs.maps.scan import closed_doors
-
-        closed = closed_doors(scene, settings.door_closed, settings.seed)
-        return GridMap(scene.grid.walkable & ~closed, scene.grid.resolution, scene.grid.origin)
 
     # ---- the one cached-stage helper
     def _cached(self, stage: str, path: Path, load: Callable[[Path], T], compute: Callable[[], T],
@@ -606,39 +503,6 @@ class MethodPipeline(Pipeline):
             atomic_save_npz(self.entry("maps", hid), raw=result.raw.astype(np.int16), post=result.labels.astype(np.int16),
                             poses=result.poses, proba=proba_in.astype(np.float32), **extra)
         return out
-
-    # ---- robot conditions
-    def _render_poses(self, hid: str) -> np.ndarray:
-        """Every view's true pose in capture order (refused ones included): the robot's path."""
-        from envs.render import cache as render_cache
-
-        return render_cache.read_poses(self.entry("render", hid))[0]
-
-    def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
-        """How much of the house the views saw (:func:`benchmark.conditions.coverage.view_coverage`) with
-        the renderer's field of view and range (90 degrees, 6 m when it has none) and the
-        floor plan's occluders (walls, tall furniture): cached per render."""
-        from benchmark.conditions.coverage import view_coverage
-        from envs.render.floorplan import occluders
-
-        def load(path: Path) -> dict[str, float]:
-            cov = dict(read_entry(path))
-            for k in ("coverage_area", "coverage_rooms"):
-                v = cov.get(k)
-                if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
-                    raise BadEntry(f"{k} is {v!r}, expected a share in [0, 1]")
-            return cov
-
-        def compute() -> dict[str, float]:
-            t = time.perf_counter()
-            fov = float(getattr(self.renderer, "fov", COVERAGE_FOV) or COVERAGE_FOV)
-            rng = float(getattr(self.renderer, "max_range", COVERAGE_RANGE) or COVERAGE_RANGE)
-            height = float(getattr(self.renderer, "occluder_height", COVERAGE_OCCLUDER))
-            cov = view_coverage(scene, self._render_poses(hid), fov, rng, occluders(scene, height))
-            timings["t_coverage"] = time.perf_counter() - t
-            return {"coverage_area": float(cov["coverage_area"]), "coverage_rooms": float(cov["coverage_rooms"])}
-
-        return self._cached("render", self.entry("coverage", hid), load, compute, lambda p, v: write_entry(p, v))
 
 
 #: the view-transform columns of a row when no transform records them (the perfect robot).
