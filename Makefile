@@ -36,8 +36,8 @@ setup-gpu: setup-test  ## GPU workstation: add the gpu extra (bitsandbytes, the 
 test: setup-test  ## run the whole test suite (what CI runs)
 	$(PY) -m pytest -q
 
-test-fast: setup-test  ## the suite without tests marked slow (pytest -m "not slow")
-	$(PY) -m pytest -q -m "not slow" --max-unmarked-seconds 2
+test-fast: setup-test  ## the developer loop: tests not marked slow, 2 processes; fails a test over 2 s not marked slow
+	$(PY) -m pytest -q -m "not slow" -n 2 --max-unmarked-seconds 2
 
 lint: setup-test  ## ruff
 	$(VENV)/bin/ruff check benchmark envs tests

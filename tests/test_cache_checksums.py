@@ -156,6 +156,7 @@ def test_every_entry_kind_is_verified_on_read(tmp_path, caplog):
     assert "observations.jsonl: content does not match the render's checksum" in warned
 
 
+@pytest.mark.slow
 def test_a_corrupt_saved_maps_entry_is_repaired_and_report_and_figures_work(tmp_path, caplog):
     """Issue 24 item 7: a maps entry replaced by ``{}`` was never repaired (rerun exit 0, then
     ``report`` and ``figures from-run`` exit 2)."""
@@ -193,6 +194,7 @@ def test_names_from_ids_are_bounded_safe_and_distinct():
     assert len(entry_name(long_id, "f" * 16)) <= MAX_NAME + 13
 
 
+@pytest.mark.slow
 def test_a_long_house_id_no_longer_aborts_the_run(tmp_path, procthor_file):
     """Issue 24 item 3: a 240-character id in the middle of three houses made the run exit 2
     with no metrics.csv (ENAMETOOLONG in the cache)."""

@@ -145,6 +145,7 @@ def test_every_corruption_level_composes_names_itself_and_builds(option):
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_help_lists_only_the_groups_the_app_accepts():
     """``roomseg-bench --help`` lists the bench app's groups with their options, not the scoring
     app's ``external`` group (conf/scoring/), which the bench app refuses."""

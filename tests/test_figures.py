@@ -71,6 +71,7 @@ def hand_scene():
     return Scene("hand", GridMap(walk, 0.1, (0.0, 4.0)), rooms, inst, np.array([2, 5]), ["r0", "r1"])
 
 
+@pytest.mark.slow
 def test_figure_functions_on_arrays(tmp_path):
     s = hand_scene()
     raw = s.semantic.copy()

@@ -264,3 +264,13 @@ def test_no_layering_breach_inside_envs(graph):
 def test_the_envs_rule_catches_a_map_importing_the_renderer():
     graph = {"envs.maps.scan": {"envs.render.floorplan"}, "envs.render.floorplan": {"envs.maps.rays"}}
     assert envs_breaches(graph) == [("envs.maps.scan", "envs.render.floorplan")]
+
+
+def test_the_slow_check_names_an_unmarked_test_over_the_limit():
+    """``make test-fast``'s check (tests/conftest.py, --max-unmarked-seconds): a test over the
+    limit without ``@pytest.mark.slow`` is named, a marked one or a quick one is not."""
+    from tests.conftest import unmarked_over
+
+    durations = {"a::slow_one": [5.0, True], "a::quick": [0.1, False], "a::late": [2.5, False], "a::b": [3.0, False]}
+    assert unmarked_over(durations, 2.0) == [("a::b", 3.0), ("a::late", 2.5)]
+    assert unmarked_over(durations, 4.0) == []

@@ -14,6 +14,7 @@ from benchmark.reports import readme_tables as rt
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_readme_blocks_are_what_make_readme_tables_writes():
     found = {}
     for f in rt.BLOCK_FILES:  # the README, and the docs pages that hold the blocks too long for it
@@ -26,6 +27,7 @@ def test_readme_blocks_are_what_make_readme_tables_writes():
     assert {"bench-timing", "bench-table4", "robustness-timing", "robustness-power"} <= set(readme)
 
 
+@pytest.mark.slow
 def test_a_number_changed_by_hand_is_caught():
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     body = rt.blocks_in(text)["bench-table4"]

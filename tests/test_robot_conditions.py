@@ -44,6 +44,7 @@ def _files(root: Path, stage: str) -> dict[str, int]:
             if p.is_file() and not p.name.endswith(".lock")}
 
 
+@pytest.mark.slow
 def test_level_zero_of_every_condition_is_the_clean_run_byte_for_byte(tmp_path):
     clean = _run(tmp_path, "clean", results="a")
     assert (clean["status"] == "ok").all() and set(clean["corruption"]) == {"clean"}

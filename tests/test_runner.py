@@ -54,6 +54,7 @@ def _snapshot(cache: Path) -> dict[str, float]:
     return {str(p): p.stat().st_mtime_ns for p in cache.rglob("*") if p.is_file() and not p.name.endswith(".lock")}
 
 
+@pytest.mark.slow
 def test_grid_writes_one_row_per_house_and_config_and_rerun_does_no_work(tmp_path, procthor_file):
     houses = _houses_file(tmp_path, procthor_file, n=2)
     rows = []

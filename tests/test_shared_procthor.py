@@ -2,6 +2,7 @@
 
 import networkx as nx
 import numpy as np
+import pytest
 import shapely
 from scipy import ndimage
 
@@ -17,6 +18,7 @@ def _door_graph(house, room_ids):
     return g
 
 
+@pytest.mark.slow
 def test_all_houses_load_and_rasterise(shared_houses, shared_scenes):
     assert len(shared_houses) == 150
     for s in shared_scenes:

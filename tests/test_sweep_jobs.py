@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from benchmark.reports.sweep_jobs import expected_jobs, missing_jobs, partial_sweep_lines
 
@@ -41,7 +42,7 @@ def _sweep(root: Path, skip: tuple[str, ...] = ()) -> Path:
             (job / ".hydra" / "overrides.yaml").write_text(
                 f"- {method}\n- corruption={corruption}\n- env=synthetic\n- run.limit=2\n")
             (job / "resolved_config.yaml").write_text("run: {name: robustness}\n")
-            (job / "summary.json").write_text(json.dumps({"n_houses": 2}))
+            (job / "summary.json").write_text(json.dumps({"n_houses": 2, "names": {}, "keys": {}, "contents": {}}))
             if corruption in skip:
                 continue
             fam, sev = (corruption.split("_") + ["0"])[:2] if corruption != "clean" else ("clean", "0")
@@ -63,6 +64,7 @@ def test_expected_jobs_come_from_the_sweep_description(tmp_path):
     assert expected_jobs(tmp_path) is None  # no multirun.yaml: nothing to compare with
 
 
+@pytest.mark.slow
 def test_unfinished_jobs_are_named_by_tables_report_and_robustness(tmp_path, capsys):
     sweep = _sweep(tmp_path, skip=("scan_2",))
     (line,) = partial_sweep_lines([sweep])
@@ -87,6 +89,7 @@ def test_unfinished_jobs_are_named_by_tables_report_and_robustness(tmp_path, cap
     assert "| scan |" not in out.split("## Severities")[0]
 
 
+@pytest.mark.slow
 def test_a_severity_missing_for_all_methods_in_a_published_copy_is_caught_from_the_rows(tmp_path, capsys):
     """No multirun.yaml (a published copy): a gap in the middle of a family is still caught."""
     sweep = _sweep(tmp_path)

@@ -166,6 +166,7 @@ NEEDS_PGREP = pytest.mark.skipif(shutil.which("pgrep") is None, reason="pgrep (p
 
 
 @NEEDS_PGREP
+@pytest.mark.slow
 def test_ctrl_c_stops_the_workers_at_once(tmp_path):
     """Ctrl-C (SIGINT to the process group) ends the sweep within a second or two: running
     jobs are stopped, waiting ones never start, no worker is left behind."""
@@ -190,6 +191,7 @@ def test_ctrl_c_stops_the_workers_at_once(tmp_path):
 
 
 @NEEDS_PGREP
+@pytest.mark.slow
 def test_a_killed_worker_ends_the_sweep_naming_it(tmp_path):
     """kill -9 of a worker: the sweep stops with a line naming the sweep folder (not a hang),
     and the other worker is stopped too."""

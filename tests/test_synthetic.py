@@ -27,6 +27,7 @@ def _footprint(obj):
                            obj["rotation"]["y"], a.size, 0.0, a.size[1])
 
 
+@pytest.mark.slow
 def test_valid_and_deterministic(houses):
     for h in houses:
         validate_house(h.data, h.id)

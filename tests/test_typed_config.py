@@ -56,7 +56,9 @@ def test_a_users_own_stage_is_checked_by_its_signature():
 
 
 def test_the_robot_families_are_the_corruption_files():
-    assert RobotLabel.families() == ("classifier", "clean", "explore", "pose", "realistic", "scan")
+    fams = RobotLabel.families()
+    assert {"classifier", "clean", "explore", "pose", "realistic", "scan", "slam", "lost", "kidnap"} <= set(fams)
+    assert list(fams) == sorted(fams)  # one per conf/corruption prefix, sorted
     assert RobotLabel.check({"corruption": "scan", "severity": 3}) == RobotLabel("scan", 3)
     assert nearest("aggregater", ["aggregator", "classes"]) == "; did you mean 'aggregator'?"
     with pytest.raises(ConfigError, match="on the command line"):

@@ -309,7 +309,8 @@ def test_ctrl_c_at_any_moment_exits_130_with_no_process_left(tmp_path, after_s):
     starting the pool, scoring houses): exit status 130 (or death by SIGINT before the
     command's own handler exists, which a shell shows as 130 too) within seconds, and no
     process of the group left."""
-    p = _bench(tmp_path, *SLOW_RUN, "run.workers=2")
+    # 600 houses: longer than the latest Ctrl-C even with every kernel compiled already
+    p = _bench(tmp_path, *[a.replace("env.n_houses=60", "env.n_houses=600") for a in SLOW_RUN], "run.workers=2")
     time.sleep(after_s)
     if p.poll() is not None:
         pytest.fail(f"the run ended before the Ctrl-C ({p.returncode}): {p.communicate()[1][-1500:]}")

@@ -80,7 +80,8 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.postprocess import PostProcess
     from benchmark.viewpoints import Autotrace
     from envs.maps.rays import cast_rays
-    from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map
+    from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map, scan_obstacles
+    from envs.maps.slam_map import scan_map_at_estimate
     from envs.maps.trajectory import route
     from envs.render.floorplan import FloorplanRenderer, occluders
 
@@ -98,6 +99,9 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
         ("postprocess", lambda: PostProcess()(labels, grid)),
         ("scan map", lambda: robot_scan_map(scene, poses[:4], ScanSettings(range_noise=0.02, dropout=0.1, seed=1),
                                             house_wall_height(house))),
+        ("scan map at a SLAM estimate", lambda: scan_map_at_estimate(
+            scan_obstacles(scene, 0.25, house_wall_height(house)), grid, poses[:4], poses[:4] + [0.05, 0.0, 1.0],
+            ScanSettings(range_noise=0.02, dropout=0.1, seed=1))),
         ("exploration", lambda: (Frontier(budget=3.0).explore(scene), RandomWalk(budget=3.0).generate(scene))),
         ("route", lambda: route(grid.walkable, grid, poses[:4])),
         ("coverage", lambda: view_coverage(scene, poses, 90.0, 6.0, occluders(scene, 1.2))),

@@ -164,7 +164,9 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
                                          words, f"{dataset}: {rb.FAMILY_WORDS[family]}")
     if power:
         md += ["## How many houses", "", *[f"- {x}" for x in power], ""]
-    md += ["## Severities", "", "| family | severity | settings |", "|---|---:|---|"]
+    md += ["## Severities", "", "What each severity's `conf/corruption` file sets, as the composed config has it (units: "
+           "the configuration reference, docs/reference/config.md).", "",
+           "| family | severity | settings |", "|---|---:|---|"]
     md += [f"| {f} | {k} | {v} |" for (f, k), v in sorted(settings.items())]
     md.append("")
     text = "\n".join(md)
