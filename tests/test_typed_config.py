@@ -92,3 +92,36 @@ def test_roomseg_bench_says_one_line_and_exits_2_without_running(tmp_path, args,
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and line in lines[0] and "To append" not in lines[0]
     assert not list(tmp_path.rglob("metrics.csv"))
+
+
+@pytest.mark.slow
+def test_a_failed_run_writes_its_error_into_the_folder_it_claimed(tmp_path):
+    """issue 39 item 1: a run whose folder name is taken by another run's results claims a
+    ``~<key>`` sibling; when it then fails, its ``job_error.txt`` goes there, not into the other
+    run's folder."""
+    base = [sys.executable, "-m", "benchmark.commands.bench", "env=synthetic", "run.limit=1", "run.name=typo2",
+            f"run.results_dir={tmp_path}", "run.progress=false"]
+    assert subprocess.run(base, cwd=ROOT, capture_output=True, text=True, timeout=300).returncode == 0
+    r = subprocess.run([*base, "classifier=oracle", "classifier.classes=[kitchen,bedroom]"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    runs = tmp_path / "runs"
+    assert not (runs / "typo2" / "job_error.txt").exists()
+    claimed = [p for p in runs.iterdir() if p.name.startswith("typo2~")]
+    assert len(claimed) == 1 and "classes" in (claimed[0] / "job_error.txt").read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("args,line", [
+    (["corruption=pose_3", "pose_error=null"], "config error: Config group override must be a string or a list"),
+    (["-m", "experiment=robustness", "run.limit=0"], "run.limit=0: expected an integer >= 1, or null"),
+])
+def test_composition_errors_and_a_bad_run_value_in_a_sweep_are_one_line_before_anything(tmp_path, args, line):
+    """issue 38 item 4: a group set to null that a corruption chooses was a 38-line Hydra
+    traceback; ``run.limit=0`` in a sweep left 624 empty job folders and a summary."""
+    r = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", *args, f"run.results_dir={tmp_path / 'R'}"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and line in lines[0], r.stderr[-2000:]
+    assert not (tmp_path / "R").exists()

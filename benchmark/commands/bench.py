@@ -90,7 +90,10 @@ def app(cfg: DictConfig) -> float:
     except (ConfigError, StageError) as e:  # nothing ran: one line, and exit status 2 at the end
         if HydraConfig.get().mode == RunMode.MULTIRUN:
             raise  # the job fails; the launching process reports it with the others (main)
-        sweep.record_error(_one_line(e), out_dir)
+        # the folder this run claimed (a `~<key>` sibling when out_dir holds another run's results)
+        from benchmark.harness.runner import LAST_RUN
+
+        sweep.record_error(_one_line(e), Path(LAST_RUN.get("dir") or out_dir))
         return float("nan")
     except WorkerDied as e:  # a house worker died: one line, exit status 1 (a multirun's launcher ends the sweep)
         if HydraConfig.get().mode == RunMode.MULTIRUN:
@@ -183,6 +186,13 @@ def main() -> int:
             app()
         finally:
             sys.stderr = stderr
+    except ValueError as e:  # raised by Hydra's defaults list (corruption=pose_3 pose_error=null), not ours
+        if isinstance(e, ConfigError) or _finished_jobs()[1]:
+            return _report_sweep(e) if _finished_jobs()[1] else _report_error(e)
+        print(f"{PROG}: config error: {_one_line(e)} (a corruption= option chooses that group's option; "
+              f"drop the group=null override)" if "Config group override" in str(e)
+              else f"{PROG}: config error: {_one_line(e)}", file=sys.stderr)
+        return 2
     except (ConfigError, StageError, HydraException, OmegaConfBaseException, OSError) as e:
         if _finished_jobs()[1]:  # a multirun whose jobs ran: report every failed job, count the finished
             return _report_sweep(e)

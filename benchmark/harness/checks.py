@@ -217,16 +217,32 @@ def check_run_overrides(args: Any) -> None:
     arguments are left to Hydra).
 
     Raises:
-        ConfigError: as :func:`check_run_keys`."""
-    keys = []
+        ConfigError: as :func:`check_run_keys`, or a value a rule refuses (one line)."""
+    keys, values = [], []
     for a in map(str, args):
         if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
             continue
         key = a.split("=", 1)[0].lstrip("+~")
         if key.startswith("run.") and len(key) > 4:
             keys.append(key[4:].split(".", 1)[0])
+            if "=" in a and not a.startswith("~"):
+                values.append((key[4:], a.split("=", 1)[1]))
     if keys:
         check_run_keys(keys)
+    # a value the config check would refuse in every job (run.limit=0 in a sweep of 624 jobs):
+    # refused once, before the sweep starts (swept values, a,b,c, are left to each job)
+    import yaml
+
+    for key, text in values:
+        rule = RULES.get(("run", key))
+        if rule is None or "," in text or text.startswith(("range(", "choice(", "glob(")):
+            continue
+        try:
+            value = yaml.safe_load(text) if text else None
+        except yaml.YAMLError:
+            continue
+        if not rule(value):
+            raise ConfigError(f"run.{key}={value!r}: expected {_describe('run', key, rule)}")
 
 
 def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:

@@ -322,6 +322,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         WorkerDied: a worker process died (the houses scored before are cached).
     """
     t0 = time.perf_counter()
+    LAST_RUN.clear()  # this run's folder once claimed (an error before that belongs to out_dir)
     body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     plain = OmegaConf.to_container(body, resolve=True)
     check_config(plain, STAGES)
