@@ -47,19 +47,6 @@ def _prctl_pdeathsig(sig: int) -> bool:
         return False
 
 
-def pid_alive(pid: int) -> bool:
-    """Whether process ``pid`` exists (a zombie counts; so does one of another user)."""
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 # ---------------------------------------------------------------- external programs
 #: bytes of each of a program's output streams that :func:`run_guarded` keeps (the end).
 KEEP_BYTES = 64 * 1024
@@ -195,7 +182,7 @@ def _main(argv: list[str]) -> int:
     return _guard_main(int(argv[1]), remove, cmd)
 
 
-__all__ = ["Guarded", "run_guarded", "pid_alive", "KEEP_BYTES", "PR_SET_PDEATHSIG"]
+__all__ = ["Guarded", "run_guarded", "KEEP_BYTES", "PR_SET_PDEATHSIG"]
 
 
 if __name__ == "__main__":

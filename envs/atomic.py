@@ -112,14 +112,15 @@ def clean_leftovers(out: str | Path) -> list[Path]:
         return removed
     for p in out.parent.iterdir():
         m = pattern.match(p.name)
-        if not m or _alive(int(m.group(1))):
+        if not m or pid_alive(int(m.group(1))):
             continue
         shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         removed.append(p)
     return removed
 
 
-def _alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (a zombie counts; so does one of another user)."""
     if pid == os.getpid():
         return True
     try:

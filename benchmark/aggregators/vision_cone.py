@@ -26,7 +26,7 @@ from numba import njit
 from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
-from envs.maps.rays import cone_thetas, line_step, ray_end, trace_ray
+from envs.maps.rays import cone_thetas, line_start, line_step, ray_end, trace_ray
 
 #: values of the per-cell state array besides view ids (>= 0: the last view that voted there)
 FREE, BLOCKED, OUTSIDE = -1, -2, -3
@@ -69,11 +69,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
         known = 0  # path[:known] holds cells of this view's rays
         for t in range(offsets.shape[0]):  # the cone's rays: the view's heading + fixed offsets
             r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
-            dr = abs(r1 - r0)
-            dc = abs(c1 - c0)
-            sr = 1 if r1 > r0 else -1
-            sc = 1 if c1 > c0 else -1
-            err = dc - dr
+            dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
             r = r0
             c = c0
             j = 0

@@ -34,9 +34,10 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from benchmark.guarded import pid_alive, run_guarded
+from benchmark.guarded import run_guarded
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import check_room_area, merge_small_rooms
+from envs.atomic import pid_alive
 from envs.maps.gridmap import GridMap
 
 #: metres per pixel ROSE²'s pixel parameters were tuned for (the maps of its paper).

@@ -18,6 +18,16 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, inline="always")
+def line_start(r0, c0, r1, c1):
+    """The digital line from (r0, c0) to (r1, c1) before its first step: its extents
+    ``dr = |r1 - r0|``, ``dc = |c1 - c0|``, directions ``sr``, ``sc`` and error term; returns
+    ``(dr, dc, sr, sc, err)`` for :func:`line_step`."""
+    dr = abs(r1 - r0)
+    dc = abs(c1 - c0)
+    return dr, dc, 1 if r1 > r0 else -1, 1 if c1 > c0 else -1, dc - dr
+
+
+@njit(cache=True, nogil=True, inline="always")
 def line_step(r, c, err, dr, dc, sr, sc):
     """One step of the Bresenham walk from (r, c) with error term ``err`` on a line of extents
     ``dr = |r1 - r0|``, ``dc = |c1 - c0|`` and directions ``sr``, ``sc``; returns the next
@@ -44,11 +54,7 @@ def trace_ray(blocked, r0, c0, r1, c1, out_rows, out_cols):
     Callable from other numba kernels.
     """
     h, w = blocked.shape
-    dr = abs(r1 - r0)
-    dc = abs(c1 - c0)
-    sr = 1 if r1 > r0 else -1
-    sc = 1 if c1 > c0 else -1
-    err = dc - dr
+    dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
     r = r0
     c = c0
     n = 0
@@ -81,12 +87,9 @@ def walk_beam(blocked, r0, c0, r1, c1, extra, out_rows, out_cols):
     if hr < 0:
         return n, -1
     h, w = blocked.shape
-    dr = abs(r1 - r0)
-    dc = abs(c1 - c0)
-    sr = 1 if r1 > r0 else -1
-    sc = 1 if c1 > c0 else -1
+    dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
     # the same line continued from the hit: its error term there (see line_step)
-    err = dc - dr + abs(hr - r0) * dc - abs(hc - c0) * dr
+    err += abs(hr - r0) * dc - abs(hc - c0) * dr
     r = hr
     c = hc
     k_hit = n
