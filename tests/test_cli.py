@@ -64,3 +64,9 @@ def test_old_module_names_say_what_replaced_them_on_a_terminal(monkeypatch, caps
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
     commands._say_what_replaced()  # a script or a pipe: nothing new on stderr
     assert capsys.readouterr().err == ""
+
+
+def test_segment_help_reads_without_markup(capsys):
+    assert cli.main(["segment", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "roomseg-segment map=robot.yaml" in out and "``" not in out and ":mod:" not in out

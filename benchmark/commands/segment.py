@@ -542,7 +542,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Console entry point; returns the exit status (0 ok, 2 bad input)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
-        print(__doc__)
+        from benchmark.commands.cli import plain  # noqa: PLC0415
+
+        print(plain(__doc__))  # without the docstring's markup (double backticks, :mod: roles)
         return 0 if argv else 2
     from benchmark.commands.errors import one_line  # noqa: PLC0415
 
