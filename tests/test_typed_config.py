@@ -125,3 +125,16 @@ def test_composition_errors_and_a_bad_run_value_in_a_sweep_are_one_line_before_a
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and line in lines[0], r.stderr[-2000:]
     assert not (tmp_path / "R").exists()
+
+
+def test_the_known_top_keys_are_those_of_the_composed_default_configs():
+    """known_top_keys reads the primary config's file instead of composing it: the same keys."""
+    from pathlib import Path as P
+
+    from benchmark.harness.typed import known_top_keys
+    from benchmark.paths import CONF_DIR
+
+    groups = {p.name for p in P(CONF_DIR).iterdir() if p.is_dir() and p.name != "hydra"}
+    for name in ("config", "segment"):
+        composed = {str(k) for k in compose(name).keys() if k != "hydra"}
+        assert set(known_top_keys(name)) == composed | groups

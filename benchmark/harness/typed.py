@@ -50,17 +50,19 @@ def nearest(name: str, known: Sequence[str]) -> str:
 
 @functools.lru_cache(maxsize=8)
 def known_top_keys(config_name: str = "config") -> tuple[str, ...]:
-    """The keys a composed config may hold at the top: those of the default config, and every
-    config group of ``conf/`` (a group chosen later, such as ``segmenter``, adds its key)."""
-    from benchmark.config import compose, config_location
+    """The keys a composed config may hold at the top: the primary config's own keys (read from
+    its YAML file; composing it is not needed, and would cost every command's start-up a
+    compose) and every config group of ``conf/`` (a chosen group, such as ``segmenter``, adds
+    its key; a ``_global_`` option sets keys that are already among these)."""
+    from omegaconf import OmegaConf
 
-    cfg = compose(config_name)
-    folder = Path(config_location(config_name)[0])
-    groups = {p.name for p in folder.iterdir() if p.is_dir() and p.name != "hydra"}
+    from benchmark.config import config_location
     from benchmark.paths import CONF_DIR
 
-    groups |= {p.name for p in Path(CONF_DIR).iterdir() if p.is_dir() and p.name != "hydra"}
-    return tuple(sorted({str(k) for k in cfg.keys() if k != "hydra"} | groups))
+    folder = Path(config_location(config_name)[0])
+    own = {str(k) for k in OmegaConf.load(folder / f"{config_name}.yaml") if k not in ("defaults", "hydra")}
+    groups = {p.name for f in (folder, Path(CONF_DIR)) for p in f.iterdir() if p.is_dir() and p.name != "hydra"}
+    return tuple(sorted(own | groups))
 
 
 def check_top_keys(keys: Sequence[str], config_name: str = "config", where: str = "") -> None:
