@@ -468,6 +468,21 @@ def grazes(normals, r, c, theta, grazing, u):
     return u < grazing * (1.0 - cos_i)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing, u):
+    """What a beam walked from cell (r0, c0) along ``theta`` returns: ``(k, returned)``, ``k``
+    the index of the line cell it returns from (a person standing in its way before the hit
+    :func:`walk_beam` found at ``k_hit``, else ``k_hit``; -1: nothing within range) and
+    ``returned`` False when it grazes its hit surface and returns nothing (:func:`grazes`).
+    Shared by the scan mapper and the mapper at a SLAM estimate."""
+    kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) if persons.shape[1] > 0 else -1
+    if kp >= 0:
+        return kp, True  # a person stands in the beam's way: it returns from them
+    if grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, u):
+        return k_hit, False
+    return k_hit, True
+
+
 @njit(cache=True, nogil=True)
 def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
                  l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last,
@@ -501,12 +516,9 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
             if noise[m, b] > 0:
                 extra = int(1.4143 * (noise[m, b] / res + 0.125)) + 2
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, extra, lr, lc)
-            kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) \
-                if persons.shape[1] > 0 else -1
-            if kp >= 0:
-                k_hit = kp  # a person stands in the beam's way: it returns from them
-            elif grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing,
-                                                          graze_u[m, b]):
+            k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
+                                          graze_u[m, b])
+            if not returned:
                 continue  # a grazing beam returned nothing
             n_free = n
             end_r = -1

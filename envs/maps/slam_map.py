@@ -40,10 +40,9 @@ from envs.maps.scan import (
     _grazing_draws,
     _mark,
     _range_px,
-    grazes,
+    beam_return,
     occupancy_from_log_odds,
     people_draws,
-    person_first,
     surface_normals,
 )
 
@@ -78,12 +77,9 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             # measure from the true cell
             r1, c1 = ray_end(r0, c0, theta, range_px)
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
-            kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) \
-                if persons.shape[1] > 0 else -1
-            if kp >= 0:
-                k_hit = kp  # a person stands in the beam's way: it returns from them
-            elif grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing,
-                                                          graze_u[m, b]):
+            k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
+                                          graze_u[m, b])
+            if not returned:
                 continue  # a grazing beam returned nothing
             hit = k_hit >= 0
             d_m = 0.0
