@@ -37,11 +37,20 @@ def stage_name(stage: object) -> str:
 
 
 class Lazy:
-    """A stage built on first use (``factory()``): a fully cached harness job builds no
-    classifier. :class:`Method` resolves it the first time the stage is asked for."""
+    """A stage built on first use (``factory()``, once): a fully cached harness job builds no
+    classifier. :class:`Method` and its view transforms resolve it when they first need it."""
+
+    _UNBUILT = object()
 
     def __init__(self, factory: Callable[[], Any]):
         self.factory = factory
+        self._value = Lazy._UNBUILT
+
+    def get(self) -> Any:
+        """The stage, built by ``factory`` the first time."""
+        if self._value is Lazy._UNBUILT:
+            self._value = self.factory()
+        return self._value
 
 
 def classify(classifier: Classifier, observations: Sequence[Observation], name: str | None = None) -> np.ndarray:
@@ -312,7 +321,7 @@ class MethodResult:
 
 
 def _resolve(stage: Any) -> Any:
-    return stage.factory() if isinstance(stage, Lazy) else stage
+    return stage.get() if isinstance(stage, Lazy) else stage
 
 
 class Method:
@@ -333,10 +342,7 @@ class Method:
         self.names = dict(names or {})
 
     def _stage(self, name: str) -> Any:
-        value = self._stages[name]
-        if isinstance(value, Lazy):
-            value = self._stages[name] = value.factory()
-        return value
+        return _resolve(self._stages[name])
 
     @property
     def classifier(self) -> Classifier:

@@ -165,3 +165,22 @@ def test_harness_and_roomseg_segment_give_the_same_map(tmp_path, aggregator):
     assert got.shape == want.shape
     assert (got == want).all(), f"{int((got != want).sum())} cells differ"
     assert (want >= 0).sum() > 0.9 * scene.grid.walkable.sum()  # a real map, not an empty one
+
+
+def test_a_lazy_view_transform_stage_is_built_once():
+    from benchmark.method import PoseErrorTransform
+
+    built = []
+
+    class Shift:
+        def __call__(self, poses, grid, hid):
+            return poses + [0.1, 0, 0], {"pose_error_mean_m": 0.1}
+
+    def factory():
+        built.append(1)
+        return Shift()
+
+    m = Method(_Clf(), _left_right, transforms=[PoseErrorTransform(Lazy(factory))])
+    for _ in range(3):
+        m.run(_views([0.5, 4.0]), _grid())
+    assert built == [1]
