@@ -12,15 +12,6 @@ if _sys.argv[:1] == ["-m"] or (_sys.argv and _os.path.basename(_sys.argv[0]).sta
 
     _one_line_warnings()
 
-#: old module -> the ``roomseg`` subcommand that replaced it (benchmark/cli.py's list).
-_MOVED = {"tables": "tables", "report": "report", "figures": "figures", "robustness": "robustness",
-          "baselines": "baselines", "baselines_score": "score", "data": "data", "doctor": "doctor",
-          "evaluate": "evaluate", "train": "train", "view_confusion": "confusion", "robot_coverage": "coverage",
-          "house_stats": "houses", "draw_house": "draw-house", "annotations": "annotations", "bench": "bench", "bag_info": "bag-info", "map_stats": "map-stats",
-          "compile_kernels": "compile",
-          "segment": "segment"}
-
-
 def _say_what_replaced() -> None:
     """``python -m benchmark.commands.<name>`` typed on a terminal: one line on stderr naming the
     ``roomseg`` subcommand that replaced it (the old name keeps working; scripts and pipes see
@@ -30,8 +21,13 @@ def _say_what_replaced() -> None:
         return
     mod = argv[argv.index("-m") + 1] if argv.index("-m") + 1 < len(argv) else ""
     name = mod.rpartition(".")[2]
-    if mod.startswith("benchmark.commands.") and name in _MOVED:
-        print(f"note: `python -m {mod}` is now `roomseg {_MOVED[name]}` (both work)", file=_sys.stderr)
+    from benchmark.cli import (
+        COMMANDS,  # the one list of subcommands: module -> the name that replaced it
+    )
+
+    moved = {module: sub for sub, (module, _) in COMMANDS.items()}
+    if mod.startswith("benchmark.commands.") and name in moved:
+        print(f"note: `python -m {mod}` is now `roomseg {moved[name]}` (both work)", file=_sys.stderr)
 
 
 _say_what_replaced()
