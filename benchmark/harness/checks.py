@@ -211,6 +211,18 @@ def check_run_keys(keys: Any) -> None:
                           f"under run: {', '.join(valid)}")
 
 
+def overrides(args: Any) -> list[tuple[str, str | None]]:
+    """(dotted key, value or None) of each ``[+|++|~]key[=value]`` override in ``args``, as typed
+    on the command line (flags and their values are left out; a deletion ``~key`` has no value)."""
+    out = []
+    for a in map(str, args):
+        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
+            continue
+        key, eq, value = a.partition("=")
+        out.append((key.lstrip("+~"), value if eq and not a.startswith("~") else None))
+    return out
+
+
 def check_run_overrides(args: Any) -> None:
     """:func:`check_run_keys` on the command line, before Hydra composes or creates anything:
     the ``run.<key>`` of every ``[+|++|~]run.<key>[=value]`` override in ``args`` (other
@@ -219,14 +231,11 @@ def check_run_overrides(args: Any) -> None:
     Raises:
         ConfigError: as :func:`check_run_keys`, or a value a rule refuses (one line)."""
     keys, values = [], []
-    for a in map(str, args):
-        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
-            continue
-        key = a.split("=", 1)[0].lstrip("+~")
+    for key, text in overrides(args):
         if key.startswith("run.") and len(key) > 4:
             keys.append(key[4:].split(".", 1)[0])
-            if "=" in a and not a.startswith("~"):
-                values.append((key[4:], a.split("=", 1)[1]))
+            if text is not None:
+                values.append((key[4:], text))
     if keys:
         check_run_keys(keys)
     # a value the config check would refuse in every job (run.limit=0 in a sweep of 624 jobs):
@@ -297,4 +306,4 @@ def check_writable(path: str | Path, key: str) -> Path:
     return p
 
 
-__all__ = ["ConfigError", "RULES", "check_config", "check_run_keys", "check_run_overrides", "check_writable", "run_keys"]
+__all__ = ["ConfigError", "RULES", "overrides", "check_config", "check_run_keys", "check_run_overrides", "check_writable", "run_keys"]

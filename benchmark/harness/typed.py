@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from benchmark.harness.checks import ConfigError
+from benchmark.harness.checks import ConfigError, overrides
 
 #: keys of a ``_target_`` node that Hydra reads itself.
 HYDRA_KEYS = frozenset({"_target_", "_partial_", "_convert_", "_recursive_", "_args_"})
@@ -80,14 +80,8 @@ def check_top_keys(keys: Sequence[str], config_name: str = "config", where: str 
 def check_top_overrides(args: Sequence[str], config_name: str = "config") -> None:
     """:func:`check_top_keys` on command-line overrides (``[+|++|~]key[.sub]=value``), before
     Hydra composes or creates anything (flags and Hydra's own ``hydra.*`` are left alone)."""
-    keys = []
-    for a in map(str, args):
-        if a.startswith("-") or ("=" not in a and not a.startswith("~")):
-            continue
-        key = re.split(r"[./@]", a.split("=", 1)[0].lstrip("+~"), maxsplit=1)[0]  # group/option@pkg, a.b
-        if key and key != "hydra":
-            keys.append(key)
-    check_top_keys(keys, config_name, " on the command line")
+    tops = [re.split(r"[./@]", key, maxsplit=1)[0] for key, _ in overrides(args)]  # group/option@pkg, a.b
+    check_top_keys([k for k in tops if k and k != "hydra"], config_name, " on the command line")
 
 
 @dataclass(frozen=True)
