@@ -7,6 +7,7 @@ the job folders of earlier runs."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -16,14 +17,15 @@ import pytest
 from benchmark.commands.report import main as report
 from benchmark.commands.tables import main as tables
 from benchmark.harness.store import LAST_SWEEP, sweep_scope
+from benchmark.harness.sweep import JOB_ERROR, SWEEP_ENV, read_error, record_error, write_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _sweep(results: Path, limit: int) -> None:
+def _sweep(results: Path, limit: int, *extra: str) -> None:
     subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "-m", "env=synthetic", "env.resolution=0.1",
                     "classifier=oracle", "aggregator=graph_knn,vision_cone", "postprocess=default", f"run.limit={limit}",
-                    "run.name=s", f"run.results_dir={results}", "run.workers=1"],
+                    "run.name=s", f"run.results_dir={results}", "run.workers=1", *extra],
                    check=True, capture_output=True, cwd=ROOT)
 
 
@@ -37,7 +39,7 @@ def test_a_smaller_sweep_after_a_larger_one(tmp_path, capsys):
     _sweep(res, 3)
     first = json.loads((run / LAST_SWEEP).read_text())
     assert len(first["jobs"]) == 2 and "run.limit=3" in first["command"]
-    _sweep(res, 2)
+    _sweep(res, 2, "hydra.launcher.n_jobs=2")  # right after, its jobs side by side in forked workers
     doc = json.loads((run / LAST_SWEEP).read_text())
     assert len(doc["jobs"]) == 2 and all("~" in j for j in doc["jobs"])  # the siblings the larger run left free
     assert len(list(run.rglob("metrics.csv"))) == 4
@@ -70,6 +72,31 @@ def test_a_smaller_sweep_after_a_larger_one(tmp_path, capsys):
     assert drawn == ["fig3_synthetic-s000000_synthetic_oracle0.8_graph_knn_default.png",
                      "fig3_synthetic-s000000_synthetic_oracle0.8_vision_cone_default.png",
                      "fig4_synthetic-s000000_synthetic_oracle0.8_default.png"]
+
+
+def test_the_sweep_record_holds_its_own_jobs_however_recent_the_others(tmp_path):
+    """A job an earlier multirun finished a moment ago (its summary.json as new as this
+    multirun's start) is not this multirun's: the record and the job errors follow the token
+    each job carries, not file times."""
+    sweep = tmp_path / "s"
+    for name, token in (("old", "a" * 32), ("new", "b" * 32), ("single", None)):
+        job = sweep / name
+        job.mkdir(parents=True)
+        (job / "metrics.csv").write_text("house_id,status,iou\nh0,ok,0.5\n")
+        (job / "resolved_config.yaml").write_text("run: {}\n")
+        (job / "summary.json").write_text(json.dumps({"n_houses": 1, "n_ok": 1, "n_failed": 0, "sweep_id": token}))
+    table = write_summary(sweep, sweep="b" * 32, started=0.0)
+    assert list(table["job"]) == ["new"]
+    assert json.loads((sweep / LAST_SWEEP).read_text())["jobs"] == ["new"]
+
+    os.environ[SWEEP_ENV] = "c" * 32
+    try:
+        record_error("job 'x': run.limit=-1: expected a positive integer", sweep / "old")
+    finally:
+        del os.environ[SWEEP_ENV]
+    assert read_error(sweep / "old" / JOB_ERROR) == ("job 'x': run.limit=-1: expected a positive integer", "c" * 32)
+    record_error("no token", sweep / "new")  # outside a multirun
+    assert read_error(sweep / "new" / JOB_ERROR) == ("no token", None)
 
 
 def test_scope_of_folders_without_a_sweep_record(tmp_path, capsys):

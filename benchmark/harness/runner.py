@@ -61,6 +61,7 @@ from benchmark.harness.pipeline import (
 from benchmark.harness.processes import available_cores, worker_cap
 from benchmark.harness.progress import house_progress, job_label, parallel_jobs
 from benchmark.harness.store import NON_ROW_KEYS, SELECTION_KEYS, Job, claim_job_dir, flat_settings
+from benchmark.harness.sweep import current_sweep
 from benchmark.harness.typed import check_typed
 from benchmark.metrics import describe
 from benchmark.paths import CONF_DIR
@@ -377,6 +378,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         "n_cached": sum(r.cached for r in results),
         # newest job wins where two jobs hold the same configuration and house (reports/tables.py)
         "finished_at": datetime.now(timezone.utc).isoformat(),
+        "sweep_id": current_sweep() if _in_multirun() else None,  # the multirun that ran this job
     }
     ok = df[df["status"] == "ok"] if "status" in df else df
     for m in ("iou", "precision", "recall", "accuracy"):

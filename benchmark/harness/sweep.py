@@ -11,7 +11,9 @@ task function records its own job.
 from __future__ import annotations
 
 import logging
+import os
 import time
+import uuid
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -34,6 +36,17 @@ JOB_ERROR = "job_error.txt"
 
 METRICS = ("iou", "precision", "recall", "accuracy")
 
+#: the environment variable carrying the running multirun's token to its jobs (forked or
+#: spawned workers inherit it); a job writes it into ``summary.json`` and ``job_error.txt``,
+#: and the sweep's end reads back the jobs that carry it. File times cannot tell this
+#: multirun's jobs from an earlier one's that ended within the file system's time resolution.
+SWEEP_ENV = "ROOMSEG_SWEEP_ID"
+
+
+def current_sweep() -> str | None:
+    """The token of the multirun this process runs a job of (None outside one)."""
+    return os.environ.get(SWEEP_ENV) or None
+
 
 def record(n_failed: int, allow_failures: bool) -> None:
     """Add one finished job to :data:`OUTCOME`."""
@@ -46,8 +59,9 @@ def record_error(message: str, out_dir: Path) -> None:
     """A job that could not run: keep its one-line reason in :data:`OUTCOME` and in
     ``<out_dir>/job_error.txt`` (read by :class:`SweepSummary` in the launching process)."""
     OUTCOME["errors"].append(message)
+    token = current_sweep()
     try:
-        atomic_write_text(Path(out_dir) / JOB_ERROR, message + "\n")
+        atomic_write_text(Path(out_dir) / JOB_ERROR, message + "\n" + (f"sweep {token}\n" if token else ""))
     except OSError:
         pass  # the folder itself is unwritable: the message is in OUTCOME (and the job's log)
 
@@ -56,6 +70,13 @@ def record_died(message: str) -> None:
     """A single run whose worker process died (:class:`benchmark.harness.executor.WorkerDied`):
     its one-line reason, for an exit status of 1 (in a multirun the launcher ends the sweep)."""
     OUTCOME["died"].append(message)
+
+
+def read_error(path: Path) -> tuple[str, str | None]:
+    """A ``job_error.txt``: its one-line reason and the token of the multirun that wrote it."""
+    lines = Path(path).read_text(encoding="utf-8").strip().splitlines() or [""]
+    token = lines[-1][len("sweep "):] if len(lines) > 1 and lines[-1].startswith("sweep ") else None
+    return "\n".join(lines[:-1] if token else lines).strip(), token
 
 
 def clear_error(out_dir: Path) -> None:
@@ -83,9 +104,10 @@ def sweep_table(jobs: Sequence[Job], root: Path) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["job", "houses", "ok", "failed", *[f"mean_{m}" for m in METRICS], "wall_s"])
 
 
-def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
-    """Summarise the jobs under ``sweep_dir`` (those whose ``summary.json`` was written at or
-    after ``since``, a Unix time, when given) into ``sweep_summary.{md,csv}`` there.
+def write_summary(sweep_dir: Path, sweep: str | None = None, started: float | None = None) -> pd.DataFrame:
+    """Summarise the jobs under ``sweep_dir`` (those whose ``summary.json`` carries the multirun
+    token ``sweep``, when given) into ``sweep_summary.{md,csv}`` there; with ``sweep``, also
+    record those jobs in ``last_sweep.json`` (``started``: the multirun's start, Unix time).
 
     Returns:
         The table (empty when no job finished)."""
@@ -93,8 +115,8 @@ def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
         jobs = find_jobs([sweep_dir])
     except FileNotFoundError:
         jobs = []
-    if since is not None:
-        jobs = [j for j in jobs if j.summary_path.stat().st_mtime >= since]
+    if sweep is not None:
+        jobs = [j for j in jobs if j.summary().get("sweep_id") == sweep]
     table = sweep_table(jobs, sweep_dir)
     n_failed = int(table["failed"].fillna(0).sum()) if len(table) else 0
     pct = table.copy()
@@ -105,12 +127,12 @@ def write_summary(sweep_dir: Path, since: float | None = None) -> pd.DataFrame:
           f"{n_failed} failed; metrics in percent over each job's successful houses.\n")
     atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.csv", table.to_csv(index=False))
     atomic_write_text(sweep_dir / f"{SWEEP_SUMMARY}.md", md)
-    if since is not None:  # the jobs this multirun ran: tables and the report can read them alone
+    if sweep is not None:  # the jobs this multirun ran: tables and the report can read them alone
         import sys
 
         from benchmark.harness.store import write_last_sweep
 
-        write_last_sweep(sweep_dir, jobs, since, sys.argv[1:])
+        write_last_sweep(sweep_dir, jobs, started if started is not None else time.time(), sys.argv[1:])
     return table
 
 
@@ -124,7 +146,7 @@ def write_summary_after_failure() -> None:
     if "dir" not in _STARTED:
         return
     try:
-        write_summary(_STARTED["dir"], since=_STARTED["t0"])
+        write_summary(_STARTED["dir"], sweep=_STARTED["sweep"], started=_STARTED["t0"])
     except OSError:
         pass
 
@@ -138,16 +160,21 @@ class SweepSummary(Callback):
 
     def __init__(self) -> None:
         self.t0: float | None = None
+        self.sweep: str | None = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        self.t0 = time.time() - 1.0  # file times may be coarse
-        _STARTED.update(dir=Path(str(config.hydra.sweep.dir)), t0=self.t0)
+        self.t0 = time.time()
+        self.sweep = uuid.uuid4().hex
+        os.environ[SWEEP_ENV] = self.sweep  # before the launcher starts its workers
+        _STARTED.update(dir=Path(str(config.hydra.sweep.dir)), t0=self.t0, sweep=self.sweep)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))
-        table = write_summary(sweep_dir, since=self.t0)
-        errors = [p for p in sorted(sweep_dir.rglob(JOB_ERROR)) if self.t0 is None or p.stat().st_mtime >= self.t0]
-        OUTCOME["errors"] = [p.read_text(encoding="utf-8").strip() for p in errors]
+        table = write_summary(sweep_dir, sweep=self.sweep, started=self.t0)
+        errors = [read_error(p) for p in sorted(sweep_dir.rglob(JOB_ERROR))]
+        OUTCOME["errors"] = [msg for msg, token in errors if token == self.sweep]
+        if os.environ.get(SWEEP_ENV) == self.sweep:
+            del os.environ[SWEEP_ENV]
         OUTCOME["jobs"] = len(table)
         OUTCOME["n_failed"] = int(table["failed"].fillna(0).sum()) if len(table) else 0
         OUTCOME["allow_failures"] = bool(config.run.get("allow_failures", False))
@@ -158,5 +185,5 @@ class SweepSummary(Callback):
             print(f"{md.rstrip().splitlines()[-1]} Per job: {sweep_dir / (SWEEP_SUMMARY + '.md')}", flush=True)
 
 
-__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "clear_error", "record", "record_died", "record_error", "sweep_table",
+__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "SWEEP_ENV", "clear_error", "current_sweep", "read_error", "record", "record_died", "record_error", "sweep_table",
            "write_summary"]
