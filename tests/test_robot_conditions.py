@@ -109,7 +109,7 @@ def test_the_scan_map_is_what_methods_and_segmenters_see_and_the_score_stays_on_
     ("pose_error.sigma_xy=-0.1", "pose_error.sigma_xy=-0.1: expected a number >= 0"),
     ("mapping.height=3.0", "mapping.height=3.0: expected metres, 0 < height < 2.6 (below the walls)"),
     ("mapping.max_range=0", "mapping.max_range=0: expected metres > 0 (.inf: unlimited)"),
-    ("viewpoints.budget=0", "viewpoints.budget=0: expected a number > 0"),
+    ("viewpoints.budget=0", "viewpoints.budget=0: expected metres > 0 (.inf: unlimited)"),
 ])
 def test_bad_settings_are_one_line_exit_2_and_cache_nothing(tmp_path, override, line):
     group = override.split(".")[0]

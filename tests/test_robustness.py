@@ -42,10 +42,12 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
             assert {"mCE", "mCE lo", "mCE hi", "rel mCE", "CE realistic"} <= set(t.columns)
             assert (t[["clean lo", "clean hi"]].notna()).all().all()
         assert (out / f"robustness_synthetic_{metric}.tex").read_text().startswith(r"\begin{table*}")  # wide: every column with its interval
-    # geometry ignores poses, labels and the views it is not built from: its score is the clean one there
+    # geometry ignores poses and labels: its score is the clean one there; under exploration it
+    # gets the explorer's own map, like every method
     t = pd.read_csv(out / "robustness_synthetic_iou.csv", index_col="method")
-    for fam in ("pose", "explore", "classifier"):
+    for fam in ("pose", "classifier"):
         assert t.loc["voronoi", fam] == pytest.approx(t.loc["voronoi", "clean"])
+    assert t.loc["voronoi", "explore"] != pytest.approx(t.loc["voronoi", "clean"])
     assert t.loc["oracle@0.8+vision_cone +post", "drop classifier"] > 0
     for fam in ("scan", "pose", "explore", "classifier", "realistic"):
         for ext in ("png", "pdf"):

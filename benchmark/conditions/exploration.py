@@ -178,13 +178,15 @@ class _Drive:
                            self.mapper.result() if self.mapper is not None else None, stop)
 
 
-def _check_common(budget, spacing, n_headings, heading_spread) -> None:
+def _check_common(budget, spacing, n_headings, heading_spread, unlimited: bool = False) -> None:
+    """Refuse a bad common setting (one line); ``unlimited``: a budget of .inf is allowed."""
     for key, v, ok, want in (
-        ("budget", budget, lambda v: v > 0, "metres > 0"),
-        ("spacing", spacing, lambda v: v > 0, "metres > 0"),
+        ("budget", budget, lambda v: v > 0 and (unlimited or math.isfinite(v)),
+         "metres > 0 (.inf: until no reachable frontier)" if unlimited else "metres > 0"),
+        ("spacing", spacing, lambda v: v > 0 and math.isfinite(v), "metres > 0"),
         ("heading_spread", heading_spread, lambda v: 0 <= v <= 360, "degrees in [0, 360]"),
     ):
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or not ok(v):
+        if isinstance(v, bool) or not isinstance(v, int | float) or math.isnan(v) or not ok(v):
             raise ValueError(f"viewpoints.{key} = {v!r}: expected {want}")
     if isinstance(n_headings, bool) or not isinstance(n_headings, int) or n_headings < 1:
         raise ValueError(f"viewpoints.n_headings = {n_headings!r}: expected an integer >= 1")
@@ -211,7 +213,7 @@ class Frontier:
     """Nearest-frontier exploration viewpoints (module docstring).
 
     Args:
-        budget: most metres driven.
+        budget: most metres driven (.inf: until no reachable frontier is left).
         spacing: metres driven between captures.
         n_headings: views per capture.
         heading_spread: degrees the headings span around the direction of motion.
@@ -229,7 +231,7 @@ class Frontier:
                  heading_spread: float = 180.0, sensor_range: float = 10.0, scan_height: float = 0.25,
                  angular_step: float = 1.0, scan_spacing: float = 0.5, range_noise: float = 0.0,
                  dropout: float = 0.0, min_frontier: float = 0.3, seed: int = 0):
-        _check_common(budget, spacing, n_headings, heading_spread)
+        _check_common(budget, spacing, n_headings, heading_spread, unlimited=True)
         if isinstance(min_frontier, bool) or not isinstance(min_frontier, int | float) or not min_frontier >= 0:
             raise ValueError(f"viewpoints.min_frontier = {min_frontier!r}: expected metres >= 0")
         self.scan = ScanSettings(height=scan_height, max_range=sensor_range, angular_step=angular_step,

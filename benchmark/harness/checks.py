@@ -146,7 +146,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("pose_error", "sigma_xy"): non_negative, ("pose_error", "sigma_yaw"): non_negative,
     ("pose_error", "drift_xy"): non_negative, ("pose_error", "drift_yaw"): non_negative,
     ("pose_error", "loop_closure"): optional(positive), ("label_noise", "share"): fraction,
-    ("viewpoints", "budget"): positive, ("viewpoints", "sensor_range"): range_m,
+    ("viewpoints", "budget"): range_m, ("viewpoints", "sensor_range"): range_m,
     ("viewpoints", "scan_height"): lambda v: _num(v) and 0 < v < 2.6, ("viewpoints", "scan_spacing"): positive,
     ("viewpoints", "range_noise"): non_negative, ("viewpoints", "dropout"): lambda v: _num(v) and 0 <= v < 1,
     ("viewpoints", "min_run"): positive, ("viewpoints", "max_run"): positive,

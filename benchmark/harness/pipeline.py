@@ -472,8 +472,7 @@ class MethodPipeline(Pipeline):
         # the camera saw from the true poses; the method receives the poses as the robot's SLAM
         # gives them and the classes as its classifier (and the classifier-noise stage) gives them
         def route():  # a SLAM pose error's route: every view's true pose, the cells it can drive, the scan spacing
-            spacing = self.mapping.settings.spacing if self.mapping is not None else None
-            return self._render_poses(hid), self._route_grid(scene), spacing
+            return self._render_poses(hid), self._route_grid(scene), self._scan_spacing()
 
         result = self.method.run(lambda: self._observations(hid, scene, timings), robot_grid,
                                  method.Context(scene=scene, house_id=hid, route=route), _HouseCache(self, hid, scene),

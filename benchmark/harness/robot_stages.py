@@ -24,6 +24,21 @@ from envs.render.observation import poses_array
 COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 
 
+def rooms_mapped(instances: np.ndarray, free: np.ndarray) -> dict[str, int]:
+    """How many ground-truth rooms the robot saw: those its map reaches.
+
+    Args:
+        instances: (H, W) int room ids (-1: no room), in the map's frame.
+        free: (H, W) bool, the robot map's free cells.
+
+    Returns:
+        ``rooms_mapped``: rooms with at least one free cell of the map (a room the robot never
+        saw gets no label, so it is missed by matched IoU and PQ); ``rooms_total``: rooms."""
+    ids = np.unique(instances[instances >= 0])
+    seen = np.unique(instances[free & (instances >= 0)])
+    return {"rooms_mapped": int(len(seen)), "rooms_total": int(len(ids))}
+
+
 class RobotStages:
     """The robot's map and coverage for a :class:`benchmark.harness.pipeline.Pipeline` (which
     provides ``stage``, ``entry``, ``env``, ``inputs`` and ``_cached``)."""
@@ -71,6 +86,8 @@ class RobotStages:
             t = time.perf_counter()
             est = self._slam_estimate(hid, scene, views())  # a SLAM robot's scans sit at its estimate
             kw = {} if est is None else {"estimate": (est.true, est.estimate, est.view_index)}
+            if getattr(self.mapping, "uses_exploration", False):  # mapping=explored: the explorer's own map
+                kw["exploration"] = self._exploration(scene, views())
             free = np.asarray(self.mapping(scene, views(), house=self.env.house(hid), **kw), dtype=bool)
             timings["t_map"] = time.perf_counter() - t
             return free
@@ -95,6 +112,7 @@ class RobotStages:
         union = int((free | walk).sum())
         info.update({"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
                      "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))})
+        info.update(rooms_mapped(self._ground_truth(hid, scene)[0], free))
         return GridMap(free, scene.grid.resolution, scene.grid.origin), info
 
     def _slam_shapes_map(self) -> bool:
@@ -114,8 +132,29 @@ class RobotStages:
         stage = self.stage("pose_error")
         if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
             return None
-        spacing = self.mapping.settings.spacing if self.mapping is not None else None
-        return stage.estimate(self._route_grid(scene), views, hid, spacing)
+        return stage.estimate(self._route_grid(scene), views, hid, self._scan_spacing())
+
+    def _scan_spacing(self) -> float | None:
+        """Metres driven between the robot's scans (its ``mapping`` stage's; None without one)."""
+        return getattr(getattr(self.mapping, "settings", None), "spacing", None)
+
+    def _exploration(self, scene, views: np.ndarray):
+        """The exploration that made ``views`` ((N, 3), capture order): the viewpoints stage's
+        last one when it made these views, else explored again (deterministic per house).
+
+        Raises:
+            ValueError: the viewpoints stage does not explore, or explores other views."""
+        stage = self.stage("viewpoints")
+        if not hasattr(stage, "explore"):
+            raise ValueError(f"mapping=explored: the robot's own exploration map needs an exploring viewpoints "
+                             f"stage (viewpoints=frontier); got {type(stage).__name__}")
+        last = getattr(stage, "last", None)
+        if last is None or not np.array_equal(last.poses, views):
+            last = stage.explore(scene)
+        if not np.array_equal(last.poses, views):
+            raise ValueError(f"house {scene.house_id!r}: the exploration gives {len(last.poses)} views, the rendered "
+                             f"views are {len(views)} others; expected the same (stale render cache?)")
+        return last
 
     def _route_grid(self, scene):
         """The cells the robot can drive: the floor plan's walkable cells less the doors its

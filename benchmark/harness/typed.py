@@ -90,7 +90,8 @@ class RobotLabel:
 
     Attributes:
         corruption: the family: ``clean`` or a prefix of a ``conf/corruption`` file.
-        severity: 0 (clean) .. :data:`MAX_SEVERITY`.
+        severity: 0 (clean, or a family's own severity 0: :meth:`own_severity_zero`) ..
+            :data:`MAX_SEVERITY`.
     """
 
     corruption: str = "clean"
@@ -103,13 +104,21 @@ class RobotLabel:
         names = {p.stem.rsplit("_", 1)[0] for p in (Path(CONF_DIR) / "corruption").glob("*.yaml")}
         return tuple(sorted(names | {"clean"}))
 
+    @staticmethod
+    def own_severity_zero() -> tuple[str, ...]:
+        """Families whose severity 0 is a condition of their own (a ``<family>_0.yaml`` in
+        ``conf/corruption``: ``explore_0``, the unlimited exploration), not ``clean``."""
+        from benchmark.paths import CONF_DIR
+
+        return tuple(sorted(p.stem[:-2] for p in (Path(CONF_DIR) / "corruption").glob("*_0.yaml")))
+
     @classmethod
     def check(cls, node: Any) -> RobotLabel:
         """The label of a ``robot`` node.
 
         Raises:
             ConfigError: an unknown key, an unknown family, or a severity that is not an
-                integer 0..5 (and 0 exactly for ``clean``)."""
+                integer 0..5 (0 exactly for ``clean``; 1..5 for a family without its own 0)."""
         if node is None:
             return cls()
         if not isinstance(node, Mapping):
@@ -125,9 +134,11 @@ class RobotLabel:
         sev = node.get("severity", 0)
         if isinstance(sev, bool) or not isinstance(sev, int) or not 0 <= sev <= MAX_SEVERITY:
             raise ConfigError(f"robot.severity={sev!r}: expected an integer 0..{MAX_SEVERITY}")
-        if (corruption == "clean") != (sev == 0):
+        own_zero = corruption in cls.own_severity_zero()
+        if (corruption == "clean" and sev != 0) or (sev == 0 and corruption != "clean" and not own_zero):
             raise ConfigError(f"robot.severity={sev!r} with robot.corruption={corruption!r}: expected severity 0 "
-                              f"exactly for clean (and 1..{MAX_SEVERITY} for a corruption)")
+                              f"exactly for clean (and 1..{MAX_SEVERITY} for a corruption; 0 too for a family with "
+                              f"its own severity 0: {', '.join(cls.own_severity_zero()) or 'none'})")
         return cls(str(corruption), int(sev))
 
 
