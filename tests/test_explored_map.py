@@ -99,3 +99,32 @@ def test_every_method_and_segmenter_gets_the_explored_map(tmp_path):
         assert (m["instances"][~m["free"]] == -1).all()
         e = pipe.stage("viewpoints").explore(pipe.scene(hid))
         assert (m["free"] <= e.scan_map.free).all()  # nothing beyond what the explorer's laser saw free
+
+
+@pytest.mark.slow
+def test_a_scan_map_along_the_mapping_run_is_the_mapper_on_that_route(tmp_path):
+    """mapping.route=explore (the scan family): the harness's robot map is the scan mapper run on
+    the frontier mapping route (called directly here); it is not the map along the views; an
+    unknown route is refused in one line."""
+    from benchmark.conditions.exploration import exploration_route
+    from envs.maps.mapping import ScanMapping
+
+    over = ["corruption=scan_3", "segmenter=distance", "run.save_maps=true"]
+    df = _run(tmp_path, "scan3", *over)
+    assert (df["status"] == "ok").all()
+    cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", *over])
+    pipe = build_pipeline(cfg, ch)
+    mapping = ScanMapping(**{k: v for k, v in cfg.mapping.items() if k != "_target_"})
+    assert mapping.route == "explore"
+    for hid in df["house_id"]:
+        scene, house = pipe.scene(hid), pipe.env.house(hid)
+        saved = load_npz(pipe.entry("maps", hid))["free"]
+        assert np.array_equal(saved, mapping(scene, exploration_route(scene), house=house))
+        views = pipe.stage("viewpoints").generate(scene)
+        assert not np.array_equal(saved, mapping(scene, views, house=house))
+    with pytest.raises(ValueError, match=r"^mapping.route='bogus': expected one of views, explore$"):
+        ScanMapping(route="bogus")
+    bad = _run(tmp_path, "slam", "corruption=slam_1", "mapping.route=explore", "segmenter=distance")
+    assert (bad["status"] == "failed").all()
+    assert bad["error"].str.contains("mapping.route=explore with a SLAM pose error that places the scans").all()
+

@@ -7,8 +7,9 @@ speckle per m^2, clutter blobs, unknown share inside the outline, wall straightn
   ``--resolution`` metres per pixel.
 * ``map_stats --calibrate``: the four real laser maps of ``../shared/data/real_maps`` (``--real-dir``)
   beside the scan maps the simulated robot builds at each severity of the ``scan`` family
-  (``conf/corruption/scan_k.yaml``) and the ``slam`` family (``slam_k``) on the first ``--n`` shared
-  houses (autotrace views, 0.05 m per pixel), means over houses; ``--figure PATH`` draws the real
+  (``conf/corruption/scan_k.yaml``, along the route each level sets: ``scan_0`` the autotrace
+  views, ``scan_1..5`` a frontier mapping run) and the ``slam`` family (``slam_k``, autotrace
+  views) on the first ``--n`` shared houses (0.05 m per pixel), means over houses; ``--figure PATH`` draws the real
   maps beside house 0's simulated ones.
 """
 
@@ -22,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from benchmark.commands.errors import cli_errors, one_line
-from benchmark.paths import CONF_DIR, data_dir, procthor_houses
+from benchmark.paths import data_dir, procthor_houses
 
 #: the real maps and their grey thresholds (free_min, occupied_max): the Intel map is a grey-level
 #: map (255 free, 230 unknown, darker occupied), the others ROS trinary PNGs (254 / 205 / 0).
@@ -48,34 +49,34 @@ def read_occupancy(path: Path, resolution: float, free_min: int, occupied_max: i
 
 def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
     """(rows of statistics per (house, level), {level: house 0's occupancy}) for scan_0..5, slam_1..5."""
-    from omegaconf import OmegaConf
 
-    from benchmark.commands.maintainer.slam_levels import level_scanner, level_settings
+    from benchmark.commands.maintainer.slam_levels import level_route, level_scanner, level_settings
+    from benchmark.conditions.exploration import exploration_route
     from benchmark.conditions.slam import OdometrySlam
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses
     from envs.maps.map_stats import map_stats
-    from envs.maps.scan import ScanSettings, house_wall_height, scan_map, scan_obstacles
+    from envs.maps.scan import house_wall_height, scan_map, scan_obstacles
     from envs.maps.scene import rasterise_house
     from envs.maps.slam_map import scan_map_at_estimate
     from envs.maps.trajectory import trajectory
 
-    base = OmegaConf.load(Path(CONF_DIR) / "mapping" / "scan.yaml")
-    scanners = {"scan_0": ScanSettings()}
+    scanners = {"scan_0": ("views", level_scanner("clean"))}
     for k in range(1, 6):
-        node = OmegaConf.merge(base, OmegaConf.load(Path(CONF_DIR) / "corruption" / f"scan_{k}.yaml").mapping)
-        plain = OmegaConf.to_container(node, resolve=True)
-        plain.pop("_target_", None)
-        scanners[f"scan_{k}"] = ScanSettings(**plain)
+        scanners[f"scan_{k}"] = (level_route(f"scan_{k}"), level_scanner(f"scan_{k}"))
     rows, first = [], {}
     for hid, house in enumerate(load_houses(procthor_houses(), 0, n)):
         scene = rasterise_house(house)
         wall = house_wall_height(house)
         poses = Autotrace().generate(scene)
+        routes = {"views": poses}
         res = scene.grid.resolution
-        for level, settings in scanners.items():
+        for level, (route, settings) in scanners.items():
+            if route not in routes:  # mapping.route=explore: the frontier mapping run
+                routes[route] = exploration_route(scene)
             obstacles = scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size)
-            occ = scan_map(obstacles, scene.grid, trajectory(scene.grid.walkable, scene.grid, poses, settings.spacing),
+            occ = scan_map(obstacles, scene.grid,
+                           trajectory(scene.grid.walkable, scene.grid, routes[route], settings.spacing),
                            settings).occupancy
             rows.append({"map": level, "house": hid, **map_stats(occ, res)})
             first.setdefault(level, occ)

@@ -288,6 +288,18 @@ class Frontier:
         return self.explore(scene).poses
 
 
+#: metres driven between the poses of a mapping route (:func:`exploration_route`).
+ROUTE_SPACING = 1.0
+
+
+def exploration_route(scene: Scene) -> np.ndarray:
+    """(M, 3) poses (x, z metres, yaw degrees) along the route of a frontier exploration with no
+    budget (default explorer: 10 m laser, scans every 0.5 m), one every :data:`ROUTE_SPACING`
+    metres driven, facing the direction of motion: where a mapping robot drives
+    (``mapping.route: explore``). Deterministic per house."""
+    return Frontier(budget=math.inf, spacing=ROUTE_SPACING, n_headings=1, heading_spread=0.0).explore(scene).poses
+
+
 def _is_frontier(lo: np.ndarray, walk: np.ndarray, r: int, c: int) -> bool:
     """A known-free cell with an unobserved 4-neighbour (cluster size not considered)."""
     if not (lo[r, c] < 0 and walk[r, c]):

@@ -50,7 +50,8 @@ class RobotStages:
 
     def _robot_grid(self, hid: str, scene, poses: np.ndarray | None, timings: dict) -> tuple[Any, dict[str, Any]]:
         """The occupancy map the robot has: the house's floor plan without a ``mapping`` stage,
-        else the map it builds along its views (cached per house, views and mapping settings).
+        else the map it builds along its views, or along a mapping run of its own
+        (``mapping.route: explore``), cached per house, views and mapping settings.
 
         Args:
             poses: (N, 3) the true poses of the views in capture order (None: the viewpoints
@@ -84,11 +85,21 @@ class RobotStages:
 
         def compute() -> np.ndarray:
             t = time.perf_counter()
-            est = self._slam_estimate(hid, scene, views())  # a SLAM robot's scans sit at its estimate
+            # a SLAM robot's scans sit at its estimate
+            est = self._slam_estimate(hid, scene, views()) if self._slam_shapes_map() else None
             kw = {} if est is None else {"estimate": (est.true, est.estimate, est.view_index)}
             if getattr(self.mapping, "uses_exploration", False):  # mapping=explored: the explorer's own map
                 kw["exploration"] = self._exploration(scene, views())
-            free = np.asarray(self.mapping(scene, views(), house=self.env.house(hid), **kw), dtype=bool)
+            if getattr(self.mapping, "route", "views") == "explore":  # a mapping run of its own
+                if est is not None:
+                    raise ValueError("mapping.route=explore with a SLAM pose error that places the scans: the "
+                                     "estimate follows the views; expected mapping.route=views with it")
+                from benchmark.conditions.exploration import exploration_route
+
+                route = exploration_route(scene)
+            else:
+                route = views()
+            free = np.asarray(self.mapping(scene, route, house=self.env.house(hid), **kw), dtype=bool)
             timings["t_map"] = time.perf_counter() - t
             return free
 

@@ -29,17 +29,29 @@ from envs.maps.scan import (
 from envs.maps.scene import Scene
 from envs.maps.slam_map import scan_map_at_estimate
 
+#: where a scan-mapping robot drives: along its views, or along its own exploration.
+ROUTES = ("views", "explore")
+
 
 class ScanMapping:
     """``mapping=scan``: the free cells of the map a laser builds along the robot's views.
 
     Args:
+        route: ``views``: the scans are taken along the views' path (the default); ``explore``:
+            along the route of a frontier exploration with no budget, the mapping run a robot
+            makes before it is asked anything (one pose a metre driven; the harness makes the
+            route, :func:`benchmark.conditions.exploration.exploration_route`, and passes it
+            as ``poses``). A sparser route than a dense view path: each place is scanned fewer
+            times, so the scanner's noise stays in the map.
         **settings: the fields of :class:`envs.maps.scan.ScanSettings` (scan height, max range,
             angular step, range noise, dropout, scan spacing, thresholds, log-odds, seed), each
             checked (one line naming ``mapping.<key>``, its value and the expected range).
     """
 
-    def __init__(self, **settings):
+    def __init__(self, route: str = "views", **settings):
+        if route not in ROUTES:
+            raise ValueError(f"mapping.route={route!r}: expected one of {', '.join(ROUTES)}")
+        self.route = route
         unknown = sorted(set(settings) - set(ScanSettings.__dataclass_fields__))
         if unknown:
             raise ValueError(f"mapping: unknown setting(s) {unknown}; expected {sorted(ScanSettings.__dataclass_fields__)}")
@@ -77,4 +89,4 @@ class ScanMapping:
         return reachable_mask(scan.free, seed_cells(grid, np.asarray(poses)[:, :2]))
 
 
-__all__ = ["ScanMapping"]
+__all__ = ["ROUTES", "ScanMapping"]

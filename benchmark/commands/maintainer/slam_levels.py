@@ -53,7 +53,19 @@ def level_scanner(level: str):
     over = OmegaConf.load(path).get("mapping", {}) if level != "clean" and path.is_file() else {}
     node = OmegaConf.to_container(OmegaConf.merge(base, over), resolve=True)
     node.pop("_target_", None)
+    node.pop("route", None)  # where the robot drives, not the scanner (level_route)
     return ScanSettings(**node).check()
+
+
+def level_route(level: str) -> str:
+    """Where the mapping robot of ``conf/corruption/<level>.yaml`` drives (``mapping.route``:
+    ``views`` or ``explore``) over ``conf/mapping/scan.yaml`` (``clean``: ``views``)."""
+    from omegaconf import OmegaConf
+
+    path = Path(CONF_DIR) / "corruption" / f"{level}.yaml"
+    over = OmegaConf.load(path).get("mapping", {}) if level != "clean" and path.is_file() else {}
+    base = OmegaConf.load(Path(CONF_DIR) / "mapping" / "scan.yaml")
+    return str(OmegaConf.merge(base, over).get("route", "views"))
 
 
 def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) -> tuple[list[dict], dict[str, np.ndarray]]:
