@@ -293,9 +293,9 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
         if not ((cells["method"] == m) & (cells["corruption"] == "clean")).any():
             raise RobustnessError(f"no clean (severity 0) rows for {m}")
     for f in fams:
-        sev = sorted(cells.loc[cells["corruption"] == f, "severity"].unique())
+        sev = sorted(int(s) for s in cells.loc[cells["corruption"] == f, "severity"].unique())
         for m in methods:
-            have = sorted(cells.loc[(cells["corruption"] == f) & (cells["method"] == m), "severity"].unique())
+            have = sorted(int(s) for s in cells.loc[(cells["corruption"] == f) & (cells["method"] == m), "severity"].unique())
             if have != sev:
                 raise RobustnessError(f"{m}: family {f} has severities {have}, others {sev}")
     if values is not None:
@@ -329,13 +329,13 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
     order = ["clean", *plain, *[f"CE {f}" for f in plain], "mCE", *[f"rel CE {f}" for f in plain], "rel mCE",
              *[f"drop {f}" for f in plain], "mean drop",
              *[c for f in comp for c in (*condition_columns(cols, f), f, f"CE {f}", f"rel CE {f}", f"drop {f}")]]
-    out = pd.DataFrame(index=methods)
-    for c in order:
-        out[c] = [float(cols[c][m][0]) for m in methods]
+    data: dict[str, list[float]] = {}
+    for c in order:  # built as one frame (a column at a time fragments a wide one)
+        data[c] = [float(cols[c][m][0]) for m in methods]
         if values is not None:
             iv = [_interval(cols[c][m]) for m in methods]
-            out[f"{c} lo"], out[f"{c} hi"] = [x[0] for x in iv], [x[1] for x in iv]
-    out.index.name = "method"
+            data[f"{c} lo"], data[f"{c} hi"] = [x[0] for x in iv], [x[1] for x in iv]
+    out = pd.DataFrame(data, index=pd.Index(methods, name="method"))
     out = out.sort_values(["mCE", "clean"], ascending=[True, False], na_position="last")
     out.attrs.update(reference=reference, notes=notes, draws={c: cols[c] for c in ("clean", *fams, "mCE", "rel mCE")})
     return out
