@@ -6,9 +6,12 @@
 Reads every job of the run (``experiment=robustness``), and per dataset and metric (the paper's
 IoU, matched IoU, PQ) writes the summary of :mod:`benchmark.reports.robustness` (clean score,
 each family's mean over its severities, corruption error, relative CE, mCE and relative mCE
-against ``--reference`` for matched IoU and PQ, drops; each with its 95 % interval over houses)
+against ``--reference`` for matched IoU and PQ, drops from each family's severity 0 (its own rows
+where the run has them, as ``explore_0``, else clean); each with its 95 % interval over houses)
 as Markdown, CSV and LaTeX, the steps where a curve rises with severity (``*_rising.csv``), a
-figure per family (metric vs severity, one line per method, PNG and PDF), and
+figure per family (metric vs severity, one line per method, PNG and PDF; none for the labelled
+conditions ``lost`` and ``kidnap``, whose severities are no ladder: robustness.md has a table of
+each of their conditions instead), and
 ``robustness.md`` with every table, the rankings and what they show in words, the curves that
 rise by more than chance, how many houses a cell needs to detect ``--delta`` points (the power
 report) and every severity's physical values. A family whose severities are not all there (a
@@ -46,7 +49,7 @@ def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], 
     from benchmark.harness.store import flat_settings
 
     out = {}
-    for p in sorted(Path(conf_dir, "corruption").glob("*_[1-9].yaml")):
+    for p in sorted(Path(conf_dir, "corruption").glob("*_[0-9].yaml")):  # a family's own severity 0 too
         family, k = p.stem.rsplit("_", 1)
         given = OmegaConf.to_container(OmegaConf.load(p))
         keys = [key for key in flat_settings({g: v for g, v in given.items() if g not in ("defaults", "robot")})
@@ -80,9 +83,16 @@ def expected_severities(paths: Sequence[str | Path]) -> dict[str, list[int]] | N
     return {f: sorted(v) for f, v in out.items()} if found else None
 
 
-#: value columns shown in robustness.md (every column, with its interval, is in the .csv and .md
-#: files of each table).
-SHOWN = ("clean", *rb.FAMILIES, "mCE", "rel mCE", "mean drop")
+#: value columns shown in robustness.md's summary (every column, with its interval, is in the .csv
+#: and .md files of each table); the labelled conditions have a table of their own there.
+SHOWN = ("clean", *[f for f in rb.FAMILIES if f not in rb.LABELLED], "mCE", "rel mCE", "mean drop")
+
+
+def labelled_columns(table) -> list[str]:
+    """The labelled conditions' columns of a summary table: per labelled family, one per severity
+    (``lost 1``, ...), then the family's mean and its drop."""
+    return [c for f in rb.LABELLED if f in table.columns for c in (*rb.condition_columns(table.columns, f), f,
+                                                                    f"drop {f}")]
 
 
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
@@ -110,6 +120,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     rows["severity"] = rows["severity"].astype(int)
     parts = rb.summarise(rows, metrics, reference, expected_severities(paths), delta=delta)
     settings = severity_settings()
+    labelled = [f for f in rb.LABELLED if any(f in p["table"].columns for p in parts.values())]
     ref_words = ("a method every family degrades, chosen per dataset and metric (named under each table)"
                  if reference in (None, "auto") else f"**{reference}**")
     md = ["# Robustness to robot conditions", "",
@@ -121,7 +132,11 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
           f"the family's severities. Metrics in percent, mean over houses with its 95 % interval "
           f"[lo, hi] ({METHOD_WORDS}); every cell of a dataset holds the same houses. Rankings: braces hold "
           f"methods that no paired interval separates."
-          + (f" Runs read: {scope.note}." if scope.note else ""), "", *[f"**Partial sweep**: {x}." for x in partial],
+          + (f" Runs read: {scope.note}." if scope.note else "")
+          + (" The labelled conditions (" + ", ".join(f"`{f}`" for f in labelled) + ": each severity a situation of "
+             "its own, not a step of one ladder) are reported apart too, each condition in a column of a table of "
+             "its own, and are in neither mean." if labelled else ""), "",
+          *[f"**Partial sweep**: {x}." for x in partial],
           *([""] if partial else [])]
     power = []
     for (dataset, metric), p in parts.items():
@@ -131,6 +146,10 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
         md += [f"## {dataset}: {words}", "", f"{p['houses']} houses per cell"
                + (f"; left out (failed under some condition): {', '.join(p['dropped'])}" if p["dropped"] else "")
                + ".", "", rb.to_markdown(t, columns=shown), *[f"- {n}" for n in p["notes"]], ""]
+        apart = labelled_columns(t)
+        if apart:
+            md += [f"Labelled conditions ({words}; each condition on its own, then the family's mean and its drop; "
+                   f"reported apart, in neither mCE nor the mean drop):", "", rb.to_markdown(t, columns=apart), ""]
         curves = p["curves"]
         if metric in rb.RANKED:
             sig = curves[curves["significant"]] if len(curves) else curves
@@ -158,8 +177,8 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
                                              encoding="utf-8")
             (out / f"{stem}.md").write_text(rb.to_markdown(t), encoding="utf-8")
             if metric in ("iou", "matched_iou"):
-                for family in rb.FAMILIES:
-                    if family in set(p["cells"]["corruption"]):
+                for family in rb.FAMILIES:  # a labelled condition's severities are no ladder: its table only
+                    if family in set(p["cells"]["corruption"]) and family not in rb.LABELLED:
                         rb.family_figure(p["cells"], family, out / "figures" / f"{stem}_{family}",
                                          words, f"{dataset}: {rb.FAMILY_WORDS[family]}")
     if power:

@@ -473,11 +473,19 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
     if not (rows["corruption"].astype(str) != "clean").any():  # every run is clean: nothing to compare
         return ""
     rows["severity"] = pd.to_numeric(rows["severity"]).astype(int)
+    tops = set(rows.loc[rows["corruption"].astype(str) != "clean"].groupby("corruption")["severity"].max())
+    span = "1-5" if tops == {5} else "1 up to its highest"
     out = ['<h2 id="robustness">Robustness to robot conditions</h2>',
-           '<p class="muted">Matched IoU in percent under each robot condition (mean over its severities 1-5) with '
+           f'<p class="muted">Matched IoU in percent under each robot condition (mean over its severities {span}) with '
            "its 95 % interval over houses, mCE and relative mCE (corruption error relative to a method every "
            "family degrades, named below; 100 = as robust, lower is better; <code>realistic</code> apart, not in "
-           "the mean) and the mean drop from the clean score; the full tables (PQ, the paper's IoU, CE and drop "
+           "the mean"
+           + ("; the labelled conditions <code>lost</code> and <code>kidnap</code> (each severity a situation of "
+              "its own) apart too" if rows["corruption"].astype(str).isin(rb.LABELLED).any() else "")
+           + ") and the mean drop from the clean score"
+           + (" (from a family's own severity 0 where the run has one: named below)"
+              if ((rows["corruption"].astype(str) != "clean") & (rows["severity"] == 0)).any() else "")
+           + "; the full tables (PQ, the paper's IoU, CE and drop "
            "per condition, rankings, power) are written by <code>python -m benchmark.commands.robustness</code>.</p>"]
     try:
         parts = rb.summarise(rows, ("matched_iou",), "auto")
@@ -497,7 +505,7 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
                 "".join(f'<p class="muted">{_esc(n)}</p>' for n in part["notes"]), '<div class="robust">']
         with tempfile.TemporaryDirectory() as tmp:
             for family in rb.FAMILIES:
-                if family not in set(part["cells"]["corruption"]):
+                if family not in set(part["cells"]["corruption"]) or family in rb.LABELLED:  # no ladder to draw
                     continue
                 png = rb.family_figure(part["cells"], family, Path(tmp) / family, metric_words("matched_iou"),
                                        f"{dataset}: {rb.FAMILY_WORDS[family]}")[0]

@@ -245,6 +245,18 @@ def render_block(block: Block, root: str | Path = ".") -> str:
             + "".join(f"\n- {r}" for r in ranks) + ("\n" if ranks else ""))
 
 
+def _severity_span(cells) -> str:
+    """The severities the conditions average over, in words: ``1-5`` where every family has 1..5,
+    else each family's span (``1-5; lost 1-3; kidnap 1-2``: the families beyond the common one)."""
+    spans = {f: (int(g.min()), int(g.max())) for f, g in
+             cells.loc[(cells["corruption"] != "clean") & (cells["severity"] > 0)].groupby("corruption")["severity"]}
+    if not spans:
+        return "1-5"
+    common = max(set(spans.values()), key=lambda x: (list(spans.values()).count(x), x))
+    odd = [f"{f} {a}-{b}" for f, (a, b) in spans.items() if (a, b) != common]
+    return "; ".join([f"{common[0]}-{common[1]}", *odd])
+
+
 def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str], power_only: bool = False) -> str:
     """Per dataset: matched IoU clean and under each condition (mean over its severities) with
     its 95 % interval, mCE and relative mCE against a reference every family degrades
@@ -265,8 +277,8 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
         p, pq = parts[(dataset, "matched_iou")], parts[(dataset, "pq")]
         t = p["table"]
         ranked = [m for m in t.index if m not in rb.SANITY]  # sanity rows: docs
-        fams = [f for f in rb.FAMILIES if f in t.columns and f not in rb.COMPOSITE]
-        comp = [f for f in rb.FAMILIES if f in t.columns and f in rb.COMPOSITE]
+        fams = [f for f in rb.FAMILIES if f in t.columns and f not in rb.APART]
+        comp = [f for f in rb.FAMILIES if f in t.columns and f in rb.APART]
         cols = ["clean", *fams, "mCE", "rel mCE", *comp]
         labels = {**{f: rb.FAMILY_WORDS[f] for f in fams}, **{f: f"{f} (apart)" for f in comp}}
         ref = p["reference"]
@@ -274,9 +286,11 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
         sig = p["curves"][p["curves"]["significant"]] if len(p["curves"]) else p["curves"]
         n_rise = p["curves"][["method", "family"]].drop_duplicates().shape[0] if len(p["curves"]) else 0
         out += [f"**{formatting.value_label('dataset', dataset)}** ({p['houses']} houses per cell; matched IoU in "
-                f"percent, mean [95 % interval], conditions averaged over their severities 1-5; mCE and relative "
-                f"mCE relative to {ref or 'no method (none is degraded by every family)'}, lower is better; "
-                f"`realistic` combines the others and is in neither mean):",
+                f"percent, mean [95 % interval], conditions averaged over their severities {_severity_span(p['cells'])}; "
+                f"mCE and relative mCE relative to {ref or 'no method (none is degraded by every family)'}, lower is "
+                f"better; `realistic` combines the others and is in neither mean"
+                + ("".join(f"; `{f}` is a labelled condition (each severity a situation of its own), apart too"
+                           for f in comp if f in rb.LABELLED)) + "):",
                 "", rb.to_markdown(t.loc[ranked], columns=cols, labels=labels).rstrip(), "",
                 *[f"- {x}" for x in p["notes"]], *[f"- PQ {x}" for x in pq_lines],
                 f"- Curves that rise with severity: {n_rise} of {len(ranked) * len(fams + comp)} method x condition "

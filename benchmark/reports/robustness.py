@@ -4,20 +4,26 @@ no paired interval separates, and corruption errors against a reference method, 
 ImageNet-C summarises image classifiers (Hendrycks and Dietterich, ICLR 2019).
 
 Rows come from ``experiment=robustness`` (``make robustness``): each carries ``corruption``
-(the family: ``clean``, ``scan``, ``pose``, ``explore``, ``classifier``, ``realistic``) and
-``severity`` (0 clean, 1..5). For a metric m in percent (matched IoU and PQ rank; the paper's IoU
-is shown but builds no mCE, since it rewards maps that shrink):
+(the family: ``clean``, ``scan``, ``pose``, ``slam``, ``explore``, ``classifier``, ``realistic``,
+``lost``, ``kidnap``) and ``severity`` (0 clean, 1 up to the family's highest: 5 for the severity
+ladders, 3 for ``lost``, 2 for ``kidnap``). For a metric m in percent (matched IoU and PQ rank; the
+paper's IoU is shown but builds no mCE, since it rewards maps that shrink):
 
 * error E = 100 - m, per (method, family, severity), averaged over the dataset's houses;
+* severity 0 of family f, E_{0,f}(M): the family's own severity-0 rows (``corruption`` = f,
+  ``severity`` 0; the ``explore`` family's unlimited frontier run) where the run has them, else the
+  clean rows (:func:`zero_key`); the summary's ``clean`` column is always the clean rows;
 * corruption error of method M on family f, relative to the reference method R:
-  CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R), over the severities s = 1..5;
-  relative CE_f(M) = 100 x sum_s (E_{s,f}(M) - E_clean(M)) / sum_s (E_{s,f}(R) - E_clean(R))
-  (the method's own clean error cancels);
-* mCE and relative mCE (M) = their mean over the families but ``realistic`` (the composite of
-  the others, reported apart): 100 = as robust as the reference, lower is better;
+  CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R), over the severities s >= 1;
+  relative CE_f(M) = 100 x sum_s (E_{s,f}(M) - E_{0,f}(M)) / sum_s (E_{s,f}(R) - E_{0,f}(R))
+  (the method's own severity-0 error cancels);
+* mCE and relative mCE (M) = their mean over the families but those reported apart
+  (:data:`APART`: ``realistic``, the composite of the others, and the labelled conditions ``lost``
+  and ``kidnap``, whose severities are named situations, not a ladder of one robot):
+  100 = as robust as the reference, lower is better;
 * R is a method that every family degrades (by default chosen so: :func:`pick_reference`); a
   family that leaves the reference untouched gets no CE (it would measure clean accuracy);
-* drop_f(M) = m_clean(M) - mean_s m_{s,f}(M) (negative: the condition helped it).
+* drop_f(M) = m_{0,f}(M) - mean_s m_{s,f}(M) (negative: the condition helped it).
 
 Every number that ranks has a 95 % bootstrap interval over houses (:mod:`benchmark.stats`,
 houses resampled alike in every cell, so differences are paired). A table cell never mixes house
@@ -27,7 +33,7 @@ saying so (:func:`complete_families`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,14 +41,24 @@ import pandas as pd
 
 from benchmark import stats
 
-#: the corruption families in table order (``clean`` is severity 0 of every family).
-FAMILIES = ("scan", "pose", "explore", "classifier", "realistic")
+#: the corruption families in table order (``clean`` is severity 0 of every family that has no
+#: severity-0 rows of its own: :func:`zero_key`).
+FAMILIES = ("scan", "pose", "slam", "explore", "classifier", "realistic", "lost", "kidnap")
 #: the metrics summarised (fractions in the rows, percent in the tables); matched IoU and PQ
 #: rank methods and build mCE; the paper's IoU rewards shrinking maps and builds none.
 METRICS = ("iou", "matched_iou", "pq")
 RANKED = ("matched_iou", "pq")
 #: families that combine the others: reported apart, never in mCE or the mean drop.
 COMPOSITE = ("realistic",)
+#: labelled conditions: each severity is a named situation (how many wrong loop closures, how many
+#: kidnappings), not a step of one robot's ladder: reported apart, each condition in a column of
+#: its own, never in mCE or the mean drop. They may have fewer than five severities.
+LABELLED = ("lost", "kidnap")
+#: every family reported apart from mCE and the mean drop.
+APART = (*COMPOSITE, *LABELLED)
+#: what a family's own severity 0 is, where a run has one (its rows: ``corruption`` = the family,
+#: ``severity`` 0); a family without such rows starts from the clean rows.
+OWN_ZERO_WORDS = {"explore": "the unlimited frontier run (every method on the explorer's own map), not clean"}
 #: the method corruption errors are relative to by default: ``auto``, a method every family
 #: degrades (:func:`pick_reference`). The classic geometric baseline (Voronoi segmentation) is
 #: untouched by poses, labels and views, so CE against it measured clean accuracy there.
@@ -52,8 +68,30 @@ REFERENCE = "auto"
 GEOMETRIC = ("distance", "morphological", "voronoi")
 SANITY = ("one_room", "gt_geometry", "grid")
 #: words for the families, in tables and figures.
-FAMILY_WORDS = {"scan": "scan map", "pose": "pose error", "explore": "exploration budget",
-                "classifier": "classifier noise", "realistic": "realistic (all combined)"}
+FAMILY_WORDS = {"scan": "scan map", "pose": "pose error", "slam": "SLAM (one pose estimate)",
+                "explore": "exploration budget", "classifier": "classifier noise",
+                "realistic": "realistic (all combined)", "lost": "lost robot (wrong loop closures)",
+                "kidnap": "kidnapped robot"}
+
+
+def zero_key(keys: Collection[tuple[str, str, int]], method: str, family: str) -> tuple[str, str, int]:
+    """The cell that is severity 0 of ``family`` for ``method``: the family's own severity-0 cell
+    (``(method, family, 0)``) where ``keys`` hold it, else the clean one (``(method, "clean", 0)``)."""
+    own = (method, family, 0)
+    return own if own in keys else (method, "clean", 0)
+
+
+def own_zero_families(keys: Collection[tuple[str, str, int]], families: Sequence[str]) -> list[str]:
+    """The ``families`` that have severity-0 cells of their own among ``keys``."""
+    have = {c for (_, c, s) in keys if s == 0}
+    return [f for f in families if f in have]
+
+
+def own_zero_note(family: str) -> str:
+    """The line that says a family's severity 0 is its own condition, not clean."""
+    what = OWN_ZERO_WORDS.get(family, "its own condition, not clean")
+    return (f"{family}: severity 0 is {what}; its drop, relative CE and curve start there (the clean column "
+            f"stays the clean rows).")
 
 
 class RobustnessError(ValueError):
@@ -114,8 +152,10 @@ def complete_families(cells: pd.DataFrame, expected: Mapping[str, Sequence[int]]
     Args:
         cells: :func:`cell_means` of one dataset.
         expected: family -> the severities the sweep asked for (default: 1 up to the highest
-            severity with rows, so a severity missing in the middle is caught; a family's top
-            severities missing for every method are caught only with ``expected``)."""
+            severity with rows, so a severity missing in the middle is caught, and 0 where some
+            method has the family's own severity-0 rows; a family's top severities missing for
+            every method are caught only with ``expected``). A family with fewer than five
+            severities (``lost``: 1..3, ``kidnap``: 1..2) is complete when those are all there."""
     methods = sorted(cells["method"].unique())
     have = cells.groupby(["corruption", "severity"])["method"].agg(set)
     kept, notes = [], []
@@ -123,7 +163,10 @@ def complete_families(cells: pd.DataFrame, expected: Mapping[str, Sequence[int]]
         present = sorted(int(s) for (c, s) in have.index if c == f)
         if not present and not (expected and f in expected):
             continue
-        want = sorted({int(s) for s in expected[f]}) if expected and f in expected else list(range(1, max(present) + 1))
+        if expected and f in expected:
+            want = sorted({int(s) for s in expected[f]})
+        else:  # severity 0 only where the family has its own (some method's rows): then every method needs it
+            want = [0] * (0 in present) + list(range(1, max(present) + 1))
         gaps = []
         for s in want:
             got = have.get((f, s), set())
@@ -152,13 +195,18 @@ def _means(values: Mapping[tuple[str, str, int], np.ndarray], n_boot: int) -> di
 def _measures(means: Mapping, methods: Sequence[str], fams: Sequence[str], reference: str | None,
               ref_ok: Mapping[str, bool]) -> dict[str, dict[str, np.ndarray]]:
     """Every column of the summary per method, each an array (point estimate first, then the
-    bootstrap draws). CE and relative CE of a family whose drop for the reference is not shown
+    bootstrap draws); a family's mean is over its severities >= 1, its drop from its severity 0
+    (:func:`zero_key`), and a labelled condition also gets one column per severity (``lost 2``).
+    CE and relative CE of a family whose drop for the reference is not shown
     above zero (``ref_ok``) are NaN, and such a family is left out of mCE."""
     out: dict[str, dict[str, np.ndarray]] = {"clean": {m: means[(m, "clean", 0)] for m in methods}}
-    sev = {f: sorted(s for (m, c, s) in means if c == f and m == methods[0]) for f in fams}
+    sev = {f: sorted(s for (m, c, s) in means if c == f and m == methods[0] and s > 0) for f in fams}
     for f in fams:
         out[f] = {m: np.mean([means[(m, f, s)] for s in sev[f]], axis=0) for m in methods}
-        out[f"drop {f}"] = {m: out["clean"][m] - out[f][m] for m in methods}
+        out[f"drop {f}"] = {m: means[zero_key(means, m, f)] - out[f][m] for m in methods}
+        if f in LABELLED:  # each labelled condition on its own
+            for s in sev[f]:
+                out[f"{f} {s}"] = {m: means[(m, f, s)] for m in methods}
     nan = np.full_like(out["clean"][methods[0]], np.nan)
     for f in fams:
         err = {m: np.sum([100.0 - means[(m, f, s)] for s in sev[f]], axis=0) for m in methods}
@@ -167,26 +215,26 @@ def _measures(means: Mapping, methods: Sequence[str], fams: Sequence[str], refer
         with np.errstate(divide="ignore", invalid="ignore"):
             out[f"CE {f}"] = {m: 100.0 * err[m] / err[reference] if ok else nan for m in methods}
             out[f"rel CE {f}"] = {m: 100.0 * rel[m] / rel[reference] if ok else nan for m in methods}
-    core = [f for f in fams if f not in COMPOSITE and reference is not None and ref_ok.get(f, False)]
+    core = [f for f in fams if f not in APART and reference is not None and ref_ok.get(f, False)]
     for name, pre in (("mCE", "CE "), ("rel mCE", "rel CE ")):
         out[name] = {m: np.mean([out[pre + f][m] for f in core], axis=0) if core else nan for m in methods}
-    plain = [f for f in fams if f not in COMPOSITE]
+    plain = [f for f in fams if f not in APART]
     out["mean drop"] = {m: np.mean([out[f"drop {f}"][m] for f in plain], axis=0) if plain else nan for m in methods}
     return out
 
 
 def pick_reference(means: Mapping, methods: Sequence[str], fams: Sequence[str]) -> tuple[str | None, str]:
     """The method corruption errors are relative to: among the methods that every family
-    (but the composite ``realistic``) degrades, the lower end of each family's drop interval
+    (but those reported apart: the composite ``realistic``, the labelled conditions) degrades, the lower end of each family's drop interval
     above zero, the one whose smallest such lower end is largest (the denominators of its CE
     are farthest from zero, so its CE is the steadiest). Returns (method or None, why)."""
-    plain = [f for f in fams if f not in COMPOSITE]
+    plain = [f for f in fams if f not in APART]
     best, score = None, -np.inf
     for m in methods:
         lows = []
         for f in plain:
-            sev = sorted(s for (mm, c, s) in means if c == f and mm == m)
-            drop = means[(m, "clean", 0)] - np.mean([means[(m, f, s)] for s in sev], axis=0)
+            sev = sorted(s for (mm, c, s) in means if c == f and mm == m and s > 0)
+            drop = means[zero_key(means, m, f)] - np.mean([means[(m, f, s)] for s in sev], axis=0)
             lows.append(_interval(drop)[0])
         low = min(lows) if lows else -np.inf
         if np.isfinite(low) and low > 0 and low > score:
@@ -211,13 +259,15 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
                   values: Mapping[tuple[str, str, int], np.ndarray] | None = None,
                   n_boot: int = stats.N_BOOT) -> pd.DataFrame:
     """Per method: clean score, each family's mean over its severities, CE and relative CE per
-    family, mCE and relative mCE (over the families but ``realistic``, which is reported apart),
-    each family's drop and the mean drop; with ``values`` (:func:`house_values`), a 95 %
+    family, mCE and relative mCE (over the families but those reported apart: ``realistic`` and
+    the labelled conditions, each of those in columns of its own after the mean drop, a labelled
+    condition with one column per severity first), each family's drop (from its severity 0:
+    :func:`zero_key`) and the mean drop; with ``values`` (:func:`house_values`), a 95 %
     bootstrap interval for every column (``<column> lo``, ``<column> hi``).
 
     CE_f(M) = 100 x sum_s E_{s,f}(M) / sum_s E_{s,f}(R); relative CE_f(M) = 100 x sum_s
-    (E_{s,f}(M) - E_clean(M)) / sum_s (E_{s,f}(R) - E_clean(R)) (Hendrycks and Dietterich): the
-    method's own clean error cancels. A family that does not degrade the reference R (its drop
+    (E_{s,f}(M) - E_{0,f}(M)) / sum_s (E_{s,f}(R) - E_{0,f}(R)) (Hendrycks and Dietterich), s >= 1:
+    the method's own severity-0 error cancels. A family that does not degrade the reference R (its drop
     interval not above zero; without ``values``, its drop not above zero) gets no CE: it would
     measure clean accuracy, not robustness.
 
@@ -243,9 +293,9 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
         if not ((cells["method"] == m) & (cells["corruption"] == "clean")).any():
             raise RobustnessError(f"no clean (severity 0) rows for {m}")
     for f in fams:
-        sev = sorted(cells.loc[cells["corruption"] == f, "severity"].unique())
+        sev = sorted(int(s) for s in cells.loc[cells["corruption"] == f, "severity"].unique())
         for m in methods:
-            have = sorted(cells.loc[(cells["corruption"] == f) & (cells["method"] == m), "severity"].unique())
+            have = sorted(int(s) for s in cells.loc[(cells["corruption"] == f) & (cells["method"] == m), "severity"].unique())
             if have != sev:
                 raise RobustnessError(f"{m}: family {f} has severities {have}, others {sev}")
     if values is not None:
@@ -253,37 +303,51 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
     else:
         means = {(r.method, r.corruption, int(r.severity)): np.array([r.value])
                  for r in cells.itertuples(index=False)}
-    notes = []
+    notes = [own_zero_note(f) for f in own_zero_families(means, fams)]
+    labelled = [f for f in fams if f in LABELLED]
+    if labelled:
+        notes.append(f"{', '.join(FAMILY_WORDS.get(f, f) for f in labelled)}: labelled conditions (each severity a "
+                     f"situation of its own, with a column of its own), reported apart: in neither mCE nor the "
+                     f"mean drop.")
     if reference is None:
         reference, why = pick_reference(means, [m for m in methods if m not in SANITY], fams)
         notes.append(f"Reference: {why}.")
     ref_ok = {}
     for f in fams:
-        sev = sorted(s for (m, c, s) in means if c == f and m == reference) if reference else []
+        sev = sorted(s for (m, c, s) in means if c == f and m == reference and s > 0) if reference else []
         if not reference:
             continue
-        drop = means[(reference, "clean", 0)] - np.mean([means[(reference, f, s)] for s in sev], axis=0)
+        drop = means[zero_key(means, reference, f)] - np.mean([means[(reference, f, s)] for s in sev], axis=0)
         lo = _interval(drop)[0] if values is not None else drop[0]
         ref_ok[f] = bool(np.isfinite(lo) and lo > 0)
         if not ref_ok[f]:
             notes.append(f"No CE for {FAMILY_WORDS.get(f, f)}: it does not degrade the reference {reference} "
                          f"(drop {drop[0]:+.1f}); a CE there would measure clean accuracy, not robustness.")
     cols = _measures(means, methods, fams, reference, ref_ok)
-    plain = [f for f in fams if f not in COMPOSITE]
-    comp = [f for f in fams if f in COMPOSITE]
+    plain = [f for f in fams if f not in APART]
+    comp = [f for f in fams if f in APART]
     order = ["clean", *plain, *[f"CE {f}" for f in plain], "mCE", *[f"rel CE {f}" for f in plain], "rel mCE",
              *[f"drop {f}" for f in plain], "mean drop",
-             *[c for f in comp for c in (f, f"CE {f}", f"rel CE {f}", f"drop {f}")]]
-    out = pd.DataFrame(index=methods)
-    for c in order:
-        out[c] = [float(cols[c][m][0]) for m in methods]
+             *[c for f in comp for c in (*condition_columns(cols, f), f, f"CE {f}", f"rel CE {f}", f"drop {f}")]]
+    data: dict[str, list[float]] = {}
+    for c in order:  # built as one frame (a column at a time fragments a wide one)
+        data[c] = [float(cols[c][m][0]) for m in methods]
         if values is not None:
             iv = [_interval(cols[c][m]) for m in methods]
-            out[f"{c} lo"], out[f"{c} hi"] = [x[0] for x in iv], [x[1] for x in iv]
-    out.index.name = "method"
+            data[f"{c} lo"], data[f"{c} hi"] = [x[0] for x in iv], [x[1] for x in iv]
+    out = pd.DataFrame(data, index=pd.Index(methods, name="method"))
     out = out.sort_values(["mCE", "clean"], ascending=[True, False], na_position="last")
     out.attrs.update(reference=reference, notes=notes, draws={c: cols[c] for c in ("clean", *fams, "mCE", "rel mCE")})
     return out
+
+
+def condition_columns(table: Collection[str], family: str) -> list[str]:
+    """A labelled condition's columns of one severity each (``lost 1``, ``lost 2``, ...), in
+    severity order, among the column names ``table``; none for any other family."""
+    if family not in LABELLED:
+        return []
+    found = [c for c in table if c.startswith(f"{family} ") and c[len(family) + 1:].isdigit()]
+    return sorted(found, key=lambda c: int(c[len(family) + 1:]))
 
 
 def numbers(table: pd.DataFrame) -> list[str]:
@@ -327,10 +391,11 @@ def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFram
 
 
 def _per_house(values: Mapping, m: str, col: str) -> np.ndarray:
-    """A method's per-house score under a condition: clean, or the mean over a family's severities."""
+    """A method's per-house score under a condition: clean, or the mean over a family's severities
+    (1 and up: a family's own severity 0 is not one of them)."""
     if col == "clean":
         return values[(m, "clean", 0)]
-    return np.mean([v for (mm, c, s), v in values.items() if mm == m and c == col], axis=0)
+    return np.mean([v for (mm, c, s), v in values.items() if mm == m and c == col and s > 0], axis=0)
 
 
 def _groups_from_draws(draws: Mapping[str, np.ndarray]) -> list[list[str]]:
@@ -351,13 +416,16 @@ def _flip_words(values: Mapping, cells: pd.DataFrame, family: str, geo: Sequence
     """Best view-based minus best geometric (by mean) at each severity, with its paired interval;
     "ahead" only where the interval excludes zero, "change places at severity s" only where a
     lead the interval supports turns into one for the other side."""
-    sev = [0] if family == "clean" else [0, *sorted(cells.loc[cells["corruption"] == family, "severity"].unique())]
+    fam = cells.loc[cells["corruption"] == family, "severity"]
+    sev = [0] if family == "clean" else [0, *sorted(int(s) for s in fam.unique() if s > 0)]
     parts, leads = [], []
     for s in sev:
-        c = "clean" if s == 0 else family
-        w = max(view, key=lambda m: values[(m, c, s)].mean())
-        g = max(geo, key=lambda m: values[(m, c, s)].mean())
-        d, lo, hi = stats.paired_ci(values[(w, c, s)], values[(g, c, s)])
+        def key(m: str, s: int = s) -> tuple[str, str, int]:
+            return zero_key(values, m, family) if s == 0 else (m, family, s)
+
+        w = max(view, key=lambda m: values[key(m)].mean())
+        g = max(geo, key=lambda m: values[key(m)].mean())
+        d, lo, hi = stats.paired_ci(values[key(w)], values[key(g)])
         side = ("view-based ahead" if d > 0 else "geometric ahead") if stats.separated(lo, hi) else "tied"
         leads.append(side)
         parts.append(f"{s}: {side} {d:+.1f} [{lo:+.1f}, {hi:+.1f}]")
@@ -371,8 +439,8 @@ def _flip_words(values: Mapping, cells: pd.DataFrame, family: str, geo: Sequence
 
 
 def rising_curves(values: Mapping[tuple[str, str, int], np.ndarray], families: Sequence[str]) -> pd.DataFrame:
-    """Every step of a method's curve (clean, severity 1, ..., 5) where its mean rises with
-    severity, with the paired interval of the rise and whether it excludes zero.
+    """Every step of a method's curve (severity 0: the family's own or clean, :func:`zero_key`;
+    then severity 1, 2, ...) where its mean rises with severity, with the paired interval of the rise and whether it excludes zero.
 
     Returns:
         Columns method, family, step (``"2->3"``), rise, lo, hi (points), significant."""
@@ -380,8 +448,8 @@ def rising_curves(values: Mapping[tuple[str, str, int], np.ndarray], families: S
     methods = sorted({m for (m, _, _) in values})
     for f in families:
         for m in methods:
-            sev = sorted(s for (mm, c, s) in values if mm == m and c == f)
-            curve = [values[(m, "clean", 0)], *[values[(m, f, s)] for s in sev]]
+            sev = sorted(s for (mm, c, s) in values if mm == m and c == f and s > 0)
+            curve = [values[zero_key(values, m, f)], *[values[(m, f, s)] for s in sev]]
             xs = [0, *sev]
             for i in range(1, len(curve)):
                 d, lo, hi = stats.paired_ci(curve[i], curve[i - 1])
@@ -538,7 +606,8 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 
 
 def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: str, title: str) -> list[Path]:
-    """Metric vs severity (0 = clean .. 5) for one family, one line per method, colour-blind
+    """Metric vs severity (0 = clean, or the family's own severity 0 where the cells have it;
+    then 1 up to the family's highest) for one family, one line per method, colour-blind
     safe (Okabe-Ito colours, and a marker and line style per method so that it reads in grey);
     written as PNG and PDF. Returns the files."""
     import matplotlib
@@ -549,15 +618,17 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
     from benchmark.reports.plotting import save
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    own = bool(((cells["corruption"] == family) & (cells["severity"] == 0)).any())
     for i, m in enumerate(sorted(cells["method"].unique())):
         c = cells[cells["method"] == m]
-        clean = c[c["corruption"] == "clean"]
-        fam = c[c["corruption"] == family].sort_values("severity")
+        zero = c[(c["corruption"] == family) & (c["severity"] == 0)]
+        clean = zero if len(zero) else c[c["corruption"] == "clean"]
+        fam = c[(c["corruption"] == family) & (c["severity"] > 0)].sort_values("severity")
         x = [0, *fam["severity"].tolist()]
         y = [float(clean["value"].iloc[0]) if len(clean) else np.nan, *fam["value"].tolist()]
         ax.plot(x, y, color=OKABE_ITO[i % len(OKABE_ITO)], linestyle=STYLES[(i // len(OKABE_ITO)) % len(STYLES)],
                 marker=MARKERS[i % len(MARKERS)], markersize=4, linewidth=1.4, label=m)
-    ax.set_xlabel("severity (0 = clean)")
+    ax.set_xlabel("severity (0 = the family's own severity 0, not clean)" if own else "severity (0 = clean)")
     ax.set_ylabel(f"{metric_words} (%)")
     ax.set_xticks(range(int(cells["severity"].max()) + 1))
     ax.set_title(title, fontsize=10)
@@ -566,6 +637,7 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
     return save(fig, path.with_suffix(".png"), formats=("png", "pdf"))
 
 
-__all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "RobustnessError", "cell_means", "complete_families",
+__all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "APART", "OWN_ZERO_WORDS", "RobustnessError", "cell_means", "complete_families",
            "drop_failed_houses", "house_values", "numbers", "pick_reference", "power_lines", "power_report",
-           "rank_notes", "rising_curves", "summarise", "summary_table", "to_markdown", "to_latex", "family_figure"]
+           "rank_notes", "rising_curves", "summarise", "summary_table", "to_markdown", "to_latex", "family_figure",
+           "zero_key", "own_zero_families", "own_zero_note", "condition_columns"]
