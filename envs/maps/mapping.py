@@ -39,6 +39,11 @@ class ScanMapping:
             checked (one line naming ``mapping.<key>``, its value and the expected range).
     """
 
+    #: the dataclass ``**settings`` go to: the configuration check
+    #: (``benchmark.harness.typed.check_targets``) takes its fields, with their types and
+    #: ranges, for the keys of ``mapping``.
+    SETTINGS = ScanSettings
+
     def __init__(self, **settings):
         unknown = sorted(set(settings) - set(ScanSettings.__dataclass_fields__))
         if unknown:
