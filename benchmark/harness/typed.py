@@ -16,8 +16,14 @@ Three checks, each one line naming the key, the value and what is expected:
 * **The robot label** (:class:`RobotLabel`): ``robot.corruption`` a family of
   ``conf/corruption`` and ``robot.severity`` an integer 0..5.
 
-Value ranges that a type cannot say (a share in [0, 1], an odd window) are checked by
-:mod:`benchmark.harness.checks`.
+Value ranges that a type cannot say (a share in [0, 1], an odd window, metres > 0) are said on
+the same parameters, ``window: Annotated[int, Odd()]`` with the markers of :mod:`envs.ranges`,
+and :func:`check_targets` checks them after the type: ``aggregator.window=4: expected an odd
+integer >= 1``. A ranged parameter refuses null unless its type admits None (the message then
+ends ", or null"). A class taking ``**settings`` for a dataclass names it in ``SETTINGS``
+(``envs.maps.mapping.ScanMapping``): its keys are the dataclass's fields, typed and ranged.
+A user's own stage gets its ranges checked by annotating its parameters the same way. Only the
+``run`` keys, which no ``_target_`` node holds, keep a table, in :mod:`benchmark.harness.checks`.
 """
 
 from __future__ import annotations
