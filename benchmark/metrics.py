@@ -73,12 +73,14 @@ import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from skimage.measure import label as sk_label
 
 from envs.maps.label_png import colour_int
+from envs.ranges import NonNegative, OneOf
 
 #: Metric columns of every scored row, in order (label-map-only ones are NaN for instances).
 METRIC_COLUMNS = ("iou", "precision", "recall", "matched_iou", "matched_precision", "matched_recall",
@@ -120,11 +122,11 @@ class MetricParams:
             -> {column: value}`` (:func:`extra_scores`); ``()`` by default.
     """
 
-    match: str = "iou"
-    connectivity: int = 4
-    min_segment_m2: float = 0.125
-    instances: str = "ids"
-    min_colour_m2: float = 0.2
+    match: Annotated[str, OneOf("iou", "overlap")] = "iou"
+    connectivity: Annotated[int, OneOf(4, 8)] = 4
+    min_segment_m2: Annotated[float, NonNegative()] = 0.125
+    instances: Annotated[str, OneOf("ids", "connected")] = "ids"
+    min_colour_m2: Annotated[float, NonNegative()] = 0.2
     not_room_colours: tuple = ("#000000", "#ffffff")
     extra: tuple = ()
 

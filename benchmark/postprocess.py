@@ -30,6 +30,7 @@ component that had no label in the input.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Annotated
 
 import cv2
 import numpy as np
@@ -38,6 +39,7 @@ from numba import njit
 from benchmark.interfaces import PostProcessor
 from benchmark.metrics import resample_nearest
 from envs.maps.gridmap import GridMap
+from envs.ranges import Integer, NonNegative, Odd, Positive
 from envs.world.classes import PAPER_CLASSES
 
 
@@ -278,8 +280,10 @@ class PostProcess(PostProcessor):
         classes: the ordered class names (their count bounds the label values).
     """
 
-    def __init__(self, target_resolution: float = 0.1, window: int = 5, iterations: int = 2, min_area: float = 0.5,
-                 dp_tolerance: float = 0.1, classes: Sequence[str] = PAPER_CLASSES):
+    def __init__(self, target_resolution: Annotated[float, Positive()] = 0.1,
+                 window: Annotated[int, Odd()] = 5, iterations: Annotated[int, Integer(0)] = 2,
+                 min_area: Annotated[float, NonNegative()] = 0.5,
+                 dp_tolerance: Annotated[float, NonNegative()] = 0.1, classes: Sequence[str] = PAPER_CLASSES):
         if not target_resolution > 0:
             raise ValueError(f"target_resolution must be > 0 metres/pixel, got {target_resolution}")
         if min_area < 0 or dp_tolerance < 0 or iterations < 0:

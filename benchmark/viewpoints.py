@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import cv2
 import numpy as np
@@ -25,6 +26,7 @@ from benchmark.interfaces import Viewpoints
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
 from envs.maps.pose_files import FRAME_COLUMNS, read_poses
 from envs.maps.scene import Scene
+from envs.ranges import HEADING_SPREAD, Integer, NonNegative, OneOf, Positive
 
 
 def trace_path(walkable: np.ndarray, offset_px: float) -> list[np.ndarray]:
@@ -61,8 +63,10 @@ class Autotrace(Viewpoints):
         min_contour: contours shorter than this (metres) are skipped (tiny islands).
     """
 
-    def __init__(self, offset: float = 0.5, spacing: float = 1.0, n_headings: int = 3,
-                 heading_spread: float = 180.0, min_contour: float = 0.5):
+    def __init__(self, offset: Annotated[float, NonNegative()] = 0.5,
+                 spacing: Annotated[float, Positive()] = 1.0, n_headings: Annotated[int, Integer(1)] = 3,
+                 heading_spread: Annotated[float, HEADING_SPREAD] = 180.0,
+                 min_contour: Annotated[float, NonNegative()] = 0.5):
         if offset < 0 or spacing <= 0 or n_headings < 1:
             raise ValueError(f"Autotrace needs offset >= 0, spacing > 0, n_headings >= 1; got "
                              f"offset={offset}, spacing={spacing}, n_headings={n_headings}")
@@ -115,7 +119,8 @@ class FromFile(Viewpoints):
     (``sim``: x, z, yaw degrees; ``ros``: x, y, theta radians CCW; ``pixel``: row, col, yaw);
     every pose must be on a walkable cell of the map, or ``off_map="drop"`` drops the others."""
 
-    def __init__(self, path: str, off_map: str = "error", frame: str = "sim"):
+    def __init__(self, path: str, off_map: Annotated[str, OneOf("error", "drop")] = "error",
+                 frame: str = "sim"):
         if off_map not in ("error", "drop"):
             raise ValueError(f"off_map must be 'error' or 'drop', got {off_map!r}")
         if frame not in FRAME_COLUMNS:

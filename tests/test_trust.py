@@ -22,6 +22,7 @@ from benchmark.harness.checks import ConfigError, check_config
 from benchmark.harness.pipeline import StageError
 from benchmark.harness.runner import CONF_DIR, build_pipeline, run
 from benchmark.harness.store import Job, claim_job_dir, read_metrics
+from benchmark.harness.typed import check_targets
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["viewpoints.spacing=1.0", "env.resolution=0.1", "env.start=0"]
@@ -211,21 +212,34 @@ def test_multirun_over_two_house_files_writes_two_jobs_and_a_sweep_summary(tmp_p
 
 
 # ---------------------------------------------------------------- config first, exit status
+GRAPH_KNN, VISION_CONE = "benchmark.aggregators.graph_knn.GraphKNN", "benchmark.aggregators.vision_cone.VisionCone"
+
+
+def _check(cfg):
+    """The runner's two checks of a composed config: the run keys (checks.py), then the stages'
+    types and ranges (typed.py, from each ``_target_``'s annotations)."""
+    check_config(cfg)
+    check_targets(cfg)
+
+
 @pytest.mark.parametrize("key,value,match", [
-    ("aggregator", {"k": 0}, "aggregator.k=0: expected an integer >= 1"),
-    ("env", {"resolution": -0.05}, "env.resolution=-0.05: expected a number > 0"),
-    ("aggregator", {"fov": 400.0}, "aggregator.fov=400.0: expected an angle in (0, 360] degrees"),
-    ("classifier", {"accuracy": 1.5}, "classifier.accuracy=1.5: expected a number in [0, 1]"),
+    ("aggregator", {"_target_": GRAPH_KNN, "k": 0}, "aggregator.k=0: expected an integer >= 1"),
+    ("env", {"_target_": "envs.datasets.synthetic.SyntheticEnv", "resolution": -0.05},
+     "env.resolution=-0.05: expected a number > 0"),
+    ("aggregator", {"_target_": VISION_CONE, "fov": 400.0}, "aggregator.fov=400.0: expected an angle in (0, 360] degrees"),
+    ("classifier", {"_target_": "benchmark.classifiers.oracle.OracleClassifier", "accuracy": 1.5},
+     "classifier.accuracy=1.5: expected a number in [0, 1]"),
     ("run", {"limit": "abc"}, "run.limit='abc': expected an integer >= 1, or null"),
     ("run", {"force": ["bogus"]}, "run.force=['bogus']: unknown stage(s) ['bogus']"),
-    ("postprocess", {"window": 4}, "postprocess.window=4: expected an odd integer >= 1"),
+    ("postprocess", {"_target_": "benchmark.postprocess.PostProcess", "window": 4},
+     "postprocess.window=4: expected an odd integer >= 1"),
 ])
 def test_config_rules_name_key_value_and_rule(key, value, match):
     with pytest.raises(ConfigError) as e:
-        check_config({key: value})
+        _check({key: value})
     assert match in str(e.value) and "\n" not in str(e.value)
-    check_config({"aggregator": {"k": 5, "fov": 90.0}, "run": {"limit": None, "force": ["score"]},
-                  "env": {"resolution": 0.05}})  # good values pass
+    _check({"aggregator": {"_target_": VISION_CONE, "fov": 90.0}, "run": {"limit": None, "force": ["score"]},
+            "env": {"_target_": "envs.datasets.synthetic.SyntheticEnv", "resolution": 0.05}})  # good values pass
 
 
 def test_zero_houses_is_an_error(tmp_path, procthor_file):

@@ -13,12 +13,15 @@ distance's rows in practice; memory (cells, K).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from numba import njit
 
 from benchmark.aggregators.common import view_cells, vote_neighbours
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
+from envs.ranges import Integer, OneOf
 
 
 @njit(cache=True, nogil=True)
@@ -88,7 +91,8 @@ def euclidean_neighbours(rows: np.ndarray, cols: np.ndarray, cells: np.ndarray, 
 class EuclideanKNN(Aggregator):
     """Args: k: neighbours; weighting: "majority" or "probability"."""
 
-    def __init__(self, k: int = 5, weighting: str = "majority"):
+    def __init__(self, k: Annotated[int, Integer(1)] = 5,
+                 weighting: Annotated[str, OneOf("majority", "probability")] = "majority"):
         if weighting not in ("majority", "probability"):
             raise ValueError(f"weighting must be 'majority' or 'probability', got {weighting!r}")
         self.k, self.weighting = int(k), weighting

@@ -18,12 +18,15 @@ entries per cell of that level), linear in the map size.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from numba import njit
 
 from benchmark.aggregators.common import view_cells, vote_neighbours
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
+from envs.ranges import Integer, OneOf
 
 _D4 = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
 _D8 = np.array([[-1, 0], [1, 0], [0, -1], [0, 1], [-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=np.int64)
@@ -109,7 +112,8 @@ class GraphKNN(Aggregator):
         weighting: "majority" (top class of each view) or "probability" (summed probabilities).
     """
 
-    def __init__(self, k: int = 5, connectivity: int = 4, weighting: str = "majority"):
+    def __init__(self, k: Annotated[int, Integer(1)] = 5, connectivity: Annotated[int, OneOf(4, 8)] = 4,
+                 weighting: Annotated[str, OneOf("majority", "probability")] = "majority"):
         neighbour_offsets(connectivity)
         if weighting not in ("majority", "probability"):
             raise ValueError(f"weighting must be 'majority' or 'probability', got {weighting!r}")

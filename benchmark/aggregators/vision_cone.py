@@ -19,6 +19,8 @@ cell up only where it leaves that path, so the lookups number about the cells se
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import cv2
 import numpy as np
 from numba import njit
@@ -27,6 +29,7 @@ from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import cone_thetas, line_start, line_step, ray_end, trace_ray
+from envs.ranges import Angle, NonNegative, Odd, OneOf, Positive
 
 #: values of the per-cell state array besides view ids (>= 0: the last view that voted there)
 FREE, BLOCKED, OUTSIDE = -1, -2, -3
@@ -162,8 +165,11 @@ class VisionCone(Aggregator):
             98-99.5 % of walkable cells and take ~1.5x as long).
     """
 
-    def __init__(self, fov: float = 90.0, max_range_m: float = 10.0, blocked_ray_m: float = 0.3, window: int = 5,
-                 vote: str = "label", ray_density: float = 1.0):
+    def __init__(self, fov: Annotated[float, Angle()] = 90.0,
+                 max_range_m: Annotated[float, Positive()] = 10.0,
+                 blocked_ray_m: Annotated[float, NonNegative()] = 0.3, window: Annotated[int, Odd()] = 5,
+                 vote: Annotated[str, OneOf("label", "probability")] = "label",
+                 ray_density: Annotated[float, Positive()] = 1.0):
         if ray_density <= 0:
             raise ValueError(f"ray_density must be > 0 rays per pixel, got {ray_density}")
         self.ray_density = float(ray_density)

@@ -5,6 +5,7 @@ paper) with a new head over the configured classes, fine-tuned on Places-2 (see
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Annotated
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from benchmark.classifiers.torch_common import (
     require_torch,
 )
 from benchmark.interfaces import Classifier
+from envs.ranges import Integer
 from envs.world.classes import PAPER_CLASSES
 
 
@@ -56,8 +58,9 @@ class CNNClassifier(Classifier):
         batch_size: images per forward pass. image_size: network input side, pixels.
     """
 
-    def __init__(self, classes: Sequence[str] = PAPER_CLASSES, checkpoint: str | None = None, arch: str = "resnet50",
-                 pretrained: bool = True, device: str = "auto", batch_size: int = 32, image_size: int = 224,
+    def __init__(self, classes: Sequence[str] = PAPER_CLASSES, checkpoint: str | None = None,
+                 arch: str = "resnet50", pretrained: bool = True, device: str = "auto",
+                 batch_size: Annotated[int, Integer(1)] = 32, image_size: Annotated[int, Integer(1)] = 224,
                  allow_untrained: bool = False):
         torch = require_torch()
         self.classes = tuple(classes)

@@ -12,6 +12,7 @@ import logging
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from benchmark.classifiers.torch_common import (
     require_transformers,
 )
 from benchmark.interfaces import Classifier
+from envs.ranges import Integer
 from envs.world.classes import PAPER_CLASSES
 
 log = logging.getLogger(__name__)
@@ -83,7 +85,8 @@ class DinoV2Classifier(Classifier):
     def __init__(self, classes: Sequence[str] = PAPER_CLASSES, head_checkpoint: str | None = None,
                  backbone: str = "facebook/dinov2-large", backbone_config: dict | None = None,
                  hidden: Sequence[int] = (512, 256), feature_cache: str | None = None, device: str = "auto",
-                 batch_size: int = 32, image_size: int = 224, allow_untrained: bool = False):
+                 batch_size: Annotated[int, Integer(1)] = 32, image_size: Annotated[int, Integer(1)] = 224,
+                 allow_untrained: bool = False):
         torch = require_torch()
         self.classes = tuple(classes)
         self.device = pick_device(device)

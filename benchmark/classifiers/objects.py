@@ -18,12 +18,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 from benchmark.interfaces import Classifier
 from envs.datasets.house_files import iter_house_file
 from envs.maps.scene import ObjectFootprint, rasterise_house
+from envs.ranges import Integer, Positive
 from envs.world.classes import PAPER_CLASSES
 from envs.world.house import House
 
@@ -91,8 +93,9 @@ class ObjectsClassifier(Classifier):
     #: metres per pixel of the rasterisation that places objects in rooms during training.
     TRAIN_RESOLUTION = 0.1
 
-    def __init__(self, train_path: str | None = None, train_start: int = 0, train_stop: int | None = None,
-                 train_synthetic: Sequence[int] | None = None, alpha: float = 1.0,
+    def __init__(self, train_path: str | None = None, train_start: Annotated[int, Integer(0)] = 0,
+                 train_stop: Annotated[int | None, Integer(0)] = None,
+                 train_synthetic: Sequence[int] | None = None, alpha: Annotated[float, Positive()] = 1.0,
                  classes: Sequence[str] = PAPER_CLASSES):
         self.classes = tuple(classes)
         self.alpha = float(alpha)

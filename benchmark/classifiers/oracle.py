@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from benchmark.classifiers.noise import (
 )
 from benchmark.interfaces import Classifier
 from benchmark.view_accuracy import seen_accuracy, true_labels
+from envs.ranges import Share
 from envs.world.classes import PAPER_CLASSES
 
 
@@ -54,7 +56,7 @@ class OracleClassifier(Classifier):
         last_accuracy: share of the last call's views (that saw floor) labelled right.
     """
 
-    def __init__(self, accuracy: float = 1.0, seed: int = 0,
+    def __init__(self, accuracy: Annotated[float, Share()] = 1.0, seed: int = 0,
                  confusion: Sequence[Sequence[float]] | str | Path | None = None,
                  noise: NoiseModel | None = None, classes: Sequence[str] = PAPER_CLASSES):
         if not 0.0 <= accuracy <= 1.0:

@@ -49,6 +49,7 @@ import inspect
 import logging
 import re
 from collections.abc import Sequence
+from typing import Annotated
 
 import numpy as np
 
@@ -62,6 +63,7 @@ from benchmark.classifiers.torch_common import (
     resolve_dtype,
 )
 from benchmark.interfaces import Classifier
+from envs.ranges import Integer
 from envs.world.classes import PAPER_CLASSES
 
 log = logging.getLogger(__name__)
@@ -178,9 +180,10 @@ class VLMClassifier(Classifier):
     """
 
     def __init__(self, classes: Sequence[str] = PAPER_CLASSES, model_id: str = "Qwen/Qwen2.5-VL-7B-Instruct",
-                 mode: str = "score", prompt: str = DEFAULT_PROMPT, load_in_4bit: bool = True, device: str = "auto",
-                 dtype: str = "auto", batch_size: int = 4, max_new_tokens: int = 12, max_pixels: int | None = None,
-                 spellings: str = "all", model=None, processor=None):
+                 mode: str = "score", prompt: str = DEFAULT_PROMPT, load_in_4bit: bool = True,
+                 device: str = "auto", dtype: str = "auto", batch_size: Annotated[int, Integer(1)] = 4,
+                 max_new_tokens: int = 12, max_pixels: int | None = None, spellings: str = "all", model=None,
+                 processor=None):
         self.torch = require_torch()
         if mode not in ("score", "text"):
             raise ValueError(f"VLM mode must be 'score' or 'text', got {mode!r}")

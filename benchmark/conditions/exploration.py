@@ -38,6 +38,7 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 from scipy import ndimage
@@ -45,9 +46,17 @@ from scipy import ndimage
 from benchmark.classifiers.noise import text_key
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
 from envs.maps.rays import ray_end, trace_ray
-from envs.maps.scan import ReferenceScanMapper, ScanMap, ScanMapper, ScanSettings, scan_obstacles
+from envs.maps.scan import (
+    SCAN_HEIGHT,
+    ReferenceScanMapper,
+    ScanMap,
+    ScanMapper,
+    ScanSettings,
+    scan_obstacles,
+)
 from envs.maps.scene import Scene
 from envs.maps.trajectory import shortest_path
+from envs.ranges import DROPOUT, HEADING_SPREAD, Integer, Metres, NonNegative, Positive
 
 #: metres behind and ahead on the path that set the direction of motion of a view.
 MOTION_BASE = 0.25
@@ -227,10 +236,14 @@ class Frontier:
         seed: with the house id, seeds the scan noise.
     """
 
-    def __init__(self, budget: float = 40.0, spacing: float = 1.0, n_headings: int = 3,
-                 heading_spread: float = 180.0, sensor_range: float = 10.0, scan_height: float = 0.25,
-                 angular_step: float = 1.0, scan_spacing: float = 0.5, range_noise: float = 0.0,
-                 dropout: float = 0.0, min_frontier: float = 0.3, seed: int = 0):
+    def __init__(self, budget: Annotated[float, Metres(inf_ok=True)] = 40.0,
+                 spacing: Annotated[float, Positive()] = 1.0, n_headings: Annotated[int, Integer(1)] = 3,
+                 heading_spread: Annotated[float, HEADING_SPREAD] = 180.0,
+                 sensor_range: Annotated[float, Metres(inf_ok=True)] = 10.0,
+                 scan_height: Annotated[float, SCAN_HEIGHT] = 0.25, angular_step: float = 1.0,
+                 scan_spacing: Annotated[float, Positive()] = 0.5,
+                 range_noise: Annotated[float, NonNegative()] = 0.0, dropout: Annotated[float, DROPOUT] = 0.0,
+                 min_frontier: float = 0.3, seed: int = 0):
         _check_common(budget, spacing, n_headings, heading_spread, unlimited=True)
         if isinstance(min_frontier, bool) or not isinstance(min_frontier, int | float) or not min_frontier >= 0:
             raise ValueError(f"viewpoints.min_frontier = {min_frontier!r}: expected metres >= 0")
@@ -322,8 +335,11 @@ class RandomWalk:
         seed: with the house id, seeds the walk.
     """
 
-    def __init__(self, budget: float = 40.0, spacing: float = 1.0, n_headings: int = 3,
-                 heading_spread: float = 180.0, min_run: float = 0.5, max_run: float = 3.0, seed: int = 0):
+    def __init__(self, budget: Annotated[float, Positive()] = 40.0,
+                 spacing: Annotated[float, Positive()] = 1.0, n_headings: Annotated[int, Integer(1)] = 3,
+                 heading_spread: Annotated[float, HEADING_SPREAD] = 180.0,
+                 min_run: Annotated[float, Positive()] = 0.5, max_run: Annotated[float, Positive()] = 3.0,
+                 seed: int = 0):
         _check_common(budget, spacing, n_headings, heading_spread)
         for key, v in (("min_run", min_run), ("max_run", max_run)):
             if isinstance(v, bool) or not isinstance(v, int | float) or not (math.isfinite(v) and v > 0):

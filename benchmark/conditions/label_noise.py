@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from benchmark.classifiers.noise import (
     uniform_confusion,
     wrong_class_rows,
 )
+from envs.ranges import Share
 
 
 class LabelNoise:
@@ -52,7 +53,7 @@ class LabelNoise:
     #: salt of this stage's draws (the oracle classifier draws with its own seed, unsalted).
     SALT = 7919
 
-    def __init__(self, share: float = 0.0, noise: NoiseModel | None = None,
+    def __init__(self, share: Annotated[float, Share()] = 0.0, noise: NoiseModel | None = None,
                  confusion: Sequence[Sequence[float]] | str | Path | None = None, seed: int = 0):
         if isinstance(share, bool) or not isinstance(share, int | float) or not 0.0 <= float(share) <= 1.0:
             raise ValueError(f"label_noise.share={share!r}: expected a share of views in [0, 1]")

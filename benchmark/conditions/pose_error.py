@@ -26,12 +26,14 @@ consecutive views, the loop closure's own residual error, and re-localisation fa
 from __future__ import annotations
 
 import math
+from typing import Annotated
 
 import numpy as np
 
 from benchmark.classifiers.noise import text_key
 from envs.maps.gridmap import GridMap
 from envs.maps.trajectory import view_distances
+from envs.ranges import NonNegative, Positive
 
 
 def _check(key: str, value, *, allow_none: bool = False) -> None:
@@ -125,8 +127,11 @@ class PoseError:
         seed: with the house id, seeds the draws.
     """
 
-    def __init__(self, sigma_xy: float = 0.0, sigma_yaw: float = 0.0, drift_xy: float = 0.0,
-                 drift_yaw: float = 0.0, loop_closure: float | None = None, seed: int = 0):
+    def __init__(self, sigma_xy: Annotated[float, NonNegative()] = 0.0,
+                 sigma_yaw: Annotated[float, NonNegative()] = 0.0,
+                 drift_xy: Annotated[float, NonNegative()] = 0.0,
+                 drift_yaw: Annotated[float, NonNegative()] = 0.0,
+                 loop_closure: Annotated[float | None, Positive()] = None, seed: int = 0):
         for key, v in (("sigma_xy", sigma_xy), ("sigma_yaw", sigma_yaw), ("drift_xy", drift_xy),
                        ("drift_yaw", drift_yaw)):
             _check(key, v)

@@ -16,12 +16,19 @@ Three checks, each one line naming the key, the value and what is expected:
 * **The robot label** (:class:`RobotLabel`): ``robot.corruption`` a family of
   ``conf/corruption`` and ``robot.severity`` an integer 0..5.
 
-Value ranges that a type cannot say (a share in [0, 1], an odd window) are checked by
-:mod:`benchmark.harness.checks`.
+Value ranges that a type cannot say (a share in [0, 1], an odd window, metres > 0) are said on
+the same parameters, ``window: Annotated[int, Odd()]`` with the markers of :mod:`envs.ranges`,
+and :func:`check_targets` checks them after the type: ``aggregator.window=4: expected an odd
+integer >= 1``. A ranged parameter refuses null unless its type admits None (the message then
+ends ", or null"). A class taking ``**settings`` for a dataclass names it in ``SETTINGS``
+(``envs.maps.mapping.ScanMapping``): its keys are the dataclass's fields, typed and ranged.
+A user's own stage gets its ranges checked by annotating its parameters the same way. Only the
+``run`` keys, which no ``_target_`` node holds, keep a table, in :mod:`benchmark.harness.checks`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import functools
 import importlib
@@ -35,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmark.harness.checks import ConfigError, overrides
+from envs.ranges import Range
 
 #: keys of a ``_target_`` node that Hydra reads itself.
 HYDRA_KEYS = frozenset({"_target_", "_partial_", "_convert_", "_recursive_", "_args_"})
@@ -145,10 +153,52 @@ class RobotLabel:
 # --------------------------------------------------------------------------- _target_ nodes
 
 
+@dataclass(frozen=True)
+class Param:
+    """What a ``_target_`` node's key must hold: the parameter's type and its value ranges.
+
+    Attributes:
+        hint: the annotation without its ranges (None: not annotated, any value).
+        ranges: the :class:`envs.ranges.Range` markers of ``Annotated[...]``, in order.
+    """
+
+    hint: Any = None
+    ranges: tuple[Range, ...] = ()
+
+    @property
+    def nullable(self) -> bool:
+        """Whether the type admits null (``int | None``): then a range allows null too."""
+        return _fits(None, self.hint) is not False
+
+
+def _ranges(hint: Any) -> tuple[Range, ...]:
+    """The :class:`Range` markers of ``hint``: of ``Annotated[T, m, ...]``, and of each
+    ``Annotated`` member of a union (``Annotated[int, Integer(0)] | None``)."""
+    if typing.get_origin(hint) is typing.Annotated:
+        return tuple(m for m in hint.__metadata__ if isinstance(m, Range))
+    return tuple(m for h in typing.get_args(hint) for m in _ranges(h))
+
+
+def _hints(obj: Any) -> dict[str, Param]:
+    """parameter -> :class:`Param` from the annotations of ``obj`` (a function, or a class's
+    ``__init__``, or a dataclass's fields); empty where an annotation does not resolve."""
+    target = obj.__init__ if inspect.isclass(obj) and not dataclasses.is_dataclass(obj) else obj
+    try:
+        bare = typing.get_type_hints(target, include_extras=False)
+        full = typing.get_type_hints(target, include_extras=True)
+    except Exception:  # noqa: BLE001 - an annotation that does not resolve is not checked
+        return {}
+    return {k: Param(bare.get(k), _ranges(full.get(k))) for k in bare}
+
+
 @functools.lru_cache(maxsize=256)
-def _signature(target: str) -> tuple[dict[str, Any], bool] | None:
-    """(parameter -> annotation (None: any), takes **kwargs) of ``target``, or None when it
-    cannot be imported (the stage's own build then says why)."""
+def _signature(target: str) -> tuple[dict[str, Param], bool] | None:
+    """(parameter -> :class:`Param`, takes **kwargs) of ``target``, or None when it cannot be
+    imported (the stage's own build then says why).
+
+    A class that takes ``**settings`` and hands them to a dataclass names that dataclass in a
+    ``SETTINGS`` class attribute (``envs.maps.mapping.ScanMapping.SETTINGS = ScanSettings``):
+    its keys are then the dataclass's fields, with their types and ranges, and no others."""
     module, _, name = target.rpartition(".")
     try:
         obj = getattr(importlib.import_module(module), name)
@@ -158,16 +208,18 @@ def _signature(target: str) -> tuple[dict[str, Any], bool] | None:
         sig = inspect.signature(obj)
     except (TypeError, ValueError):
         return None
-    try:
-        hints = typing.get_type_hints(obj.__init__ if inspect.isclass(obj) else obj, include_extras=False)
-    except Exception:  # noqa: BLE001 - an annotation that does not resolve is not checked
-        hints = {}
+    hints = _hints(obj)
     params, var_kw = {}, False
     for p in sig.parameters.values():
         if p.kind is p.VAR_KEYWORD:
             var_kw = True
         elif p.kind is not p.VAR_POSITIONAL:
-            params[p.name] = hints.get(p.name)
+            params[p.name] = hints.get(p.name, Param())
+    settings = getattr(obj, "SETTINGS", None) if inspect.isclass(obj) else None
+    if var_kw and dataclasses.is_dataclass(settings):
+        fields = _hints(settings)
+        params.update({f.name: fields.get(f.name, Param()) for f in dataclasses.fields(settings)})
+        var_kw = False
     return params, var_kw
 
 
@@ -214,7 +266,9 @@ def check_targets(node: Any, path: str = "") -> None:
 
     Raises:
         ConfigError: ``aggregator.kk: not a parameter of benchmark.aggregators...VisionCone;
-            did you mean 'k'?`` or ``aggregator.k='x': expected an integer``."""
+            did you mean 'k'?``, ``aggregator.k='x': expected an integer`` (the type) or
+            ``aggregator.window=4: expected an odd integer >= 1`` (a range of the annotation,
+            :mod:`envs.ranges`); the type is checked first."""
     if isinstance(node, Mapping):
         target = node.get("_target_")
         if isinstance(target, str):
@@ -232,11 +286,19 @@ def check_targets(node: Any, path: str = "") -> None:
                         continue
                     if isinstance(value, Mapping) and "_target_" in value:
                         continue  # a nested stage: checked below
-                    if value is None or (isinstance(value, float) and math.isnan(value)):
+                    param = params[key]
+                    unset = value is None or (isinstance(value, float) and math.isnan(value))
+                    if unset and not param.ranges:
                         continue  # null: not set yet (roomseg-segment's ${classes} comes from its labels)
-                    if _fits(value, params[key]) is False:
-                        raise ConfigError(f"{dotted}={value!r}: expected {_what(params[key])} "
+                    if not unset and _fits(value, param.hint) is False:
+                        raise ConfigError(f"{dotted}={value!r}: expected {_what(param.hint)} "
                                           f"(the type of {target.rsplit('.', 1)[-1]}'s {key})")
+                    if value is None and param.nullable:
+                        continue
+                    for rule in param.ranges:
+                        if not rule(value):
+                            raise ConfigError(f"{dotted}={value!r}: expected {rule.what}"
+                                              f"{', or null' if param.nullable else ''}")
         for key, value in node.items():
             if key != "_target_":
                 check_targets(value, f"{path}.{key}" if path else str(key))

@@ -3,12 +3,15 @@ distance-to-obstacle map, keep the one with the most room-sized parts as seeds."
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from scipy import ndimage
 
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
 from envs.maps.gridmap import GridMap
+from envs.ranges import NonNegative, Positive
 
 
 class DistanceTransform(Segmenter):
@@ -24,8 +27,9 @@ class DistanceTransform(Segmenter):
             sharing the longest border (:func:`benchmark.segmenters.common.merge_small_rooms`).
     """
 
-    def __init__(self, min_seed_area: float = 0.5, max_area: float = 60.0, step: float = 0.05,
-                 min_room_area: float = 1.0):
+    def __init__(self, min_seed_area: Annotated[float, NonNegative()] = 0.5,
+                 max_area: Annotated[float, Positive()] = 60.0, step: Annotated[float, Positive()] = 0.05,
+                 min_room_area: Annotated[float, NonNegative()] = 1.0):
         self.min_seed_area, self.max_area, self.step = min_seed_area, max_area, step
         self.min_room_area = check_room_area(min_room_area)
 

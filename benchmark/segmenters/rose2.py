@@ -30,6 +30,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 from scipy import ndimage
@@ -39,6 +40,7 @@ from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import check_room_area, merge_small_rooms
 from envs.atomic import pid_alive
 from envs.maps.gridmap import GridMap
+from envs.ranges import NonNegative
 
 #: metres per pixel ROSE²'s pixel parameters were tuned for (the maps of its paper).
 ROSE2_RESOLUTION = 0.05
@@ -130,7 +132,8 @@ class Rose2(Segmenter):
     """
 
     def __init__(self, checkout: str | None = None, python: str | None = None, timeout: float = 300.0,
-                 filter: float = 0.18, wall_m: float = 0.2, margin_m: float = 1.0, min_room_area: float = 1.0):
+                 filter: float = 0.18, wall_m: float = 0.2, margin_m: float = 1.0,
+                 min_room_area: Annotated[float, NonNegative()] = 1.0):
         checkout = checkout or os.environ.get(CHECKOUT_ENV)
         if not checkout:
             raise ValueError(f"segmenter=rose2 needs a ROSE2 checkout: set segmenter.checkout=PATH or {CHECKOUT_ENV}=PATH "

@@ -3,6 +3,8 @@ critical lines at the narrowings of its skeleton (details: :mod:`benchmark.segme
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from scipy import ndimage
 from skimage.draw import line as draw_line
@@ -11,6 +13,7 @@ from skimage.morphology import skeletonize
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
 from envs.maps.gridmap import GridMap
+from envs.ranges import Between, NonNegative, Positive
 
 
 class Voronoi(Segmenter):
@@ -28,8 +31,10 @@ class Voronoi(Segmenter):
             own within ``2 * window`` (ratio), i.e. wider space beyond the narrowing.
     """
 
-    def __init__(self, min_room_area: float = 1.0, max_area: float = 60.0, max_door: float = 1.2,
-                 window: float = 0.6, widening: float = 1.25):
+    def __init__(self, min_room_area: Annotated[float, NonNegative()] = 1.0,
+                 max_area: Annotated[float, Positive()] = 60.0, max_door: Annotated[float, Positive()] = 1.2,
+                 window: Annotated[float, Positive()] = 0.6,
+                 widening: Annotated[float, Between(1, what="a number >= 1")] = 1.25):
         if max_door <= 0 or window <= 0 or widening < 1:
             raise ValueError(f"Voronoi needs max_door > 0 m, window > 0 m and widening >= 1, got "
                              f"{max_door}, {window}, {widening}")

@@ -12,10 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Annotated
 
 from envs.datasets.base import Environment
+from envs.maps.reachable import RULES as REACHABLE_RULES
 from envs.maps.reachable import check_rule, restrict_scene
 from envs.maps.scene import Scene
+from envs.ranges import OneOf
 from envs.world.classes import PAPER_CLASSES
 from envs.world.house import House
 
@@ -32,7 +35,8 @@ class ArchitecTHOREnv(Environment):
     largest 4-connected component too)."""
 
     def __init__(self, annotations: str, houses: Sequence[str] = ARCHITECTHOR_SCENES,
-                 classes: Sequence[str] = PAPER_CLASSES, name: str = "architecthor", reachable: str = "largest"):
+                 classes: Sequence[str] = PAPER_CLASSES, name: str = "architecthor",
+                 reachable: Annotated[str, OneOf(*REACHABLE_RULES)] = "largest"):
         names = list(houses)
         unknown = [h for h in names if h not in ARCHITECTHOR_SCENES]
         if unknown:

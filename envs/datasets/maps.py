@@ -51,6 +51,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
@@ -58,6 +59,7 @@ from envs.datasets.base import Environment
 from envs.maps.gridmap import GridMap
 from envs.maps.ground_truth import FORMATS, read_ground_truth
 from envs.maps.pose_files import read_poses
+from envs.maps.reachable import RULES as REACHABLE_RULES
 from envs.maps.reachable import check_rule, restrict_scene
 from envs.maps.ros import (
     grid_from_array,
@@ -67,6 +69,7 @@ from envs.maps.ros import (
     read_ros_map,
 )
 from envs.maps.scene import MAX_MAP_PIXELS, Scene, check_max_map_pixels
+from envs.ranges import Integer, OneOf, Share
 from envs.world.classes import PAPER_CLASSES
 from envs.world.house import House
 
@@ -136,14 +139,18 @@ class MapsEnv(Environment):
     """
 
     def __init__(self, dir: str, maps: str = "{id}.yaml", manifest: str | None = None,
-                 ground_truth: str | None = "{id}_gt.png", poses: str | None = None, labels: str | None = None,
-                 images: str | None = None, gt_format: str = "instance", image_resolution: float | None = None,
-                 origin: Sequence[float] | None = None, image_preset: str = "ros", free_thresh: float | None = None,
-                 occupied_thresh: float | None = None, negate: bool = False, mode: str | None = None,
-                 unknown_as: str = "obstacle", min_room_m2: float = 0.2, light_threshold: int = 230,
-                 fill_distance: float | None = 0.5, not_room_colours: Sequence = ("#000000", "#ffffff"),
-                 classes: Sequence[str] = PAPER_CLASSES, name: str = "maps",
-                 max_map_pixels: int | None = MAX_MAP_PIXELS, reachable: str = "start", poses_frame: str = "ros"):
+                 ground_truth: str | None = "{id}_gt.png", poses: str | None = None,
+                 labels: str | None = None, images: str | None = None, gt_format: str = "instance",
+                 image_resolution: float | None = None, origin: Sequence[float] | None = None,
+                 image_preset: Annotated[str, OneOf("ros", "white_only")] = "ros",
+                 free_thresh: Annotated[float | None, Share()] = None,
+                 occupied_thresh: Annotated[float | None, Share()] = None, negate: bool = False,
+                 mode: str | None = None, unknown_as: str = "obstacle", min_room_m2: float = 0.2,
+                 light_threshold: int = 230, fill_distance: float | None = 0.5,
+                 not_room_colours: Sequence = ("#000000", "#ffffff"), classes: Sequence[str] = PAPER_CLASSES,
+                 name: str = "maps", max_map_pixels: Annotated[int | None, Integer(1)] = MAX_MAP_PIXELS,
+                 reachable: Annotated[str, OneOf(*REACHABLE_RULES)] = "start",
+                 poses_frame: Annotated[str, OneOf("ros", "sim", "pixel")] = "ros"):
         if dir is None or str(dir) in ("", "???"):
             raise ValueError("env.dir is not set; expected the folder of maps (env.dir=DIR)")
         self.dir = Path(str(dir)).expanduser()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Annotated
 
 from envs.datasets.base import Environment
 from envs.datasets.house_files import (
@@ -12,6 +13,7 @@ from envs.datasets.house_files import (
     prior_records,
     read_house_records,
 )
+from envs.maps.reachable import RULES as REACHABLE_RULES
 from envs.maps.reachable import check_rule, restrict_scene, start_points
 from envs.maps.scene import (
     MAX_MAP_PIXELS,
@@ -20,6 +22,7 @@ from envs.maps.scene import (
     rasterise_house,
     scene_on_grid,
 )
+from envs.ranges import Integer, NonNegative, OneOf, Positive
 from envs.world.classes import PAPER_CLASSES, room_type_mapping
 from envs.world.house import House, HouseError
 
@@ -62,21 +65,21 @@ class ProcTHOREnv(Environment):
     def __init__(
         self,
         path: str | None = None,
-        start: int = 0,
-        stop: int | None = None,
+        start: Annotated[int, Integer(0)] = 0,
+        stop: Annotated[int | None, Integer(0)] = None,
         split: str | None = None,
         dataset: str = "procthor-10k",
-        resolution: float = 0.05,
-        wall_thickness: float = 0.1,
-        clearance: float = 0.0,
-        max_object_base: float = 0.5,
+        resolution: Annotated[float, Positive()] = 0.05,
+        wall_thickness: Annotated[float, NonNegative()] = 0.1,
+        clearance: Annotated[float, NonNegative()] = 0.0,
+        max_object_base: Annotated[float, NonNegative()] = 0.5,
         classes: list[str] | tuple[str, ...] = PAPER_CLASSES,
         room_types: Mapping[str, str | None] | None = None,
-        max_map_pixels: int | None = MAX_MAP_PIXELS,
+        max_map_pixels: Annotated[int | None, Integer(1)] = MAX_MAP_PIXELS,
         name: str = "procthor",
         occupancy: str = "floorplan",
         thor: dict | None = None,
-        reachable: str = "start",
+        reachable: Annotated[str, OneOf(*REACHABLE_RULES)] = "start",
     ):
         if occupancy not in ("floorplan", "ai2thor"):
             raise ValueError(f"occupancy must be 'floorplan' or 'ai2thor', got {occupancy!r}")

@@ -31,12 +31,15 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
 from envs.datasets.base import Environment
+from envs.maps.reachable import RULES as REACHABLE_RULES
 from envs.maps.reachable import check_rule, restrict_scene, start_points
 from envs.maps.scene import Scene, rasterise_house
+from envs.ranges import Integer, LowHigh, NonNegative, OneOf, Positive, Share
 from envs.world.assets import AssetInfo, assets_by_type
 from envs.world.classes import PAPER_CLASSES
 from envs.world.house import House
@@ -387,11 +390,16 @@ class SyntheticEnv(Environment):
     furniture stands there).
     """
 
-    def __init__(self, n_houses: int = 20, seed_start: int = 0, length: Sequence[float] = (9.0, 14.0),
-                 depth: Sequence[float] = (8.0, 11.0), open_plan_share: float = 0.5,
-                 shapes: Sequence[str] = ("rect", "L", "T"), resolution: float = 0.05, wall_thickness: float = 0.1,
-                 clearance: float = 0.0, max_object_base: float = 0.5, classes: Sequence[str] = PAPER_CLASSES,
-                 name: str = "synthetic", reachable: str = "start"):
+    def __init__(self, n_houses: Annotated[int, Integer(1)] = 20, seed_start: Annotated[int, Integer(0)] = 0,
+                 length: Annotated[Sequence[float], LowHigh()] = (9.0, 14.0),
+                 depth: Annotated[Sequence[float], LowHigh()] = (8.0, 11.0),
+                 open_plan_share: Annotated[float, Share()] = 0.5, shapes: Sequence[str] = ("rect", "L", "T"),
+                 resolution: Annotated[float, Positive()] = 0.05,
+                 wall_thickness: Annotated[float, NonNegative()] = 0.1,
+                 clearance: Annotated[float, NonNegative()] = 0.0,
+                 max_object_base: Annotated[float, NonNegative()] = 0.5,
+                 classes: Sequence[str] = PAPER_CLASSES, name: str = "synthetic",
+                 reachable: Annotated[str, OneOf(*REACHABLE_RULES)] = "start"):
         if n_houses < 1 or seed_start < 0:
             raise ValueError(f"n_houses must be >= 1 and seed_start >= 0, got {n_houses}, {seed_start}")
         self.name = name

@@ -14,6 +14,8 @@ cells on the scene's grid; the harness caches its output per house, views and se
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 
 from envs.maps.gridmap import GridMap
@@ -28,6 +30,7 @@ from envs.maps.scan import (
 )
 from envs.maps.scene import Scene
 from envs.maps.slam_map import scan_map_at_estimate
+from envs.ranges import OneOf
 
 #: where a scan-mapping robot drives: along its views, or along its own exploration.
 ROUTES = ("views", "explore")
@@ -48,7 +51,12 @@ class ScanMapping:
             checked (one line naming ``mapping.<key>``, its value and the expected range).
     """
 
-    def __init__(self, route: str = "views", **settings):
+    #: the dataclass ``**settings`` go to: the configuration check
+    #: (``benchmark.harness.typed.check_targets``) takes its fields, with their types and
+    #: ranges, for the keys of ``mapping``.
+    SETTINGS = ScanSettings
+
+    def __init__(self, route: Annotated[str, OneOf(*ROUTES)] = "views", **settings):
         if route not in ROUTES:
             raise ValueError(f"mapping.route={route!r}: expected one of {', '.join(ROUTES)}")
         self.route = route

@@ -56,6 +56,7 @@ import zlib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 from numba import njit
@@ -65,10 +66,14 @@ from envs.maps.rays import ray_end, walk_beam
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map
 from envs.maps.scene import Scene
 from envs.maps.trajectory import trajectory
+from envs.ranges import DROPOUT, Angle, Between, Metres, NonNegative, Positive
 
 #: Wall height of generated houses (metres); ProcTHOR's walls carry their own (2.51-5.38 m in
 #: the 150 shared houses): :func:`house_wall_height`.
 DEFAULT_WALL_HEIGHT = 2.6
+#: the scan plane's height, metres: above the floor, below the walls of a generated house.
+SCAN_HEIGHT = Between(0, DEFAULT_WALL_HEIGHT, low_open=True, high_open=True,
+                      what=f"metres, 0 < height < {DEFAULT_WALL_HEIGHT:g} (below the walls)")
 #: ROS ``nav_msgs/OccupancyGrid`` values.
 UNKNOWN, FREE, OCCUPIED = -1, 0, 100
 
@@ -119,12 +124,12 @@ class ScanSettings:
         person_radius: metres, a person's radius at scan height.
     """
 
-    height: float = 0.25
-    max_range: float = 10.0
-    angular_step: float = 1.0
-    range_noise: float = 0.0
-    dropout: float = 0.0
-    spacing: float = 0.5
+    height: Annotated[float, SCAN_HEIGHT] = 0.25
+    max_range: Annotated[float, Metres(inf_ok=True)] = 10.0
+    angular_step: Annotated[float, Angle()] = 1.0
+    range_noise: Annotated[float, NonNegative()] = 0.0
+    dropout: Annotated[float, DROPOUT] = 0.0
+    spacing: Annotated[float, Positive()] = 0.5
     occupied_thresh: float = 0.65
     free_thresh: float = 0.196
     log_odds_hit: float = 0.85

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 from numba import njit
 
 from envs.maps.rays import cast_rays, cone_thetas, ray_end, trace_ray
 from envs.maps.scene import Scene
+from envs.ranges import CAMERA_FOV, NonNegative, Positive
 from envs.render.base import Renderer
 from envs.render.observation import Observation, poses_array
 
@@ -141,8 +143,9 @@ class FloorplanRenderer(Renderer):
         include_children: objects resting on a seen object are seen too.
     """
 
-    def __init__(self, fov: float = 90.0, max_range: float = 6.0, occluder_height: float = 1.2,
-                 include_children: bool = True):
+    def __init__(self, fov: Annotated[float, CAMERA_FOV] = 90.0,
+                 max_range: Annotated[float, Positive()] = 6.0,
+                 occluder_height: Annotated[float, NonNegative()] = 1.2, include_children: bool = True):
         if not (0 < fov <= 360) or max_range <= 0:
             raise ValueError(f"FloorplanRenderer needs 0 < fov <= 360 degrees and max_range > 0 m; got {fov}, {max_range}")
         self.fov, self.max_range = fov, max_range

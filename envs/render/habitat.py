@@ -24,11 +24,13 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 from envs.maps.gridmap import GridMap
 from envs.maps.poses import check_mirror, pose_to_habitat, wxyz_to_xyzw
+from envs.ranges import CAMERA_FOV, Integer, Share
 from envs.render.base import Renderer
 from envs.render.observation import Observation, poses_array
 
@@ -156,10 +158,12 @@ class HabitatRenderer(Renderer):
         min_share: an object covering no more than this share of the image is not listed.
     """
 
-    def __init__(self, scene_dataset: str = DEFAULT_DATASET, width: int = 224, height: int = 224, fov: float = 90.0,
+    def __init__(self, scene_dataset: str = DEFAULT_DATASET, width: Annotated[int, Integer(1)] = 224,
+                 height: Annotated[int, Integer(1)] = 224, fov: Annotated[float, CAMERA_FOV] = 90.0,
                  camera_y: float = 1.5, horizon: float = 0.0, floor_y: float = 0.0, semantic: bool = True,
                  mirror: str = "z", refuse_off_navmesh: bool = True, gpu_device: int = 0,
-                 agent_radius: float = 0.2, agent_height: float = 1.5, min_share: float = 0.0):
+                 agent_radius: float = 0.2, agent_height: float = 1.5,
+                 min_share: Annotated[float, Share()] = 0.0):
         sensor_settings(width, height, fov, camera_y, horizon, semantic)  # validates
         check_mirror(mirror)
         if not -90.0 <= float(horizon) <= 90.0:

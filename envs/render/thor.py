@@ -30,11 +30,13 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 from envs.maps.gridmap import GridMap
 from envs.maps.poses import pose_to_thor_teleport, vertical_fov
+from envs.ranges import CAMERA_FOV, Integer, Positive, Share
 from envs.render.base import Renderer
 from envs.render.observation import Observation, poses_array
 
@@ -210,10 +212,12 @@ class AI2THORRenderer(Renderer):
         min_share: an object covering no more than this share of the image is not listed.
     """
 
-    def __init__(self, width: int = 224, height: int = 224, fov: float = 90.0, agent_y: float | None = None,
-                 horizon: float = 0.0, platform: str = "CloudRendering", commit_id: str | None = None,
-                 grid_size: float = 0.25, visibility_distance: float = 10.0, quality: str | None = None,
-                 gpu_device: int | None = None, local_executable_path: str | None = None, min_share: float = 0.0):
+    def __init__(self, width: Annotated[int, Integer(1)] = 224, height: Annotated[int, Integer(1)] = 224,
+                 fov: Annotated[float, CAMERA_FOV] = 90.0, agent_y: float | None = None, horizon: float = 0.0,
+                 platform: str = "CloudRendering", commit_id: str | None = None,
+                 grid_size: Annotated[float, Positive()] = 0.25, visibility_distance: float = 10.0,
+                 quality: str | None = None, gpu_device: int | None = None,
+                 local_executable_path: str | None = None, min_share: Annotated[float, Share()] = 0.0):
         if int(width) <= 0 or int(height) <= 0:
             raise ValueError(f"AI2-THOR image size must be positive pixels, got {width} x {height}")
         if not 0.0 < float(fov) < 180.0:
