@@ -64,6 +64,51 @@ def test_vision_cone_equals_per_ray_loop(seed, vote, density):
     assert np.array_equal(VisionCone(**kw)(grid, poses, proba), vision_cone_reference(grid, poses, proba, **kw))
 
 
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("fov, density, paths", [(360.0, 1.0, True), (90.0, 0.4, True), (120.0, 1.0, False)])
+def test_vision_cone_equals_per_ray_loop_beyond_neighbouring_ends(seed, fov, density, paths, monkeypatch):
+    """A whole turn (the last ray's end next to the first's), sparse rays (ends 2-3 px apart: no
+    difference list, each ray walked whole) and no path tables at all (over the budget): the
+    same cells as the per-ray reference."""
+    import benchmark.aggregators.vision_cone as vc
+
+    if not paths:
+        monkeypatch.setattr(vc, "PATH_CACHE_BYTES", 0)
+    grid, poses, proba = random_case(seed)
+    kw = dict(fov=fov, max_range_m=1.2, blocked_ray_m=0.1, window=1, ray_density=density)
+    assert np.array_equal(VisionCone(**kw)(grid, poses, proba), vision_cone_reference(grid, poses, proba, **kw))
+    assert (vc.ray_paths(24.0, vc.PATH_CACHE_BYTES)[0] > 0) == paths
+
+
+def test_ray_paths_are_the_digital_lines_to_their_ends():
+    """Every kept path, put back at a camera, is the cell list of trace_ray to that end; and
+    each difference list names exactly the indices where two neighbouring paths differ."""
+    from benchmark.aggregators.vision_cone import ray_paths
+    from envs.maps.rays import trace_ray
+
+    k, slot, pm, geo, plen, dstart, dj = ray_paths(9.5)
+    free = np.zeros((41, 41), bool)
+    cells = {}
+    for er, ec in np.argwhere(slot >= 0) - k:
+        s = slot[er + k, ec + k]
+        j = np.arange(plen[s])
+        got = np.stack([20 + geo[s, 0] * j + geo[s, 2] * pm[s, j], 20 + geo[s, 1] * j + geo[s, 3] * pm[s, j]], 1)
+        br, bc = np.zeros(41, np.int32), np.zeros(41, np.int32)
+        n, _, _ = trace_ray(free, 20, 20, 20 + er, 20 + ec, br, bc)
+        assert np.array_equal(got, np.stack([br[:n], bc[:n]], 1))
+        cells[(er, ec)] = got
+    assert len(cells) > 100
+    for (er, ec), a in cells.items():
+        for q in range(9):
+            b = cells.get((er + q // 3 - 1, ec + q % 3 - 1))
+            if q == 4 or b is None:
+                continue
+            m = min(len(a), len(b))
+            want = np.nonzero((a[:m] != b[:m]).any(1))[0]
+            s = slot[er + k, ec + k]
+            assert np.array_equal(dj[2 * dstart[s, q]:2 * dstart[s, q + 1]:2], want)
+
+
 def test_knn_splits_at_the_geodesic_midpoint_not_across_the_wall():
     grid = two_rooms_grid(door=(2, 6))  # door at the top
     # view A in the left room near the wall's bottom, view B in the right room far away

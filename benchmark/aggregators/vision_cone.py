@@ -11,14 +11,17 @@ index); walkable cells with no vote in their window stay unlabelled.
 Memory: (C, H, W) vote counts (uint16 with label votes from fewer than 65,536 views, else
 float32), an (H + 2, W + 2) int32 cell state (free, blocked or
 off the map, and the last view that voted there) and an (H, W) bool obstacle copy, linear in
-the map size, and nothing per ray: every cone shares one array of ray offsets around its
-view's heading. Neighbouring rays of a view share most cells near the camera; a ray walks
-them against the cells the view's earlier rays walked (in order along each ray) and looks a
-cell up only where it leaves that path, so the lookups number about the cells seen.
+the map size, and nothing per ray or view: every cone shares one array of ray offsets around
+its view's heading, and every ray of a given range one table of paths (:func:`ray_paths`,
+about 2 MB at 200 px, kept per range). Neighbouring rays of a view end on neighbouring cells
+and share most of their cells; a ray looks up only the cells where its path differs from the
+previous ray's (a precomputed list per pair of neighbouring ends) below where that ray
+stopped, and walks on only beyond it, so the lookups number about the cells seen.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import Annotated
 
 import cv2
@@ -44,22 +47,137 @@ def cone_state(walkable: np.ndarray) -> np.ndarray:
     return st
 
 
+#: the most bytes :func:`ray_paths` keeps for one range; beyond it (ranges of several thousand
+#: pixels) the kernel walks every ray whole
+PATH_CACHE_BYTES = 64 * 2**20
+
+
 @njit(cache=True, nogil=True)
-def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, labels, votes, counts):
-    """Per view: the short forward ray, then the cone's rays in order of heading. A ray's cells
-    are those of :func:`envs.maps.rays.trace_ray` (same digital line, stops before the first
-    blocked cell or at the map edge), walked here without its buffer: ``path[j]`` holds the j-th
-    cell of the latest ray of this view that reached index j, a free cell this view has already
-    voted for, so a ray that is at that cell at step j (neighbouring rays share most of their
-    cells near the camera) skips the state lookup; any other cell is looked up once in
-    ``state``, which also stamps the view (one vote per view and cell)."""
+def _fill_paths(ends_r, ends_c, pr, pc, plen):
+    """Cells of the digital line from (0, 0) to each end (``line_start``/``line_step``)."""
+    for s in range(ends_r.shape[0]):
+        er = ends_r[s]
+        ec = ends_c[s]
+        dr, dc, sr, sc, err = line_start(0, 0, er, ec)
+        r = 0
+        c = 0
+        j = 0
+        while True:
+            pr[s, j] = r
+            pc[s, j] = c
+            j += 1
+            if r == er and c == ec:
+                break
+            r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+        plen[s] = j
+
+
+@njit(cache=True, nogil=True)
+def _fill_diffs(ends_r, ends_c, slot, k, pr, pc, plen, dstart, dj, count_only):
+    """For each path and each of the 3 x 3 end cells around its own: the indices j (below both
+    lengths) where the two paths' cells differ, with this path's minor coordinate there;
+    returns their number (``count_only``: only that)."""
+    n = 0
+    for s in range(ends_r.shape[0]):
+        rmaj = abs(ends_r[s]) > abs(ends_c[s])
+        for q in range(9):
+            x = -1
+            rr = ends_r[s] + q // 3 - 1 + k
+            cc = ends_c[s] + q % 3 - 1 + k
+            if q != 4 and 0 <= rr < slot.shape[0] and 0 <= cc < slot.shape[1]:
+                x = slot[rr, cc]
+            if not count_only:
+                dstart[s, q] = n
+            if x >= 0:
+                for j in range(min(plen[s], plen[x])):
+                    if pr[s, j] != pr[x, j] or pc[s, j] != pc[x, j]:
+                        if not count_only:
+                            dj[2 * n] = j
+                            dj[2 * n + 1] = pc[s, j] if rmaj else pr[s, j]
+                        n += 1
+            if not count_only:
+                dstart[s, q + 1] = n
+    return n
+
+
+def _no_paths():
+    out = (-1, np.zeros((0, 0), np.int32), np.zeros((0, 0), np.int16), np.zeros((0, 4), np.int64),
+           np.zeros(0, np.int32), np.zeros((0, 10), np.int32), np.zeros(0, np.int16))
+    for a in out[1:]:
+        a.setflags(write=False)  # the same kernel signature as with paths
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
+    """The cells of every ray of ``max_range`` pixels, relative to its camera, kept per range.
+
+    A ray from (r0, c0) ends at :func:`envs.maps.rays.ray_end`'s cell, at most 0.71 px (plus
+    rounding) from the circle of radius ``max_range`` around the camera; its digital line
+    depends only on the end's offset (er, ec) from the camera. Every offset within 1 px of that
+    circle gets a path (in order of angle), its cells as a minor coordinate per index (the
+    major one is the index, with the end's sign), and, for each of the 3 x 3 offsets around
+    it, the indices where the two paths differ (neighbouring rays of a cone end on
+    neighbouring cells).
+
+    Returns:
+        ``(k, slot, pm, geo, plen, dstart, dj)``: ``slot`` (2k + 1, 2k + 1) int32 path of
+        offset (er, ec) at [er + k, ec + k] (-1: none); ``pm`` (S, k + 1) int16 minor
+        coordinates; ``geo`` (S, 4) int64 (row step, column step per index, row and column
+        factor of the minor coordinate); ``plen`` (S,) int32 cells per path; ``dstart`` (S, 10)
+        int32 where each neighbour's differences start in ``dj`` (neighbour q = 3 (da + 1) +
+        db + 1, ending at ``dstart[s, q + 1]``); ``dj`` int16 pairs (index, minor coordinate).
+        About 20 bytes per path cell (2 MB at 200 px, 12 MB at 500 px, when built); over
+        ``budget_bytes`` (or ranges beyond int16) no paths (``k = -1``): every ray is walked.
+    """
+    k = int(np.ceil(max_range)) + 1
+    g = np.arange(-k, k + 1)
+    d2 = g[:, None] ** 2 + g[None, :] ** 2
+    ring = (d2 >= max(max_range - 1.0, 0.0) ** 2) & (d2 <= (max_range + 1.0) ** 2)
+    er, ec = np.nonzero(ring)
+    er, ec = (er - k).astype(np.int64), (ec - k).astype(np.int64)
+    if k > 30000 or len(er) * (k + 1) * 20 > budget_bytes:
+        return _no_paths()
+    o = np.argsort(np.arctan2(ec, -er), kind="stable")  # neighbouring rays read neighbouring rows
+    er, ec = er[o], ec[o]
+    slot = np.full((2 * k + 1, 2 * k + 1), -1, np.int32)
+    slot[er + k, ec + k] = np.arange(len(er), dtype=np.int32)
+    pr = np.zeros((len(er), k + 1), np.int16)
+    pc = np.zeros((len(er), k + 1), np.int16)
+    plen = np.zeros(len(er), np.int32)
+    _fill_paths(er, ec, pr, pc, plen)
+    dstart = np.zeros((len(er), 10), np.int32)
+    n = _fill_diffs(er, ec, slot, k, pr, pc, plen, dstart, np.zeros(0, np.int16), True)
+    dj = np.zeros(2 * n, np.int16)
+    _fill_diffs(er, ec, slot, k, pr, pc, plen, dstart, dj, False)
+    rmaj = np.abs(er) > np.abs(ec)  # the major axis is the rows: cell j is (sign(er) j, minor)
+    pm = np.ascontiguousarray(np.where(rmaj[:, None], pc, pr))
+    sgn = np.where(rmaj, np.sign(er), np.sign(ec))
+    geo = np.stack([np.where(rmaj, sgn, 0), np.where(rmaj, 0, sgn), np.where(rmaj, 0, 1),
+                    np.where(rmaj, 1, 0)], 1).astype(np.int64)
+    out = (k, slot, pm, geo, plen, dstart, dj)
+    for a in out[1:]:
+        a.setflags(write=False)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, labels, votes, counts,
+                 k, slot, pm, geo, plen, dstart, dj):
+    """Per view: the short forward ray, then the cone's rays in order of heading, each a path of
+    :func:`ray_paths` (the digital line of :func:`envs.maps.rays.trace_ray` from the camera to
+    the ray's end cell, moved to the camera; it stops before the first blocked cell or off the
+    map). A ray whose end cell neighbours the previous ray's shares that ray's cells except at
+    the indices the two paths' difference list names: those are looked up, and the rest of
+    the previous ray's reach (its cells were free and are voted) is skipped; the ray is walked
+    on from where the previous one stopped only where it goes further. Any other ray (no
+    previous one, a farther end, or an end without a path) is walked whole. ``state`` stamps
+    the view on each cell it votes for (one vote per view and cell)."""
     cap = int(np.ceil(max(max_range, short_px))) + 2
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
-    path_r = np.empty(cap, np.int64)
-    path_c = np.empty(cap, np.int64)
-    n_cls = votes.shape[1]
     used = 0
+    n_cls = votes.shape[1]
     for v in range(rows.shape[0]):
         r0 = rows[v]
         c0 = cols[v]
@@ -69,33 +187,97 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             continue
         used += 1
         lab = labels[v]
-        known = 0  # path[:known] holds cells of this view's rays
-        for t in range(offsets.shape[0]):  # the cone's rays: the view's heading + fixed offsets
+        prev = -1
+        pstop = 0
+        per = 0
+        pec = 0
+        for t in range(offsets.shape[0]):
             r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
-            dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
-            r = r0
-            c = c0
-            j = 0
-            while True:
-                if not (j < known and path_r[j] == r and path_c[j] == c):
-                    s = state[r + 1, c + 1]
-                    if s < FREE:  # blocked, or off the map
+            er = r1 - r0
+            ec = c1 - c0
+            s = -1
+            if -k <= er <= k and -k <= ec <= k:
+                s = slot[er + k, ec + k]
+            if s < 0:  # not a precomputed end: walk the line itself
+                dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
+                r = r0
+                c = c0
+                while True:
+                    x = state[r + 1, c + 1]
+                    if x < FREE:
                         break
-                    if s != v:
+                    if x != v:
                         state[r + 1, c + 1] = v
-                        if lab >= 0:  # one vote for the view's label
+                        if lab >= 0:
                             counts[lab, r, c] += 1
-                        else:  # its probability vector
-                            for k in range(n_cls):
-                                counts[k, r, c] += votes[v, k]
-                    path_r[j] = r
-                    path_c[j] = c
-                j += 1
-                if r == r1 and c == c1:
-                    break
-                r, c, err = line_step(r, c, err, dr, dc, sr, sc)
-            if j > known:
-                known = j
+                        else:
+                            for q in range(n_cls):
+                                counts[q, r, c] += votes[v, q]
+                    if r == r1 and c == c1:
+                        break
+                    r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+                prev = -1
+                continue
+            if s == prev:
+                continue
+            gr = geo[s, 0]
+            gc = geo[s, 1]
+            mr = geo[s, 2]
+            mc = geo[s, 3]
+            a = er - per
+            b = ec - pec
+            walk_from = 0
+            stop = -1
+            if prev >= 0 and -1 <= a <= 1 and -1 <= b <= 1:
+                nq = (1 - a) * 3 + (1 - b)  # prev relative to s: prev = s_end - (a, b)
+                m = min(plen[s], plen[prev])
+                lim = min(pstop, m)
+                i = dstart[s, nq]
+                e = dstart[s, nq + 1]
+                while i < e and dj[2 * i] < lim:
+                    j = dj[2 * i]
+                    r = r0 + gr * j + mr * dj[2 * i + 1]
+                    c = c0 + gc * j + mc * dj[2 * i + 1]
+                    x = state[r + 1, c + 1]
+                    if x < FREE:
+                        stop = j
+                        break
+                    if x != v:
+                        state[r + 1, c + 1] = v
+                        if lab >= 0:
+                            counts[lab, r, c] += 1
+                        else:
+                            for q in range(n_cls):
+                                counts[q, r, c] += votes[v, q]
+                    i += 1
+                if stop < 0:
+                    if pstop < m:  # prev stopped at pstop: here too unless that cell differs
+                        if i < e and dj[2 * i] == pstop:
+                            walk_from = pstop
+                        else:
+                            stop = pstop
+                    else:
+                        walk_from = m
+            if stop < 0:
+                stop = plen[s]
+                for j in range(walk_from, plen[s]):
+                    r = r0 + gr * j + mr * pm[s, j]
+                    c = c0 + gc * j + mc * pm[s, j]
+                    x = state[r + 1, c + 1]
+                    if x < FREE:
+                        stop = j
+                        break
+                    if x != v:
+                        state[r + 1, c + 1] = v
+                        if lab >= 0:
+                            counts[lab, r, c] += 1
+                        else:
+                            for q in range(n_cls):
+                                counts[q, r, c] += votes[v, q]
+            prev = s
+            pstop = stop
+            per = er
+            pec = ec
     return used
 
 
@@ -198,7 +380,8 @@ class VisionCone(Aggregator):
         counts = np.zeros((n_cls, *grid.shape), whole if self.vote == "label" else np.float32)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), cone_state(grid.walkable),
                                      r.astype(np.int64), c.astype(np.int64), np.deg2rad(yaw), offsets, float(max_px),
-                                     float(self.blocked_ray_m / grid.resolution), labels, p.astype(np.float32), counts)
+                                     float(self.blocked_ray_m / grid.resolution), labels, p.astype(np.float32), counts,
+                                     *ray_paths(float(max_px), PATH_CACHE_BYTES))
         return counts
 
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
