@@ -88,21 +88,31 @@ def apply_background(labels: np.ndarray, walkable: np.ndarray) -> np.ndarray:
     return out
 
 
-def class_counts(labels: np.ndarray, n_classes: int, window: int) -> np.ndarray:
-    """(C, H, W) float32: how many pixels of each class lie in the ``window`` x ``window``
-    neighbourhood of every pixel (pixels outside the map count as nothing)."""
-    return np.stack([cv2.boxFilter((labels == k).astype(np.float32), -1, (window, window), normalize=False,
-                                   borderType=cv2.BORDER_CONSTANT) for k in range(n_classes)])
+def _mode_pass(lab: np.ndarray, n_classes: int, window: int) -> np.ndarray:
+    """One majority pass: per pixel the class with the most pixels in its ``window`` x ``window``
+    neighbourhood (pixels outside the map count as nothing; ties: lower index), or its own
+    label (``lab`` >= 0) when that ties the most.
 
+    One class at a time: a running best count and its class, and each pixel's count of its own
+    class, so the work arrays are three (H, W) ones whatever the number of classes (not a
+    (C, H, W) stack and its argmax). Counts are whole numbers in float32, exact.
 
-def _majority(counts: np.ndarray, current: np.ndarray | None = None) -> np.ndarray:
-    """Per pixel the class with the most votes (ties: lower index), or ``current`` when it ties."""
-    best = np.argmax(counts, axis=0).astype(np.int32)
-    if current is not None:
-        keep = current >= 0
-        rows, cols = np.nonzero(keep)
-        tie = counts[current[keep], rows, cols] >= counts[best[keep], rows, cols]
-        best[rows[tie], cols[tie]] = current[rows[tie], cols[tie]]
+    Returns:
+        (H, W) int32 class indices."""
+    best = np.zeros(lab.shape, np.int32)
+    top = own = None
+    for k in range(n_classes):
+        is_k = lab == k
+        summed = cv2.boxFilter(is_k.astype(np.float32), -1, (window, window), normalize=False,
+                               borderType=cv2.BORDER_CONSTANT)
+        if top is None:
+            top, own = summed, np.zeros(lab.shape, np.float32)
+        else:
+            best[summed > top] = k  # strictly: a tie keeps the lower class
+            np.maximum(top, summed, out=top)
+        own[is_k] = summed[is_k]
+    keep = (lab >= 0) & (own >= top)
+    best[keep] = lab[keep]
     return best
 
 
@@ -118,7 +128,7 @@ def mode_filter(labels: np.ndarray, walkable: np.ndarray, n_classes: int, window
     lab = apply_background(labels, walkable)
     m = lab >= 0
     for _ in range(iterations):
-        new = _majority(class_counts(lab, n_classes, window), lab)
+        new = _mode_pass(lab, n_classes, window)
         if np.array_equal(new[m], lab[m]):
             break
         lab[m] = new[m]
@@ -252,11 +262,11 @@ def label_orphan_components(labels: np.ndarray, reference: np.ndarray, walkable:
     n, comp = cv2.connectedComponents(walkable.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
     if n <= 1:
         return lab
-    has_out = np.zeros(n, bool)
-    has_out[comp[lab >= 0]] = True
-    ref_ok = walkable & (reference >= 0)
-    votes = np.zeros((n, n_classes), np.int64)
-    np.add.at(votes, (comp[ref_ok], reference[ref_ok]), 1)
+    reference = np.ascontiguousarray(reference, dtype=np.int32)
+    if reference.shape != comp.shape or (reference.size and int(reference.max()) >= n_classes):
+        raise ValueError(f"reference labels of shape {reference.shape} with values up to {int(reference.max())}; "
+                         f"expected the map's shape {comp.shape} and values below n_classes = {n_classes}")
+    has_out, votes = _component_votes(comp, lab, reference, np.ascontiguousarray(walkable), n, int(n_classes))
     orphan = ~has_out & (votes.sum(axis=1) > 0)
     orphan[0] = False  # component 0 is the background
     if orphan.any():
@@ -264,6 +274,24 @@ def label_orphan_components(labels: np.ndarray, reference: np.ndarray, walkable:
         m = orphan[comp] & walkable
         lab[m] = fill[comp[m]]
     return lab
+
+
+@njit(cache=True)
+def _component_votes(comp, lab, reference, walkable, n, n_classes):
+    """Per component of ``comp`` (n ids): does ``lab`` label any of its pixels ((n,) bool), and
+    the (n, n_classes) int64 count of each ``reference`` label on its walkable pixels; one
+    pass over the map, no map-sized temporaries."""
+    has_out = np.zeros(n, np.bool_)
+    votes = np.zeros((n, n_classes), np.int64)
+    h, w = comp.shape
+    for i in range(h):
+        for j in range(w):
+            k = comp[i, j]
+            if lab[i, j] >= 0:
+                has_out[k] = True
+            if walkable[i, j] and reference[i, j] >= 0:
+                votes[k, reference[i, j]] += 1
+    return has_out, votes
 
 
 class PostProcess(PostProcessor):
