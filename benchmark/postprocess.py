@@ -42,7 +42,8 @@ from envs.world.classes import PAPER_CLASSES
 
 
 def check_labels(labels: np.ndarray, walkable: np.ndarray, n_classes: int) -> np.ndarray:
-    """Validate a label map against its (H, W) walkable mask; returns an int32 copy.
+    """Validate a label map against its (H, W) walkable mask; returns it as int32 (the array
+    itself when it is one: callers only read it, and a large map keeps no second copy).
 
     Raises ValueError for different shapes, a map with no walkable pixel, non-integer
     labels, or a label outside [-1, n_classes)."""
@@ -65,7 +66,7 @@ def check_labels(labels: np.ndarray, walkable: np.ndarray, n_classes: int) -> np
         vals = np.unique(labels[bad])[:5].tolist()
         raise ValueError(f"unknown label value(s) {vals}; expected -1 (unlabelled) or a class index "
                          f"0..{n_classes - 1}")
-    return labels.astype(np.int32)
+    return labels.astype(np.int32, copy=False)
 
 
 def rescale(labels: np.ndarray, walkable: np.ndarray, resolution: float,
@@ -170,25 +171,26 @@ def fill_unlabelled(labels: np.ndarray, walkable: np.ndarray, n_classes: int) ->
 
 @njit(cache=True)
 def _fill_fronts(lab, walkable, n_classes):
-    """In place: the passes of :func:`fill_unlabelled`, each over its front only."""
+    """In place: the passes of :func:`fill_unlabelled`, each over its front only (1 byte a
+    pixel for the queued marks, 4 per queued pixel for its row and column: a large map's front
+    costs no 64-bit arrays)."""
     h, w = lab.shape
-    stamp = np.zeros((h, w), np.int64)  # pass number in which a pixel was put on the front
-    fr = np.empty(h * w, np.int64)
-    fc = np.empty(h * w, np.int64)
+    queued = np.zeros((h, w), np.bool_)  # put on a front already
+    fr = np.empty(h * w, np.int32)
+    fc = np.empty(h * w, np.int32)
     n = 0
     for i in range(h):
         for j in range(w):
             if walkable[i, j] and lab[i, j] < 0:
                 for a in range(max(i - 1, 0), min(i + 2, h)):
                     for b in range(max(j - 1, 0), min(j + 2, w)):
-                        if lab[a, b] >= 0 and stamp[i, j] == 0:
-                            stamp[i, j] = 1
+                        if lab[a, b] >= 0 and not queued[i, j]:
+                            queued[i, j] = True
                             fr[n] = i
                             fc[n] = j
                             n += 1
     counts = np.zeros(n_classes, np.int64)
     new = np.empty(h * w, np.int32)
-    p = 1
     while n > 0:
         for t in range(n):  # every front pixel votes on the labels at the start of the pass
             i, j = fr[t], fc[t]
@@ -204,14 +206,13 @@ def _fill_fronts(lab, walkable, n_classes):
             new[t] = best
         for t in range(n):
             lab[fr[t], fc[t]] = new[t]
-        p += 1
         m = 0  # the next front: unlabelled walkable neighbours of this pass's pixels
         for t in range(n):
             i, j = fr[t], fc[t]
             for a in range(max(i - 1, 0), min(i + 2, h)):
                 for b in range(max(j - 1, 0), min(j + 2, w)):
-                    if walkable[a, b] and lab[a, b] < 0 and stamp[a, b] == 0:
-                        stamp[a, b] = p
+                    if walkable[a, b] and lab[a, b] < 0 and not queued[a, b]:
+                        queued[a, b] = True
                         fr[n + m] = a
                         fc[n + m] = b
                         m += 1
@@ -259,7 +260,8 @@ def label_orphan_components(labels: np.ndarray, reference: np.ndarray, walkable:
     class index). Other pixels are unchanged."""
     walkable = np.asarray(walkable, dtype=bool)
     lab = apply_background(labels, walkable)
-    n, comp = cv2.connectedComponents(walkable.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    n, comp = cv2.connectedComponents(np.ascontiguousarray(walkable).view(np.uint8), connectivity=8,
+                                      ltype=cv2.CV_32S)
     if n <= 1:
         return lab
     reference = np.ascontiguousarray(reference, dtype=np.int32)
