@@ -9,7 +9,8 @@ rule across two keys (``env.stop`` above ``env.start``). A key under ``run`` tha
 ``RunSettings`` does not have (a typo, or one added with ``+run.<key>``, which Hydra lets
 through) is refused, listing the valid keys (:func:`check_run_keys`); they are the keys of the
 ``run:`` node of ``conf/config.yaml`` (tests/test_run_settings.py). :func:`check_run_overrides`
-does both on the command line, once, before a sweep starts.
+does both on the command line, once, before a sweep starts. (:class:`ConfigError`, the one-line
+error of every check, is :mod:`benchmark.harness.typed`'s, imported here too.)
 
 The value ranges of the stages (``aggregator.window`` an odd number of pixels,
 ``segmenter.window`` metres > 0, a share in [0, 1]) are not here: each stage class says them
@@ -20,15 +21,22 @@ stage as for ours.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-
-class ConfigError(ValueError):
-    """An out-of-range or malformed setting; the message is one line naming key, value and rule."""
+from benchmark.harness.run_settings import RunSettings
+from benchmark.harness.typed import (  # ConfigError, overrides: callers import them from here too
+    ConfigError,
+    check_fields,
+    overrides,
+    settings_class,
+    settings_params,
+    unknown_keys_line,
+)
 
 
 def _plain(cfg: Any) -> Mapping[str, Any]:
@@ -47,18 +55,7 @@ def run_keys() -> tuple[str, ...]:
     """The valid keys under ``run``: the fields of
     :class:`benchmark.harness.run_settings.RunSettings`, in order (those of the ``run:`` node
     of ``conf/config.yaml``, in its order: tests/test_run_settings.py)."""
-    import dataclasses
-
-    from benchmark.harness.run_settings import RunSettings
-
     return tuple(f.name for f in dataclasses.fields(RunSettings))
-
-
-def unknown_keys_line(path: str, unknown: Sequence[str], valid: Sequence[str]) -> str:
-    """``run.limt, run.foo: unknown keys (with or without +); valid keys under run: name, ...``."""
-    names = ", ".join(f"{path}.{k}" for k in unknown)
-    return (f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
-            f"under {path}: {', '.join(valid)}")
 
 
 def check_run_keys(keys: Any) -> None:
@@ -86,25 +83,10 @@ def check_run(node: Any) -> None:
     Raises:
         ConfigError: ``run.limit=0: expected an integer >= 1, or null``, ``run.force=['bogus']:
             unknown stage(s) ['bogus']; ...``, ``run.ray.address='x': expected auto, ...``."""
-    from benchmark.harness.run_settings import RunSettings
-    from benchmark.harness.typed import _what, check_fields, settings_params
-
     if not isinstance(node, Mapping):
-        raise ConfigError(f"run={node!r}: expected {_what(RunSettings)}")
+        raise ConfigError(f"run={node!r}: expected a mapping of {', '.join(run_keys())}")
     check_run_keys(node.keys())
     check_fields(node, settings_params(RunSettings), "run")
-
-
-def overrides(args: Any) -> list[tuple[str, str | None]]:
-    """(dotted key, value or None) of each ``[+|++|~]key[=value]`` override in ``args``, as typed
-    on the command line (flags and their values are left out; a deletion ``~key`` has no value)."""
-    out = []
-    for a in map(str, args):
-        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
-            continue
-        key, eq, value = a.partition("=")
-        out.append((key.lstrip("+~"), value if eq and not a.startswith("~") else None))
-    return out
 
 
 #: what :func:`_override_value` returns for a value the command-line check leaves alone.
@@ -147,9 +129,6 @@ def check_run_overrides(args: Any) -> None:
     if not keys:
         return
     check_run_keys(keys)
-    from benchmark.harness.run_settings import RunSettings
-    from benchmark.harness.typed import _settings_class, check_fields, settings_params
-
     for key, text in values:
         value = _override_value(text)
         if value is _UNCHECKED:
@@ -157,7 +136,7 @@ def check_run_overrides(args: Any) -> None:
         *parents, last = key.split(".")[1:]
         params = settings_params(RunSettings)
         for part in parents:  # run.ray.address: the fields of RaySettings
-            settings = _settings_class(params[part].hint) if part in params else None
+            settings = settings_class(params[part].hint) if part in params else None
             if settings is None:
                 params = None
                 break

@@ -22,8 +22,13 @@ and :func:`check_targets` checks them after the type: ``aggregator.window=4: exp
 integer >= 1``. A ranged parameter refuses null unless its type admits None (the message then
 ends ", or null"). A class taking ``**settings`` for a dataclass names it in ``SETTINGS``
 (``envs.maps.mapping.ScanMapping``): its keys are the dataclass's fields, typed and ranged.
-A user's own stage gets its ranges checked by annotating its parameters the same way. Only the
-``run`` keys, which no ``_target_`` node holds, keep a table, in :mod:`benchmark.harness.checks`.
+A user's own stage gets its ranges checked by annotating its parameters the same way.
+
+The ``run`` node, which no ``_target_`` class takes, is typed the same way too: its schema is
+the dataclass :class:`benchmark.harness.run_settings.RunSettings` (``run.ray`` a nested one),
+and :func:`check_fields`, the check of one mapping against parameters or fields that
+:func:`check_targets` uses for each ``_target_`` node, checks it
+(:func:`benchmark.harness.checks.check_config`); no table of rules is left.
 """
 
 from __future__ import annotations
@@ -41,8 +46,31 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from benchmark.harness.checks import ConfigError, overrides
 from envs.ranges import Range
+
+
+class ConfigError(ValueError):
+    """An out-of-range or malformed setting; the message is one line naming key, value and rule."""
+
+
+def overrides(args: Any) -> list[tuple[str, str | None]]:
+    """(dotted key, value or None) of each ``[+|++|~]key[=value]`` override in ``args``, as typed
+    on the command line (flags and their values are left out; a deletion ``~key`` has no value)."""
+    out = []
+    for a in map(str, args):
+        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
+            continue
+        key, eq, value = a.partition("=")
+        out.append((key.lstrip("+~"), value if eq and not a.startswith("~") else None))
+    return out
+
+
+def unknown_keys_line(path: str, unknown: Sequence[str], valid: Sequence[str]) -> str:
+    """``run.limt, run.foo: unknown keys (with or without +); valid keys under run: name, ...``."""
+    names = ", ".join(f"{path}.{k}" for k in unknown)
+    return (f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
+            f"under {path}: {', '.join(valid)}")
+
 
 #: keys of a ``_target_`` node that Hydra reads itself.
 HYDRA_KEYS = frozenset({"_target_", "_partial_", "_convert_", "_recursive_", "_args_"})
@@ -216,13 +244,13 @@ def _signature(target: str) -> tuple[dict[str, Param], bool] | None:
         elif p.kind is not p.VAR_POSITIONAL:
             params[p.name] = hints.get(p.name, Param())
     settings = getattr(obj, "SETTINGS", None) if inspect.isclass(obj) else None
-    if var_kw and _settings_class(settings) is not None:
+    if var_kw and settings_class(settings) is not None:
         params.update(settings_params(settings))
         var_kw = False
     return params, var_kw
 
 
-def _settings_class(hint: Any) -> type | None:
+def settings_class(hint: Any) -> type | None:
     """``hint`` if it is a dataclass (a class, not an instance), else None."""
     return hint if inspect.isclass(hint) and dataclasses.is_dataclass(hint) else None
 
@@ -260,7 +288,7 @@ def _fits(value: Any, hint: Any) -> bool | None:
         return isinstance(value, str)
     if hint is Path:
         return isinstance(value, str)
-    if _settings_class(hint) is not None:  # a nested dataclass of settings (run.ray): its keys
+    if settings_class(hint) is not None:  # a nested dataclass of settings (run.ray): its keys
         return isinstance(value, Mapping)
     base = origin or hint
     if base in (list, tuple, Sequence, typing.Sequence) or (inspect.isclass(base) and base in (list, tuple)):
@@ -278,7 +306,7 @@ def _what(hint: Any) -> str:
     if args and (origin is typing.Union or str(origin) == "<class 'types.UnionType'>"):
         words = [_what(h) for h in args if h is not type(None)]
         return " or ".join(words) + (", or null" if type(None) in args else "")
-    if _settings_class(hint) is not None:
+    if settings_class(hint) is not None:
         return f"a mapping of {', '.join(f.name for f in dataclasses.fields(hint))}"
     text = str(hint).replace("typing.", "").replace("NoneType", "None").replace("<class '", "").replace("'>", "")
     return {"int": "an integer", "float": "a number", "bool": "true or false", "str": "a string"}.get(text, text)
@@ -303,8 +331,6 @@ def check_fields(node: Mapping[str, Any], params: Mapping[str, Param], path: str
 
     Raises:
         ConfigError: the first unknown key or bad value, in one line."""
-    from benchmark.harness.checks import unknown_keys_line
-
     for key, value in node.items():
         if key in HYDRA_KEYS:
             continue
@@ -323,7 +349,7 @@ def check_fields(node: Mapping[str, Any], params: Mapping[str, Param], path: str
 
 def _check_value(value: Any, param: Param, dotted: str, owner: str | None) -> None:
     """One value of :func:`check_fields`: the type first, then each range."""
-    settings = _settings_class(param.hint)
+    settings = settings_class(param.hint)
     if settings is not None and isinstance(value, Mapping):
         check_fields(value, settings_params(settings), dotted,
                      owner=None if owner is None else f"{settings.__module__}.{settings.__qualname__}")
@@ -379,5 +405,5 @@ def check_typed(plain: Mapping[str, Any], config_name: str = "config") -> None:
     check_targets({k: v for k, v in plain.items() if k != "hydra"})
 
 
-__all__ = ["Param", "RobotLabel", "check_fields", "check_typed", "check_targets", "check_top_keys", "settings_params", "check_top_overrides", "known_top_keys",
+__all__ = ["ConfigError", "Param", "overrides", "unknown_keys_line", "RobotLabel", "check_fields", "check_typed", "check_targets", "check_top_keys", "settings_class", "settings_params", "check_top_overrides", "known_top_keys",
            "nearest", "MAX_SEVERITY"]
