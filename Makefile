@@ -133,15 +133,17 @@ GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)
 gpu-check:  ## GPU workstation, first step: CUDA, AI2-THOR render, Habitat, real classifier weights, 1-house run (pass/FAIL/skipped table)
 	$(GPU_PY) -m benchmark.commands.maintainer.gpu_check
 
-# make robustness: every method under the robot conditions of conf/corruption (5 families x 5
-# severities + clean) on ROBUST_HOUSES houses per dataset; tables and figures -> ROBUST_OUT.
-# 200: the power report of the published 20-house run ("How many houses" in robustness.md) asks
-# 187 (synthetic) and 193 (ProcTHOR) houses to detect 3 points of matched IoU at 80 % power at the
-# median paired spread; ProcTHOR stops at its 150 shared houses (3.4 points detectable there).
+# make robustness: every method under the robot conditions of conf/corruption (6 families x 5
+# severities, explore_0, lost 1-3, kidnap 1-2, clean) on ROBUST_HOUSES houses per dataset; tables
+# and figures -> ROBUST_OUT. 200: what the power report of a 20-house run asked to detect 3 points
+# of matched IoU at 80 % power at the median paired spread ("How many houses" in robustness.md);
+# ProcTHOR stops at its 150 shared houses. A house that fails under a condition (a SLAM estimate
+# that diverges off the map) is recorded with its reason; the tables name it and leave it out of
+# its dataset's cells, so the sweep goes on to the tables (run.allow_failures=true).
 ROBUST_HOUSES ?= 200
 ROBUST_OUT ?= results/robustness
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS)
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS) run.allow_failures=true
 	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
 sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity
