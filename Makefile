@@ -142,8 +142,10 @@ gpu-check:  ## GPU workstation, first step: CUDA, AI2-THOR render, Habitat, real
 # its dataset's cells, so the sweep goes on to the tables (run.allow_failures=true).
 ROBUST_HOUSES ?= 200
 ROBUST_OUT ?= results/robustness
+# the generated houses at that size (env=synthetic holds 20), beside the shared ProcTHOR houses
+ROBUST_ENVS := $(subst synthetic,synthetic_robust,$(BENCH_ENVS))
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(BENCH_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS) run.allow_failures=true
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(ROBUST_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS) run.allow_failures=true
 	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
 sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity
