@@ -76,8 +76,8 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
+from numba import njit
 from scipy.optimize import linear_sum_assignment
-from skimage.measure import label as sk_label
 
 from envs.maps.label_png import colour_int
 from envs.ranges import NonNegative, OneOf
@@ -278,39 +278,112 @@ def resample_nearest(labels: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def segments(labels: np.ndarray, connectivity: int = 4) -> np.ndarray:
-    """Connected regions of equal value, one library labelling pass (skimage.measure.label).
+    """Connected regions of equal value (a union-find labelling pass, :func:`_region_labels`).
 
     Args:
         labels: (H, W) int map; values < 0 are background.
         connectivity: 4 or 8.
     Returns: (H, W) int32 segment ids 0..S-1, -1 on background. Ids are ordered by value,
         then by the raster position of each region's first pixel.
+
+    The work arrays are the int32 result and one int32 entry per provisional region, so a large
+    map costs about 4 bytes a pixel beyond its labels (a library labelling keeps 64-bit ids and
+    a 64-bit forest, 16 bytes a pixel).
     """
     labels = np.asarray(labels)
     if connectivity not in (4, 8):
         raise ValueError(f"connectivity must be 4 or 8, got {connectivity}")
-    fg = labels >= 0
-    if not fg.any():
+    if labels.ndim != 2:
+        raise ValueError(f"segments needs an (H, W) map, got shape {labels.shape}")
+    if labels.dtype == bool or labels.dtype.kind not in "iu":
+        labels = labels.astype(np.int64)
+    lab, values = _region_labels(np.ascontiguousarray(labels), connectivity == 8)
+    n = len(values)
+    if n == 0:
         return np.full(labels.shape, -1, dtype=np.int32)
-    # shift so that every negative value is one background value 0, in the narrowest type that
-    # holds it (a large map: no int64 copies beside the labelling's own output)
-    wide = labels.dtype.itemsize > 4 or labels.dtype == np.uint32
-    src = labels.astype(np.int64 if wide and int(labels.max()) >= 2**31 - 1 else np.int32)
-    src += 1
-    src[~fg] = 0
-    del fg
-    lab = sk_label(src, background=0, connectivity=1 if connectivity == 4 else 2)
-    del src
-    n = int(lab.max())
-    # skimage numbers regions by their first pixel in raster order; order by value, stably
-    first = np.zeros(n + 1, dtype=np.int64)
-    flat = lab.ravel()
-    first[flat] = labels.ravel()  # any pixel of a region gives its value
-    order = np.argsort(first[1:], kind="stable")
+    # regions are numbered by their first pixel in raster order; order them by value, stably
+    order = np.argsort(values, kind="stable")
     rank = np.empty(n + 1, dtype=np.int32)
     rank[0] = -1
     rank[1 + order] = np.arange(n, dtype=np.int32)
-    return rank[lab]  # background (0) -> -1
+    _apply_rank(lab, rank)
+    return lab
+
+
+@njit(cache=True)
+def _region_labels(values, eight):
+    """Two-pass union-find labelling of the regions of equal value (values < 0: background).
+
+    Returns:
+        ((H, W) int32 region ids 1..n in raster order of each region's first pixel, 0 on
+        background; (n,) int64 the value of each region)."""
+    h, w = values.shape
+    out = np.zeros((h, w), np.int32)
+    parent = np.empty(h * w + 1, np.int32)  # provisional ids; pages are touched only as used
+    first_value = np.empty(h * w + 1, np.int64)
+    n = 0
+    for i in range(h):
+        for j in range(w):
+            v = values[i, j]
+            if v < 0:
+                continue
+            cur = 0
+            # neighbours already visited: left, up, and for 8-connectivity up-left and up-right
+            for t in range(4):
+                if t == 0:
+                    a, b = i, j - 1
+                elif t == 1:
+                    a, b = i - 1, j
+                elif not eight:
+                    break
+                elif t == 2:
+                    a, b = i - 1, j - 1
+                else:
+                    a, b = i - 1, j + 1
+                if a < 0 or b < 0 or b >= w or values[a, b] != v:
+                    continue
+                q = out[a, b]
+                while parent[q] != q:
+                    q = parent[q]
+                if cur == 0:
+                    cur = q
+                elif q != cur:  # two provisional regions meet: the later joins the earlier
+                    if q < cur:
+                        parent[cur] = q
+                        cur = q
+                    else:
+                        parent[q] = cur
+            if cur == 0:
+                n += 1
+                parent[n] = n
+                first_value[n] = v
+                cur = n
+            out[i, j] = cur
+    # final ids in order of each root's creation (= its first pixel in raster order); every
+    # parent is smaller than its child, so parent[p] holds p's final id when p < k is reached
+    m = 0
+    for k in range(1, n + 1):
+        p = parent[k]
+        if p == k:
+            m += 1
+            parent[k] = m
+            first_value[m] = first_value[k]
+        else:
+            parent[k] = parent[p]
+    for i in range(h):
+        for j in range(w):
+            if out[i, j] > 0:
+                out[i, j] = parent[out[i, j]]
+    return out, first_value[1:m + 1].copy()
+
+
+@njit(cache=True)
+def _apply_rank(lab, rank):
+    """In place: ``lab = rank[lab]`` on an (H, W) int32 map."""
+    h, w = lab.shape
+    for i in range(h):
+        for j in range(w):
+            lab[i, j] = rank[lab[i, j]]
 
 
 def _check(pred: np.ndarray, gt_instances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -44,7 +44,8 @@ from envs.world.classes import PAPER_CLASSES
 
 
 def check_labels(labels: np.ndarray, walkable: np.ndarray, n_classes: int) -> np.ndarray:
-    """Validate a label map against its (H, W) walkable mask; returns an int32 copy.
+    """Validate a label map against its (H, W) walkable mask; returns it as int32 (the array
+    itself when it is one: callers only read it, and a large map keeps no second copy).
 
     Raises ValueError for different shapes, a map with no walkable pixel, non-integer
     labels, or a label outside [-1, n_classes)."""
@@ -67,7 +68,7 @@ def check_labels(labels: np.ndarray, walkable: np.ndarray, n_classes: int) -> np
         vals = np.unique(labels[bad])[:5].tolist()
         raise ValueError(f"unknown label value(s) {vals}; expected -1 (unlabelled) or a class index "
                          f"0..{n_classes - 1}")
-    return labels.astype(np.int32)
+    return labels.astype(np.int32, copy=False)
 
 
 def rescale(labels: np.ndarray, walkable: np.ndarray, resolution: float,
@@ -90,21 +91,31 @@ def apply_background(labels: np.ndarray, walkable: np.ndarray) -> np.ndarray:
     return out
 
 
-def class_counts(labels: np.ndarray, n_classes: int, window: int) -> np.ndarray:
-    """(C, H, W) float32: how many pixels of each class lie in the ``window`` x ``window``
-    neighbourhood of every pixel (pixels outside the map count as nothing)."""
-    return np.stack([cv2.boxFilter((labels == k).astype(np.float32), -1, (window, window), normalize=False,
-                                   borderType=cv2.BORDER_CONSTANT) for k in range(n_classes)])
+def _mode_pass(lab: np.ndarray, n_classes: int, window: int) -> np.ndarray:
+    """One majority pass: per pixel the class with the most pixels in its ``window`` x ``window``
+    neighbourhood (pixels outside the map count as nothing; ties: lower index), or its own
+    label (``lab`` >= 0) when that ties the most.
 
+    One class at a time: a running best count and its class, and each pixel's count of its own
+    class, so the work arrays are three (H, W) ones whatever the number of classes (not a
+    (C, H, W) stack and its argmax). Counts are whole numbers in float32, exact.
 
-def _majority(counts: np.ndarray, current: np.ndarray | None = None) -> np.ndarray:
-    """Per pixel the class with the most votes (ties: lower index), or ``current`` when it ties."""
-    best = np.argmax(counts, axis=0).astype(np.int32)
-    if current is not None:
-        keep = current >= 0
-        rows, cols = np.nonzero(keep)
-        tie = counts[current[keep], rows, cols] >= counts[best[keep], rows, cols]
-        best[rows[tie], cols[tie]] = current[rows[tie], cols[tie]]
+    Returns:
+        (H, W) int32 class indices."""
+    best = np.zeros(lab.shape, np.int32)
+    top = own = None
+    for k in range(n_classes):
+        is_k = lab == k
+        summed = cv2.boxFilter(is_k.astype(np.float32), -1, (window, window), normalize=False,
+                               borderType=cv2.BORDER_CONSTANT)
+        if top is None:
+            top, own = summed, np.zeros(lab.shape, np.float32)
+        else:
+            best[summed > top] = k  # strictly: a tie keeps the lower class
+            np.maximum(top, summed, out=top)
+        own[is_k] = summed[is_k]
+    keep = (lab >= 0) & (own >= top)
+    best[keep] = lab[keep]
     return best
 
 
@@ -120,7 +131,7 @@ def mode_filter(labels: np.ndarray, walkable: np.ndarray, n_classes: int, window
     lab = apply_background(labels, walkable)
     m = lab >= 0
     for _ in range(iterations):
-        new = _majority(class_counts(lab, n_classes, window), lab)
+        new = _mode_pass(lab, n_classes, window)
         if np.array_equal(new[m], lab[m]):
             break
         lab[m] = new[m]
@@ -162,25 +173,26 @@ def fill_unlabelled(labels: np.ndarray, walkable: np.ndarray, n_classes: int) ->
 
 @njit(cache=True)
 def _fill_fronts(lab, walkable, n_classes):
-    """In place: the passes of :func:`fill_unlabelled`, each over its front only."""
+    """In place: the passes of :func:`fill_unlabelled`, each over its front only (1 byte a
+    pixel for the queued marks, 4 per queued pixel for its row and column: a large map's front
+    costs no 64-bit arrays)."""
     h, w = lab.shape
-    stamp = np.zeros((h, w), np.int64)  # pass number in which a pixel was put on the front
-    fr = np.empty(h * w, np.int64)
-    fc = np.empty(h * w, np.int64)
+    queued = np.zeros((h, w), np.bool_)  # put on a front already
+    fr = np.empty(h * w, np.int32)
+    fc = np.empty(h * w, np.int32)
     n = 0
     for i in range(h):
         for j in range(w):
             if walkable[i, j] and lab[i, j] < 0:
                 for a in range(max(i - 1, 0), min(i + 2, h)):
                     for b in range(max(j - 1, 0), min(j + 2, w)):
-                        if lab[a, b] >= 0 and stamp[i, j] == 0:
-                            stamp[i, j] = 1
+                        if lab[a, b] >= 0 and not queued[i, j]:
+                            queued[i, j] = True
                             fr[n] = i
                             fc[n] = j
                             n += 1
     counts = np.zeros(n_classes, np.int64)
     new = np.empty(h * w, np.int32)
-    p = 1
     while n > 0:
         for t in range(n):  # every front pixel votes on the labels at the start of the pass
             i, j = fr[t], fc[t]
@@ -196,14 +208,13 @@ def _fill_fronts(lab, walkable, n_classes):
             new[t] = best
         for t in range(n):
             lab[fr[t], fc[t]] = new[t]
-        p += 1
         m = 0  # the next front: unlabelled walkable neighbours of this pass's pixels
         for t in range(n):
             i, j = fr[t], fc[t]
             for a in range(max(i - 1, 0), min(i + 2, h)):
                 for b in range(max(j - 1, 0), min(j + 2, w)):
-                    if walkable[a, b] and lab[a, b] < 0 and stamp[a, b] == 0:
-                        stamp[a, b] = p
+                    if walkable[a, b] and lab[a, b] < 0 and not queued[a, b]:
+                        queued[a, b] = True
                         fr[n + m] = a
                         fc[n + m] = b
                         m += 1
@@ -251,14 +262,15 @@ def label_orphan_components(labels: np.ndarray, reference: np.ndarray, walkable:
     class index). Other pixels are unchanged."""
     walkable = np.asarray(walkable, dtype=bool)
     lab = apply_background(labels, walkable)
-    n, comp = cv2.connectedComponents(walkable.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    n, comp = cv2.connectedComponents(np.ascontiguousarray(walkable).view(np.uint8), connectivity=8,
+                                      ltype=cv2.CV_32S)
     if n <= 1:
         return lab
-    has_out = np.zeros(n, bool)
-    has_out[comp[lab >= 0]] = True
-    ref_ok = walkable & (reference >= 0)
-    votes = np.zeros((n, n_classes), np.int64)
-    np.add.at(votes, (comp[ref_ok], reference[ref_ok]), 1)
+    reference = np.ascontiguousarray(reference, dtype=np.int32)
+    if reference.shape != comp.shape or (reference.size and int(reference.max()) >= n_classes):
+        raise ValueError(f"reference labels of shape {reference.shape} with values up to {int(reference.max())}; "
+                         f"expected the map's shape {comp.shape} and values below n_classes = {n_classes}")
+    has_out, votes = _component_votes(comp, lab, reference, np.ascontiguousarray(walkable), n, int(n_classes))
     orphan = ~has_out & (votes.sum(axis=1) > 0)
     orphan[0] = False  # component 0 is the background
     if orphan.any():
@@ -266,6 +278,24 @@ def label_orphan_components(labels: np.ndarray, reference: np.ndarray, walkable:
         m = orphan[comp] & walkable
         lab[m] = fill[comp[m]]
     return lab
+
+
+@njit(cache=True)
+def _component_votes(comp, lab, reference, walkable, n, n_classes):
+    """Per component of ``comp`` (n ids): does ``lab`` label any of its pixels ((n,) bool), and
+    the (n, n_classes) int64 count of each ``reference`` label on its walkable pixels; one
+    pass over the map, no map-sized temporaries."""
+    has_out = np.zeros(n, np.bool_)
+    votes = np.zeros((n, n_classes), np.int64)
+    h, w = comp.shape
+    for i in range(h):
+        for j in range(w):
+            k = comp[i, j]
+            if lab[i, j] >= 0:
+                has_out[k] = True
+            if walkable[i, j] and reference[i, j] >= 0:
+                votes[k, reference[i, j]] += 1
+    return has_out, votes
 
 
 class PostProcess(PostProcessor):

@@ -18,8 +18,10 @@ words then end in ", or null"). The stage itself is not changed by a marker: Pyt
 check annotations when the class is built directly.
 
 Every marker is a callable ``marker(value) -> bool`` (a plain config value: int, float, bool,
-str, list) with ``marker.what``, the words after "expected". Standard library only, so that
-``envs`` and ``benchmark`` modules alike can import it.
+str, list) with ``marker.what``, the words after "expected" (and :meth:`Range.explain`, the
+words after ``key=value:``, which a marker may make more precise). Standard library only, so
+that ``envs`` and ``benchmark`` modules alike can import it; the harness's own ``run`` settings
+use the same markers (``benchmark.harness.run_settings``).
 """
 
 from __future__ import annotations
@@ -42,6 +44,11 @@ class Range:
 
     def __call__(self, value: Any) -> bool:  # pragma: no cover - every marker overrides it
         raise NotImplementedError
+
+    def explain(self, value: Any, nullable: bool = False) -> str:
+        """The words after ``key=value:`` for a ``value`` this marker refuses: ``"expected "``
+        and :attr:`what` (and ``", or null"`` where the type admits None)."""
+        return f"expected {self.what}{', or null' if nullable else ''}"
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.what!r})"
@@ -96,6 +103,14 @@ class NonNegative(Between):
 
     def __init__(self) -> None:
         super().__init__(0, what="a number >= 0")
+
+
+class Seconds(Positive):
+    """A duration in seconds > 0, finite (a timeout)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.what = "seconds > 0"
 
 
 class Share(Between):
@@ -163,6 +178,31 @@ class LowHigh(Range):
                 and all(Positive()(x) for x in value) and value[0] <= value[1])
 
 
+class Text(Range):
+    """A string, or a number read as text (``run.name=2024``, ``run.cache_salt=2``); not a bool,
+    a list or null."""
+
+    what = "a string or a number (read as text)"
+
+    def __call__(self, value: Any) -> bool:
+        return isinstance(value, str) or (_number(value) and not math.isinf(value))
+
+
+class NonEmpty(Range):
+    """A list with at least one item (each item's type is left to the annotation).
+
+    Args:
+        of: the items, in words (``"house ids"``): ``what`` is "a non-empty list of <of>".
+    """
+
+    def __init__(self, of: str = "values") -> None:
+        self.of = of
+        self.what = f"a non-empty list of {of}"
+
+    def __call__(self, value: Any) -> bool:
+        return isinstance(value, list | tuple) and len(value) > 0
+
+
 #: a camera's horizontal field of view, degrees (a pinhole camera sees less than 180).
 CAMERA_FOV = Between(0, 180, low_open=True, high_open=True, what="an angle in (0, 180) degrees")
 #: the spread of a view's headings, degrees (0: one heading; 360: all around).
@@ -171,5 +211,5 @@ HEADING_SPREAD = Between(0, 360, what="a number in [0, 360] degrees")
 DROPOUT = Between(0, 1, high_open=True, what="a share in [0, 1)")
 
 
-__all__ = ["CAMERA_FOV", "DROPOUT", "HEADING_SPREAD", "Angle", "Between", "Integer", "LowHigh", "Metres", "NonNegative", "OneOf", "Odd", "Positive", "Range",
-           "Share"]
+__all__ = ["CAMERA_FOV", "DROPOUT", "HEADING_SPREAD", "Angle", "Between", "Integer", "LowHigh", "Metres", "NonEmpty",
+           "NonNegative", "OneOf", "Odd", "Positive", "Range", "Seconds", "Share", "Text"]

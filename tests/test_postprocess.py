@@ -305,6 +305,39 @@ def test_label_orphan_components():
     assert np.array_equal(label_orphan_components(out, np.where(walk, -1, -1), walk, 3), out)
 
 
+
+def _orphans_reference(out, ref, walk, n_classes):
+    """Per 8-connected walkable component (scipy's labelling), in plain Python: no label in
+    ``out`` but some in ``ref`` -> the majority of ``ref`` there (ties: lower class)."""
+    comp, n = ndimage.label(walk, structure=np.ones((3, 3), bool))
+    got = np.where(walk, out, -1).astype(np.int32)
+    for k in range(1, n + 1):
+        m = comp == k
+        if (got[m] >= 0).any():
+            continue
+        votes = [int(((ref == c) & m).sum()) for c in range(n_classes)]
+        if max(votes) > 0:
+            got[m] = votes.index(max(votes))
+    return got
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_label_orphan_components_equal_reference(seed):
+    rng = np.random.default_rng(seed)
+    walk = rng.random((30, 40)) < 0.45  # many small 8-connected pockets
+    out = np.where(walk & (rng.random(walk.shape) < 0.3), rng.integers(0, 3, walk.shape), -1)
+    ref = np.where(rng.random(walk.shape) < 0.7, rng.integers(0, 3, walk.shape), -1)
+    got = label_orphan_components(out, ref, walk, 3)
+    assert np.array_equal(got, _orphans_reference(out, ref, walk, 3))
+    assert (got != np.where(walk, out, -1)).any()  # some pockets were filled
+
+
+def test_label_orphan_components_bad_reference():
+    walk = np.ones((3, 3), bool)
+    with pytest.raises(ValueError, match="n_classes = 2"):
+        label_orphan_components(np.full((3, 3), -1), np.full((3, 3), 2), walk, 2)
+
+
 # ---------------------------------------------------------------- shared houses
 
 

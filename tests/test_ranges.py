@@ -1,7 +1,8 @@
 """Value ranges next to the classes (envs/ranges.py, read by benchmark/harness/typed.py): a stage
 says the range of a setting on its parameter (``window: Annotated[int, Odd()]``); the config
 check refuses a value out of it in one line naming group.key, the value and the range; the
-shipped configs pass; and the far-away table of checks.py holds no stage group any more."""
+shipped configs pass; and the far-away table of checks.py is gone (``run``, the one node that is
+not a stage's, is typed by a dataclass the same way: tests/test_run_settings.py)."""
 
 from __future__ import annotations
 
@@ -14,9 +15,11 @@ import pytest
 import yaml
 from omegaconf import OmegaConf
 
+import benchmark.harness.checks as checks
 from benchmark.config import compose, compose_job
-from benchmark.harness.checks import RULES, ConfigError
-from benchmark.harness.typed import _signature, check_targets, check_typed
+from benchmark.harness.checks import ConfigError
+from benchmark.harness.run_settings import RunSettings
+from benchmark.harness.typed import _signature, check_targets, check_typed, settings_params
 from benchmark.paths import CONF_DIR
 from envs.ranges import (
     CAMERA_FOV,
@@ -26,11 +29,14 @@ from envs.ranges import (
     Integer,
     LowHigh,
     Metres,
+    NonEmpty,
     NonNegative,
     Odd,
     OneOf,
     Positive,
+    Seconds,
     Share,
+    Text,
 )
 
 CONF = Path(CONF_DIR)
@@ -64,6 +70,9 @@ def _yaml_targets() -> dict[str, set[str]]:
     (OneOf("ros", "sim"), ["ros", "sim"], ["Ros", None, 1]),
     (OneOf(True, False), [True, False], [1, 0]),
     (LowHigh(), [[1, 2], (2.0, 2.0)], [[2, 1], [0, 1], [1], [1, 2, 3], "ab", [1, math.inf], 3]),
+    (Seconds(), [0.5, 30], [0, -1, math.inf, math.nan, True, "30"]),
+    (Text(), ["", "x", 2024, 1.5], [True, None, [1], {"a": 1}, math.nan, math.inf]),
+    (NonEmpty(), [[1], ("a", "b")], [[], (), "ab", None, 3, {"a": 1}]),
 ])
 def test_markers_accept_the_range_and_refuse_the_rest(marker, good, bad):
     assert [marker(v) for v in good] == [True] * len(good)
@@ -72,10 +81,14 @@ def test_markers_accept_the_range_and_refuse_the_rest(marker, good, bad):
 
 def test_the_words_of_the_markers():
     assert [m.what for m in (Positive(), NonNegative(), Share(), Integer(1), Odd(), Angle(), Metres(inf_ok=True),
-                             OneOf("a", "b"), LowHigh(), Between(0, 2, low_open=True), Between(1))] == [
+                             OneOf("a", "b"), LowHigh(), Between(0, 2, low_open=True), Between(1), Seconds(),
+                             Text(), NonEmpty("house ids"))] == [
         "a number > 0", "a number >= 0", "a number in [0, 1]", "an integer >= 1", "an odd integer >= 1",
         "an angle in (0, 360] degrees", "metres > 0 (.inf: unlimited)", "one of 'a', 'b'",
-        "[low, high] with 0 < low <= high", "a number in (0, 2]", "a number >= 1"]
+        "[low, high] with 0 < low <= high", "a number in (0, 2]", "a number >= 1", "seconds > 0",
+        "a string or a number (read as text)", "a non-empty list of house ids"]
+    assert Odd().explain(4) == "expected an odd integer >= 1"
+    assert Integer(1).explain(0, nullable=True) == "expected an integer >= 1, or null"
 
 
 # ------------------------------------------------------------------ (a) the shipped defaults pass
@@ -252,11 +265,14 @@ def test_a_users_own_stage_gets_its_ranges_checked(node, line):
         check_targets({"mapping": {"_target_": f"{__name__}.MyMapper", "step": 2}})
 
 
-# ------------------------------------------------------------------ (c) the old table cannot regrow
-def test_the_table_of_checks_py_holds_no_stage_group():
-    """A group whose options are ``_target_`` nodes says its ranges on its classes; RULES is for
-    the rest (``run``), so a stage rule added there is a failure here."""
-    stages = set(_yaml_targets())
-    assert set(MOVED) <= stages | {"metrics"}
-    assert sorted({g for g, _ in RULES} & stages) == []
-    assert {g for g, _ in RULES} == {"run"}
+# ------------------------------------------------------------------ (c) the old table is gone
+def test_no_rules_table_is_left_and_run_is_typed_by_its_dataclass():
+    """The ranges of ``run`` are annotations on RunSettings' fields, read by the same check as a
+    stage's parameters; checks.py keeps no table of its own (a stage's rule cannot go back there)."""
+    assert not hasattr(checks, "RULES") and not hasattr(checks, "_WHAT")
+    params = settings_params(RunSettings)
+    assert params["limit"].ranges == (Integer(1),) and params["limit"].nullable
+    assert params["workers"].ranges == (Integer(1),)
+    assert params["executor"].ranges == (OneOf("local", "ray"),) and not params["executor"].nullable
+    with pytest.raises(ConfigError, match=r"^run.limit=0: expected an integer >= 1, or null$"):
+        checks.check_config({"run": {"limit": 0}})

@@ -196,6 +196,22 @@ def test_segments_equal_flood_fill(seed):
         assert segments(labels, conn).tolist() == _flood_reference(labels, conn).tolist()
 
 
+
+@pytest.mark.parametrize("seed", range(3))
+def test_segments_equal_flood_fill_winding_regions(seed):
+    """Combs and U shapes whose provisional regions meet late (union-find merges chains of
+    them), several values, both connectivities; 64-bit values beyond int32 order correctly."""
+    rng = np.random.default_rng(seed)
+    labels = np.full((40, 50), -1, np.int64)
+    labels[:, ::2] = rng.integers(0, 2, 25)  # columns of a value ...
+    labels[::7, :] = rng.integers(0, 2, (6, 1))  # ... joined by rows
+    labels[rng.random(labels.shape) < 0.05] = -1
+    labels[labels == 1] = 2**40
+    for conn in (4, 8):
+        got = segments(labels, conn)
+        assert got.dtype == np.int32 and got.tolist() == _flood_reference(labels, conn).tolist()
+
+
 def _brute_matched_iou(seg: np.ndarray, gt: np.ndarray) -> float:
     """Every one-to-one assignment tried; unmatched (or zero-overlap) items count 0."""
     S, G = range(seg.max() + 1), range(gt.max() + 1)

@@ -53,7 +53,7 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
         for ext in ("png", "pdf"):
             assert (out / "figures" / f"robustness_synthetic_iou_{fam}.{ext}").stat().st_size > 1000
     md = (out / "robustness.md").read_text()
-    assert "relative to a method every family degrades" in md and "| scan | 2 | mapping=scan; mapping.max_range 8.0;" in md
+    assert "relative to a method every family degrades" in md and "| scan | 2 | mapping=scan; mapping.route explore; mapping.max_range 8.0;" in md
     assert "## How many houses" in md and "Reference: " in md
     assert "2 houses per cell." in md
     # the sweep report has a robustness section: the matched IoU table (the same numbers) and a figure per family

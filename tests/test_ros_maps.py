@@ -301,3 +301,36 @@ def test_from_file_viewpoints_read_ros_poses(tmp_path):
         FromFile(str(tmp_path / "{house_id}.csv")).generate(scene)  # the default frame is sim
     with pytest.raises(ValueError, match="viewpoints frame must be one of"):
         FromFile("p.csv", frame="map")
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+@pytest.mark.parametrize("negate", [False, True])
+def test_uint8_table_equals_formula(mode, negate):
+    """A uint8 image is read through a table of the formula on the values 0..255: the same
+    occupancy as the formula on int64 values, transparency included."""
+    grey = np.arange(256).reshape(16, 16)
+    alpha = np.where(np.arange(256).reshape(16, 16) % 5 == 0, 128, 255)
+    for a in (None, alpha):
+        want = image_to_occupancy(grey.astype(np.int64), a, negate, 0.65, 0.25, mode)
+        got = image_to_occupancy(grey.astype(np.uint8), None if a is None else a.astype(np.uint8), negate, 0.65,
+                                 0.25, mode)
+        assert got.dtype == np.int8 and np.array_equal(got, want)
+
+
+def test_grey_of_colour_images_is_the_integer_mean(tmp_path):
+    """RGB / RGBA / LA: uint8 grey = integer mean of the colour channels (sums above 255
+    included), alpha as stored; a grey image has no alpha (None: opaque)."""
+    from envs.maps.ros import _grey_and_alpha
+
+    rng = np.random.default_rng(0)
+    rgba = rng.integers(0, 256, (9, 11, 4)).astype(np.uint8)
+    rgba[0, 0] = (255, 255, 255, 7)
+    for mode, a in (("RGBA", rgba), ("RGB", rgba[..., :3]), ("LA", rgba[..., [0, 3]]), ("L", rgba[..., 0])):
+        grey, alpha = _grey_and_alpha(Image.fromarray(np.ascontiguousarray(a), mode), tmp_path / "x.png")
+        colour = a if mode in ("RGB", "L") else a[..., :-1]
+        want = colour.astype(np.int64) if mode == "L" else colour.astype(np.int64).sum(-1) // colour.shape[-1]
+        assert grey.dtype == np.uint8 and np.array_equal(grey, want)
+        if mode in ("RGBA", "LA"):
+            assert np.array_equal(alpha, a[..., -1])
+        else:
+            assert alpha is None

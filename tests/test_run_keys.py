@@ -1,7 +1,8 @@
 """Unknown keys under ``run.`` (issue #24): ``run.limt=3`` was refused by Hydra with the
 advice ``+run.limt=3``, which then ran every house with exit 0. Both, and ``++run.limt``,
 are refused with one line listing the valid keys, exit 2, before anything is written; the
-valid keys are those of the ``run:`` node of ``conf/config.yaml``."""
+valid keys are the fields of ``RunSettings``, which are those of the ``run:`` node of
+``conf/config.yaml`` (tests/test_run_settings.py)."""
 
 from __future__ import annotations
 
@@ -46,18 +47,20 @@ def test_the_valid_keys_are_the_run_node_of_the_default_config():
     assert list(keys) == [str(k) for k in compose("config").run.keys()]  # as composed, in order
 
 
-def test_a_key_added_to_the_yaml_is_valid_at_once(tmp_path, monkeypatch):
+def test_a_key_only_in_the_yaml_is_refused_until_run_settings_declares_it(tmp_path, monkeypatch):
+    """The valid keys are RunSettings' fields, not the file's: a key added to the yaml alone is
+    refused (and tests/test_run_settings.py fails until the dataclass has it too)."""
     import benchmark.paths
     from benchmark.harness.checks import check_run_overrides, run_keys
 
     conf = tmp_path / "conf"
     shutil.copytree(benchmark.paths.CONF_DIR, conf)
     text = (conf / "config.yaml").read_text()
-    assert "shards" not in run_keys()  # (a key the config does not have yet)
     (conf / "config.yaml").write_text(text.replace("\nrun:\n", "\nrun:\n  shards: 1      # test\n", 1))
     monkeypatch.setattr(benchmark.paths, "CONF_DIR", str(conf))
-    assert "shards" in run_keys()
-    check_run_overrides(["run.shards=4"])
+    assert "shards" not in run_keys()
+    with pytest.raises(ConfigError, match=r"^run.shards: unknown key \(with or without \+\); valid keys under run: name, "):
+        check_run_overrides(["run.shards=4"])
 
 
 def test_check_config_and_the_command_line_check_agree():

@@ -24,6 +24,7 @@ from envs.maps.segmentation_io import (
     mask_polygon,
     read_index_png,
     rooms_geojson,
+    value_counts,
     write_index_png,
 )
 from envs.world.classes import PAPER_CLASSES
@@ -435,3 +436,14 @@ def test_leftovers_of_a_killed_run_are_cleaned_by_the_next(example, tmp_path, ca
     assert code == 0, err
     assert not any(d.exists() for d in left) and alive.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, "o"])
+
+
+def test_value_counts_by_bands_equal_bincount():
+    """Counted a few rows at a time (bands of 1, 3 and more rows than the map): np.bincount of
+    the values >= 0 over the whole map, trailing zero counts included."""
+    rng = np.random.default_rng(1)
+    v = rng.integers(-1, 5, (13, 7)).astype(np.int32)
+    want = np.bincount(v[v >= 0], minlength=8)
+    for rows in (1, 3, 100):
+        got = value_counts(v, 8, band_rows=rows)
+        assert got.dtype == np.int64 and got.tolist() == want.tolist()

@@ -222,7 +222,8 @@ def test_worker_settings_are_checked_and_change_no_job_identity():
 
     for bad, what in (("run.workers=0", "run.workers=0: expected an integer >= 1, or null"),
                       ("run.executor=threads", "run.executor='threads': expected one of 'local', 'ray'"),
-                      ("run.ray.address=nowhere", "run.ray={'address': 'nowhere', 'connect_timeout': 30}: expected a mapping with address")):
+                      ("run.ray.address=nowhere",
+                       "run.ray.address='nowhere': expected auto, host:port or ray://host:port, or null")):
         cfg, _ = compose_job([bad])
         with pytest.raises(ConfigError, match=re.escape(what)):
             check_config(cfg)

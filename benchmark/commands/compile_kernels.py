@@ -77,6 +77,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.aggregators.vision_cone import VisionCone
     from benchmark.conditions.coverage import view_coverage
     from benchmark.conditions.exploration import Frontier, RandomWalk
+    from benchmark.metrics import segments
     from benchmark.postprocess import PostProcess
     from benchmark.viewpoints import Autotrace
     from envs.maps.rays import cast_rays
@@ -97,6 +98,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
         ("vision_cone", lambda: (VisionCone()(grid, poses, proba), VisionCone(vote="probability")(grid, poses, proba))),
         ("euclidean_knn", lambda: EuclideanKNN()(grid, poses, proba)),
         ("postprocess", lambda: PostProcess()(labels, grid)),
+        ("segments", lambda: [segments(labels.astype(t), c) for t in (np.int16, np.int32, np.int64) for c in (4, 8)]),
         ("scan map", lambda: robot_scan_map(scene, poses[:4], ScanSettings(range_noise=0.02, dropout=0.1, seed=1),
                                             house_wall_height(house))),
         ("scan map at a SLAM estimate", lambda: scan_map_at_estimate(

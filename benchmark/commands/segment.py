@@ -276,7 +276,9 @@ def _overview(path: Path, grid, rgb: np.ndarray, legend: list[tuple[str, tuple[i
 
 
 def _class_areas(post: np.ndarray, classes: Sequence[str], res: float) -> dict[str, float]:
-    counts = np.bincount(post[post >= 0].ravel(), minlength=len(classes))
+    from envs.maps.segmentation_io import value_counts  # noqa: PLC0415
+
+    counts = value_counts(post, len(classes))
     return {c: round(float(counts[k]) * res * res, 4) for k, c in enumerate(classes)}
 
 
@@ -405,6 +407,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
 
     from benchmark.metrics import segments  # noqa: PLC0415
     from envs.atomic import clean_leftovers, leftover_prefix  # noqa: PLC0415
+    from envs.maps.segmentation_io import COUNT_BAND_ROWS, value_counts  # noqa: PLC0415
 
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
@@ -471,10 +474,11 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
             summary["n_views_used"] = int(m.aggregator.last_used)
         segs = segments(labels, metric_params.connectivity)
         n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0
-        first = np.full(n_seg, -1, np.int64)
-        flat_s, flat_l = segs.ravel(), labels.ravel()
-        m = flat_s >= 0
-        first[flat_s[m]] = flat_l[m]
+        first = np.full(n_seg, -1, np.int64)  # each segment's class (any of its pixels), a band of rows at a time
+        for r0 in range(0, segs.shape[0], COUNT_BAND_ROWS):
+            band_s, band_l = segs[r0:r0 + COUNT_BAND_ROWS], labels[r0:r0 + COUNT_BAND_ROWS]
+            m = band_s >= 0
+            first[band_s[m]] = band_l[m]
         seg_classes = [classes[k] for k in first]
         summary["class_area_m2"] = _class_areas(labels, classes, grid.resolution)
         summary["unlabelled_walkable_px"] = int((grid.walkable & (labels < 0)).sum())
@@ -482,7 +486,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
                  f"{len(poses)} views")
     n_seg = int(segs.max()) + 1 if (segs >= 0).any() else 0
     summary["n_segments"] = n_seg
-    areas = np.bincount(segs[segs >= 0].ravel(), minlength=n_seg) * grid.resolution ** 2
+    areas = value_counts(segs, n_seg) * grid.resolution ** 2
     summary["rooms"] = [{"segment": k, "class": seg_classes[k] if seg_classes else None,
                          "area_m2": round(float(areas[k]), 4)} for k in range(n_seg)]
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,11 +1,16 @@
 """Configuration checked before any work: one line naming the key, the value and what is allowed.
 
 :func:`check_config` checks what no stage class says itself: the ``run`` node (not a
-``_target_`` node: it configures the harness, not a stage), with the rules of :data:`RULES`
-((group, key) -> test; only ``run`` keys), ``run.force`` and ``run.houses``, and one rule
-across two keys (``env.stop`` above ``env.start``). A key under ``run`` that the ``run:`` node
-of ``conf/config.yaml`` does not have (a typo, or one added with ``+run.<key>``, which Hydra
-lets through) is refused, listing the valid keys (:func:`check_run_keys`).
+``_target_`` node: it configures the harness, not a stage), against its schema, the frozen
+dataclass :class:`benchmark.harness.run_settings.RunSettings` (each key's type and range, as
+``Annotated`` markers of :mod:`envs.ranges`, read by
+:func:`benchmark.harness.typed.check_fields`, the check of the stages' parameters), and one
+rule across two keys (``env.stop`` above ``env.start``). A key under ``run`` that
+``RunSettings`` does not have (a typo, or one added with ``+run.<key>``, which Hydra lets
+through) is refused, listing the valid keys (:func:`check_run_keys`); they are the keys of the
+``run:`` node of ``conf/config.yaml`` (tests/test_run_settings.py). :func:`check_run_overrides`
+does both on the command line, once, before a sweep starts. (:class:`ConfigError`, the one-line
+error of every check, is :mod:`benchmark.harness.typed`'s, imported here too.)
 
 The value ranges of the stages (``aggregator.window`` an odd number of pixels,
 ``segmenter.window`` metres > 0, a share in [0, 1]) are not here: each stage class says them
@@ -16,76 +21,22 @@ stage as for ours.
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import os
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-
-class ConfigError(ValueError):
-    """An out-of-range or malformed setting; the message is one line naming key, value and rule."""
-
-
-Rule = Callable[[Any], bool]
-
-
-def _num(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _int(v: Any) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def pos_int(v: Any) -> bool:
-    return _int(v) and v >= 1
-
-
-def ray_settings(v: Any) -> bool:
-    """a mapping with address: null, auto or host:port, and connect_timeout: seconds > 0"""
-    if not isinstance(v, Mapping):
-        return False
-    t = v.get("connect_timeout")
-    if t is not None and not (_num(t) and t > 0):
-        return False
-    a = v.get("address")
-    return a is None or (isinstance(a, str) and (a == "auto" or a.startswith("ray://")
-                                                 or (":" in a and a.rsplit(":", 1)[1].isdigit())))
-
-
-def one_of(*allowed: Any) -> Rule:
-    def rule(v: Any) -> bool:
-        return v in allowed
-    rule.__doc__ = "one of " + ", ".join(map(repr, allowed))
-    return rule
-
-
-def optional(rule: Rule) -> Rule:
-    def opt(v: Any) -> bool:
-        return v is None or rule(v)
-    opt.__doc__ = (rule.__doc__ or _WHAT.get(rule, rule.__name__)) + ", or null"
-    return opt
-
-
-_WHAT: dict[Callable, str] = {pos_int: "an integer >= 1"}
-
-#: (group, key) -> rule, for the groups that are not a stage's ``_target_`` node (``run``
-#: only). A stage's ranges are said on its class's parameters (``Annotated[int, Odd()]``,
-#: :mod:`envs.ranges`) and checked by :func:`benchmark.harness.typed.check_targets`; no stage
-#: group may come back here (tests/test_ranges.py).
-RULES: dict[tuple[str, str], Rule] = {
-    ("run", "limit"): optional(pos_int), ("run", "progress"): one_of(True, False),
-    ("run", "save_maps"): one_of(True, False), ("run", "allow_failures"): one_of(True, False),
-    ("run", "cache_failures"): one_of(True, False),
-    ("run", "workers"): optional(pos_int), ("run", "executor"): one_of("local", "ray"),
-    ("run", "ray"): ray_settings,
-}
-
-
-def _describe(rule: Rule) -> str:
-    return _WHAT.get(rule) or rule.__doc__ or "a valid value"
+from benchmark.harness.run_settings import RunSettings
+from benchmark.harness.typed import (  # ConfigError, overrides: callers import them from here too
+    ConfigError,
+    check_fields,
+    overrides,
+    settings_class,
+    settings_params,
+    unknown_keys_line,
+)
 
 
 def _plain(cfg: Any) -> Mapping[str, Any]:
@@ -101,21 +52,15 @@ def _plain(cfg: Any) -> Mapping[str, Any]:
 
 
 def run_keys() -> tuple[str, ...]:
-    """The valid keys under ``run``: those of the ``run:`` node of ``conf/config.yaml``, in
-    its order, read from the file each time (a key added there is valid at once; the
-    composed default config has the same, checked in tests/test_config_keys.py)."""
-    from omegaconf import DictConfig, OmegaConf
-
-    from benchmark.paths import CONF_DIR
-
-    node = OmegaConf.load(Path(CONF_DIR) / "config.yaml").get("run")
-    if not isinstance(node, DictConfig):
-        raise ConfigError(f"{Path(CONF_DIR) / 'config.yaml'}: no run: node")
-    return tuple(str(k) for k in node.keys())
+    """The valid keys under ``run``: the fields of
+    :class:`benchmark.harness.run_settings.RunSettings`, in order (those of the ``run:`` node
+    of ``conf/config.yaml``, in its order: tests/test_run_settings.py)."""
+    return tuple(f.name for f in dataclasses.fields(RunSettings))
 
 
 def check_run_keys(keys: Any) -> None:
-    """Refuse keys under ``run`` that the default config does not have.
+    """Refuse keys under ``run`` that :class:`~benchmark.harness.run_settings.RunSettings` does
+    not have.
 
     Args:
         keys: the keys given under ``run`` (e.g. ``["limt"]`` for ``+run.limt=3``).
@@ -126,88 +71,98 @@ def check_run_keys(keys: Any) -> None:
     valid = run_keys()
     unknown = [str(k) for k in keys if str(k) not in valid]
     if unknown:
-        names = ", ".join(f"run.{k}" for k in unknown)
-        raise ConfigError(f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
-                          f"under run: {', '.join(valid)}")
+        raise ConfigError(unknown_keys_line("run", unknown, valid))
 
 
-def overrides(args: Any) -> list[tuple[str, str | None]]:
-    """(dotted key, value or None) of each ``[+|++|~]key[=value]`` override in ``args``, as typed
-    on the command line (flags and their values are left out; a deletion ``~key`` has no value)."""
-    out = []
-    for a in map(str, args):
-        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
-            continue
-        key, eq, value = a.partition("=")
-        out.append((key.lstrip("+~"), value if eq and not a.startswith("~") else None))
-    return out
+def check_run(node: Any) -> None:
+    """Check a ``run`` node (plain, resolved) against
+    :class:`~benchmark.harness.run_settings.RunSettings`: its keys (:func:`check_run_keys`),
+    then each value's type and range (:func:`benchmark.harness.typed.check_fields`). A key
+    left out is not an error (the default config has them all).
+
+    Raises:
+        ConfigError: ``run.limit=0: expected an integer >= 1, or null``, ``run.force=['bogus']:
+            unknown stage(s) ['bogus']; ...``, ``run.ray.address='x': expected auto, ...``."""
+    if not isinstance(node, Mapping):
+        raise ConfigError(f"run={node!r}: expected a mapping of {', '.join(run_keys())}")
+    check_run_keys(node.keys())
+    check_fields(node, settings_params(RunSettings), "run")
+
+
+#: what :func:`_override_value` returns for a value the command-line check leaves alone.
+_UNCHECKED = object()
+
+
+def _override_value(text: str) -> Any:
+    """The value Hydra makes of an override's ``text`` (``yes`` a string, ``[a,b]`` a list), or
+    :data:`_UNCHECKED` for a sweep (``a,b``, ``range(...)``: each job checks its own value),
+    an interpolation (resolved later) or text Hydra will refuse itself."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        override = OverridesParser.create().parse_override(f"key={text}")
+    except Exception:  # noqa: BLE001 - Hydra says what is wrong with it, in its own words
+        return _UNCHECKED
+    if override.is_sweep_override():
+        return _UNCHECKED
+    value = override.value()
+    return _UNCHECKED if "${" in repr(value) else value
 
 
 def check_run_overrides(args: Any) -> None:
-    """:func:`check_run_keys` on the command line, before Hydra composes or creates anything:
-    the ``run.<key>`` of every ``[+|++|~]run.<key>[=value]`` override in ``args`` (other
-    arguments are left to Hydra).
+    """:func:`check_run` on the command line, before Hydra composes or creates anything: the
+    ``run.<key>`` of every ``[+|++|~]run.<key>[=value]`` override in ``args`` must be a key of
+    ``RunSettings`` (:func:`check_run_keys`, a nested one such as ``run.ray.<key>`` too), and
+    its value, as Hydra reads it, of the key's type and range: a value every job of a sweep
+    would refuse (``run.limit=0`` in a sweep of 624 jobs) is refused once, before the sweep
+    starts. Swept values (``a,b,c``) and interpolations are left to each job; other arguments
+    are left to Hydra.
 
     Raises:
-        ConfigError: as :func:`check_run_keys`, or a value a rule refuses (one line)."""
+        ConfigError: as :func:`check_run_keys`, or a value its field refuses (one line)."""
     keys, values = [], []
     for key, text in overrides(args):
         if key.startswith("run.") and len(key) > 4:
             keys.append(key[4:].split(".", 1)[0])
             if text is not None:
-                values.append((key[4:], text))
-    if keys:
-        check_run_keys(keys)
-    # a value the config check would refuse in every job (run.limit=0 in a sweep of 624 jobs):
-    # refused once, before the sweep starts (swept values, a,b,c, are left to each job)
-    import yaml
-
+                values.append((key, text))
+    if not keys:
+        return
+    check_run_keys(keys)
     for key, text in values:
-        rule = RULES.get(("run", key))
-        if rule is None or "," in text or text.startswith(("range(", "choice(", "glob(")):
+        value = _override_value(text)
+        if value is _UNCHECKED:
             continue
-        try:
-            value = yaml.safe_load(text) if text else None
-        except yaml.YAMLError:
-            continue
-        if not rule(value):
-            raise ConfigError(f"run.{key}={value!r}: expected {_describe(rule)}")
+        *parents, last = key.split(".")[1:]
+        params = settings_params(RunSettings)
+        for part in parents:  # run.ray.address: the fields of RaySettings
+            settings = settings_class(params[part].hint) if part in params else None
+            if settings is None:
+                params = None
+                break
+            params = settings_params(settings)
+        if params is not None:
+            check_fields({last: value}, params, ".".join(key.split(".")[:-1]))
 
 
-def check_config(cfg: Any, stages: tuple[str, ...] = ("render", "classify", "score")) -> None:
-    """Check the keys under ``run`` (:func:`check_run_keys`), every setting a rule names, and
-    ``run.force`` / ``run.houses``.
+def check_config(cfg: Any) -> None:
+    """Check the ``run`` node (:func:`check_run`) and ``env.stop`` above ``env.start``.
 
     Raises:
-        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <rule>``, or
+        ConfigError: the first bad setting: ``<group>.<key>=<value>: expected <what>``, or
             the unknown keys under ``run`` with the valid ones.
     """
     c = _plain(cfg)
-    if isinstance(c.get("run"), Mapping):
-        check_run_keys(c["run"].keys())
-    for group, node in c.items():
-        if not isinstance(node, Mapping):
-            continue
-        for key, value in node.items():
-            rule = RULES.get((group, key))
-            if rule is not None and not rule(value):
-                raise ConfigError(f"{group}.{key}={value!r}: expected {_describe(rule)}")
+    if "run" in c:
+        check_run(c["run"])
     env = c.get("env") or {}
     if isinstance(env, Mapping) and _int(env.get("start")) and _int(env.get("stop")) and env["stop"] <= env["start"]:
         raise ConfigError(f"env.stop={env['stop']!r}: expected a house index above env.start={env['start']!r} "
                           f"(or null for the end of the file)")
-    run = c.get("run") or {}
-    force = run.get("force")
-    items = [force] if isinstance(force, str) else (force or [])
-    if not isinstance(items, list | tuple) or any(not isinstance(f, str) for f in items):
-        raise ConfigError(f"run.force={force!r}: expected a list of stage names from {list(stages)} or 'all'")
-    unknown = [f for f in items if f not in (*stages, "all")]
-    if unknown:
-        raise ConfigError(f"run.force={list(items)!r}: unknown stage(s) {unknown}; expected names from "
-                          f"{list(stages)} or 'all'")
-    houses = run.get("houses")
-    if houses is not None and (not isinstance(houses, list | tuple) or not houses):
-        raise ConfigError(f"run.houses={houses!r}: expected a non-empty list of house ids, or null for all")
+
+
+def _int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 def check_writable(path: str | Path, key: str) -> Path:
@@ -226,4 +181,4 @@ def check_writable(path: str | Path, key: str) -> Path:
     return p
 
 
-__all__ = ["ConfigError", "RULES", "overrides", "check_config", "check_run_keys", "check_run_overrides", "check_writable", "run_keys"]
+__all__ = ["ConfigError", "overrides", "check_config", "check_run", "check_run_keys", "unknown_keys_line", "check_run_overrides", "check_writable", "run_keys"]

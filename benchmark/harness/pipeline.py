@@ -53,6 +53,7 @@ from benchmark.harness.entries import (
     seen_from_render,
 )
 from benchmark.harness.robot_stages import RobotStages
+from benchmark.harness.run_settings import STAGES
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
 from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy
@@ -62,9 +63,6 @@ from envs.render.observation import poses_array
 
 log = logging.getLogger("roomseg-bench")
 T = TypeVar("T")
-
-#: Stages that ``force`` can name, in pipeline order; forcing one forces those after it.
-STAGES = ("render", "map", "classify", "aggregate", "score")
 
 #: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
 _SCENES: OrderedDict[tuple[str, str], Any] = OrderedDict()

@@ -116,6 +116,10 @@ class RobotStages:
 
             theta, shift = align_rigid(est.estimate[:, :2], est.true[:, :2])
             inst = to_map_frame(scene.instances, scene.grid, theta, shift, fill=-1)
+            if (scene.instances >= 0).any() and not (inst >= 0).any():
+                raise ValueError(f"house {hid!r}: the SLAM estimate diverged (ATE {est.stats()['ate_rmse_m']:.1f} m): "
+                                 f"aligned to the true route it puts every room off the map grid "
+                                 f"({np.degrees(theta):.0f} deg, {np.hypot(*shift):.1f} m); not scored")
             walk = to_map_frame(walk.astype(np.int8), scene.grid, theta, shift, fill=0).astype(bool)
             self._frames[hid] = (inst, walk)
             info["ate_rmse_m"] = est.stats()["ate_rmse_m"]

@@ -51,7 +51,6 @@ from benchmark.harness.executor import (
     local_pool,
 )
 from benchmark.harness.pipeline import (
-    STAGES,
     MethodPipeline,
     Pipeline,
     SegmenterPipeline,
@@ -326,7 +325,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     LAST_RUN.clear()  # this run's folder once claimed (an error before that belongs to out_dir)
     body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     plain = OmegaConf.to_container(body, resolve=True)
-    check_config(plain, STAGES)
+    check_config(plain)
     check_typed(plain)
     check_writable(cfg.run.results_dir, "run.results_dir")
     check_writable(cfg.run.cache_dir, "run.cache_dir")

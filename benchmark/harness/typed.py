@@ -22,8 +22,13 @@ and :func:`check_targets` checks them after the type: ``aggregator.window=4: exp
 integer >= 1``. A ranged parameter refuses null unless its type admits None (the message then
 ends ", or null"). A class taking ``**settings`` for a dataclass names it in ``SETTINGS``
 (``envs.maps.mapping.ScanMapping``): its keys are the dataclass's fields, typed and ranged.
-A user's own stage gets its ranges checked by annotating its parameters the same way. Only the
-``run`` keys, which no ``_target_`` node holds, keep a table, in :mod:`benchmark.harness.checks`.
+A user's own stage gets its ranges checked by annotating its parameters the same way.
+
+The ``run`` node, which no ``_target_`` class takes, is typed the same way too: its schema is
+the dataclass :class:`benchmark.harness.run_settings.RunSettings` (``run.ray`` a nested one),
+and :func:`check_fields`, the check of one mapping against parameters or fields that
+:func:`check_targets` uses for each ``_target_`` node, checks it
+(:func:`benchmark.harness.checks.check_config`); no table of rules is left.
 """
 
 from __future__ import annotations
@@ -41,8 +46,31 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from benchmark.harness.checks import ConfigError, overrides
 from envs.ranges import Range
+
+
+class ConfigError(ValueError):
+    """An out-of-range or malformed setting; the message is one line naming key, value and rule."""
+
+
+def overrides(args: Any) -> list[tuple[str, str | None]]:
+    """(dotted key, value or None) of each ``[+|++|~]key[=value]`` override in ``args``, as typed
+    on the command line (flags and their values are left out; a deletion ``~key`` has no value)."""
+    out = []
+    for a in map(str, args):
+        if a.startswith("-") or ("=" not in a and not a.startswith("~")):  # flags, values of flags
+            continue
+        key, eq, value = a.partition("=")
+        out.append((key.lstrip("+~"), value if eq and not a.startswith("~") else None))
+    return out
+
+
+def unknown_keys_line(path: str, unknown: Sequence[str], valid: Sequence[str]) -> str:
+    """``run.limt, run.foo: unknown keys (with or without +); valid keys under run: name, ...``."""
+    names = ", ".join(f"{path}.{k}" for k in unknown)
+    return (f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
+            f"under {path}: {', '.join(valid)}")
+
 
 #: keys of a ``_target_`` node that Hydra reads itself.
 HYDRA_KEYS = frozenset({"_target_", "_partial_", "_convert_", "_recursive_", "_args_"})
@@ -216,11 +244,23 @@ def _signature(target: str) -> tuple[dict[str, Param], bool] | None:
         elif p.kind is not p.VAR_POSITIONAL:
             params[p.name] = hints.get(p.name, Param())
     settings = getattr(obj, "SETTINGS", None) if inspect.isclass(obj) else None
-    if var_kw and dataclasses.is_dataclass(settings):
-        fields = _hints(settings)
-        params.update({f.name: fields.get(f.name, Param()) for f in dataclasses.fields(settings)})
+    if var_kw and settings_class(settings) is not None:
+        params.update(settings_params(settings))
         var_kw = False
     return params, var_kw
+
+
+def settings_class(hint: Any) -> type | None:
+    """``hint`` if it is a dataclass (a class, not an instance), else None."""
+    return hint if inspect.isclass(hint) and dataclasses.is_dataclass(hint) else None
+
+
+@functools.lru_cache(maxsize=64)
+def settings_params(settings: type) -> dict[str, Param]:
+    """field -> :class:`Param` of a dataclass, in the order of its fields (a field whose
+    annotation does not resolve holds any value)."""
+    fields = _hints(settings)
+    return {f.name: fields.get(f.name, Param()) for f in dataclasses.fields(settings)}
 
 
 def _fits(value: Any, hint: Any) -> bool | None:
@@ -248,6 +288,8 @@ def _fits(value: Any, hint: Any) -> bool | None:
         return isinstance(value, str)
     if hint is Path:
         return isinstance(value, str)
+    if settings_class(hint) is not None:  # a nested dataclass of settings (run.ray): its keys
+        return isinstance(value, Mapping)
     base = origin or hint
     if base in (list, tuple, Sequence, typing.Sequence) or (inspect.isclass(base) and base in (list, tuple)):
         return isinstance(value, list | tuple)
@@ -257,12 +299,81 @@ def _fits(value: Any, hint: Any) -> bool | None:
 
 
 def _what(hint: Any) -> str:
+    """The words of a type: ``an integer``; a union's members with ``or`` (``, or null`` last
+    for None); a dataclass of settings by its fields."""
+    args = typing.get_args(hint)
+    origin = typing.get_origin(hint)
+    if args and (origin is typing.Union or str(origin) == "<class 'types.UnionType'>"):
+        words = [_what(h) for h in args if h is not type(None)]
+        return " or ".join(words) + (", or null" if type(None) in args else "")
+    if settings_class(hint) is not None:
+        return f"a mapping of {', '.join(f.name for f in dataclasses.fields(hint))}"
     text = str(hint).replace("typing.", "").replace("NoneType", "None").replace("<class '", "").replace("'>", "")
     return {"int": "an integer", "float": "a number", "bool": "true or false", "str": "a string"}.get(text, text)
 
 
+def check_fields(node: Mapping[str, Any], params: Mapping[str, Param], path: str, *, owner: str | None = None,
+                 var_kw: bool = False) -> None:
+    """Check the keys and values of one mapping against ``params`` (a signature's parameters,
+    or a dataclass's fields: :func:`settings_params`); a value that is itself a dataclass of
+    settings (``run.ray``) is checked against that dataclass's fields the same way.
+
+    Args:
+        node: the mapping (plain config values).
+        params: key -> :class:`Param` (type and ranges).
+        path: the dotted name of ``node`` (``aggregator``, ``run``).
+        owner: the class or function whose parameters these are (a ``_target_``): then a null
+            value is left to it unless the parameter is ranged (a value filled in later), and a
+            wrong type names its parameter. None for the harness's own settings (``run``):
+            null only where the type admits None, and a value is described by all it must be
+            (``run.limit='abc': expected an integer >= 1, or null``).
+        var_kw: whether a key that is not in ``params`` is let through (``**kwargs``).
+
+    Raises:
+        ConfigError: the first unknown key or bad value, in one line."""
+    for key, value in node.items():
+        if key in HYDRA_KEYS:
+            continue
+        dotted = f"{path}.{key}" if path else str(key)
+        if key not in params:
+            if var_kw:
+                continue
+            if owner is None:
+                raise ConfigError(unknown_keys_line(path, [str(key)], list(params)))
+            raise ConfigError(f"{dotted}: unknown key, not a parameter of {owner} (valid: "
+                              f"{', '.join(params)}){nearest(key, list(params))}")
+        if isinstance(value, Mapping) and "_target_" in value:
+            continue  # a nested stage: check_targets checks it on its own
+        _check_value(value, params[key], dotted, owner)
+
+
+def _check_value(value: Any, param: Param, dotted: str, owner: str | None) -> None:
+    """One value of :func:`check_fields`: the type first, then each range."""
+    settings = settings_class(param.hint)
+    if settings is not None and isinstance(value, Mapping):
+        check_fields(value, settings_params(settings), dotted,
+                     owner=None if owner is None else f"{settings.__module__}.{settings.__qualname__}")
+        return
+    unset = value is None or (owner is not None and isinstance(value, float) and math.isnan(value))
+    if unset and owner is not None and not param.ranges:
+        return  # null: not set yet (roomseg-segment's ${classes} comes from its labels)
+    if value is None and param.nullable:
+        return
+    if value is None or _fits(value, param.hint) is False:
+        if owner is not None and not unset:
+            raise ConfigError(f"{dotted}={value!r}: expected {_what(param.hint)} "
+                              f"(the type of {owner.rsplit('.', 1)[-1]}'s {dotted.rsplit('.', 1)[-1]})")
+        if owner is None:
+            words = " and ".join(r.what for r in param.ranges) or _what(param.hint)
+            raise ConfigError(f"{dotted}={value!r}: expected {words}{', or null' if param.nullable else ''}")
+    for rule in param.ranges:
+        if not rule(value):
+            raise ConfigError(f"{dotted}={value!r}: {rule.explain(value, param.nullable)}")
+
+
 def check_targets(node: Any, path: str = "") -> None:
-    """Check every ``_target_`` node under ``node`` (a plain config) against its signature.
+    """Check every ``_target_`` node under ``node`` (a plain config) against its signature
+    (:func:`check_fields`, with the target as owner).
 
     Raises:
         ConfigError: ``aggregator.kk: not a parameter of benchmark.aggregators...VisionCone;
@@ -274,31 +385,7 @@ def check_targets(node: Any, path: str = "") -> None:
         if isinstance(target, str):
             sig = _signature(target)
             if sig is not None:
-                params, var_kw = sig
-                for key, value in node.items():
-                    if key in HYDRA_KEYS:
-                        continue
-                    dotted = f"{path}.{key}" if path else str(key)
-                    if key not in params:
-                        if not var_kw:
-                            raise ConfigError(f"{dotted}: unknown key, not a parameter of {target} (valid: "
-                                              f"{', '.join(params)}){nearest(key, list(params))}")
-                        continue
-                    if isinstance(value, Mapping) and "_target_" in value:
-                        continue  # a nested stage: checked below
-                    param = params[key]
-                    unset = value is None or (isinstance(value, float) and math.isnan(value))
-                    if unset and not param.ranges:
-                        continue  # null: not set yet (roomseg-segment's ${classes} comes from its labels)
-                    if not unset and _fits(value, param.hint) is False:
-                        raise ConfigError(f"{dotted}={value!r}: expected {_what(param.hint)} "
-                                          f"(the type of {target.rsplit('.', 1)[-1]}'s {key})")
-                    if value is None and param.nullable:
-                        continue
-                    for rule in param.ranges:
-                        if not rule(value):
-                            raise ConfigError(f"{dotted}={value!r}: expected {rule.what}"
-                                              f"{', or null' if param.nullable else ''}")
+                check_fields(node, sig[0], path, owner=target, var_kw=sig[1])
         for key, value in node.items():
             if key != "_target_":
                 check_targets(value, f"{path}.{key}" if path else str(key))
@@ -318,5 +405,5 @@ def check_typed(plain: Mapping[str, Any], config_name: str = "config") -> None:
     check_targets({k: v for k, v in plain.items() if k != "hydra"})
 
 
-__all__ = ["RobotLabel", "check_typed", "check_targets", "check_top_keys", "check_top_overrides", "known_top_keys",
+__all__ = ["ConfigError", "Param", "overrides", "unknown_keys_line", "RobotLabel", "check_fields", "check_typed", "check_targets", "check_top_keys", "settings_class", "settings_params", "check_top_overrides", "known_top_keys",
            "nearest", "MAX_SEVERITY"]

@@ -149,8 +149,10 @@ def _origin(yaml_path: Path, value) -> tuple[float, float, float]:
     return x, y, 0.0
 
 
-def _grey_and_alpha(img: Image.Image, image_path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(H, W) int grey value 0..255 (integer mean of the colour channels) and (H, W) alpha."""
+def _grey_and_alpha(img: Image.Image, image_path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """(H, W) uint8 grey value 0..255 (integer mean of the colour channels) and (H, W) uint8
+    alpha, or None for an image without an alpha channel (opaque). One byte a pixel each: a
+    map of 16000 x 16000 pixels is read without 64-bit copies."""
     if img.mode == "P":
         img = img.convert("RGBA")
     elif img.mode == "1":
@@ -162,11 +164,14 @@ def _grey_and_alpha(img: Image.Image, image_path: Path) -> tuple[np.ndarray, np.
     if a.size == 0:
         raise ValueError(f"{image_path}: empty image")
     if a.ndim == 2:
-        return a.astype(np.int64), np.full(a.shape, 255, np.int64)
+        return a.astype(np.uint8), None
     has_alpha = img.mode in ("LA", "RGBA")
     colour = a[..., :-1] if has_alpha else a
-    grey = colour.astype(np.int64).sum(axis=-1) // colour.shape[-1]
-    alpha = a[..., -1].astype(np.int64) if has_alpha else np.full(grey.shape, 255, np.int64)
+    if colour.shape[-1] == 1:
+        grey = colour[..., 0].astype(np.uint8)
+    else:  # the sum of at most three channels fits 16 bits, their integer mean 8
+        grey = (colour.sum(axis=-1, dtype=np.uint16) // colour.shape[-1]).astype(np.uint8)
+    alpha = a[..., -1].astype(np.uint8) if has_alpha else None
     return grey, alpha
 
 
@@ -197,9 +202,27 @@ def image_to_occupancy(grey: np.ndarray, alpha: np.ndarray | None, negate: bool,
 
     Returns:
         (H, W) int8 occupancy: -1 unknown, 0 free, 100 occupied, 1..99 in-between.
+
+    A uint8 image is read through a 256-entry table (this function on the values 0..255), so
+    a large map needs no map-sized temporaries beyond the result.
     """
     if mode not in MODES:
         raise ValueError(f"map mode {mode!r}; expected one of {list(MODES)}")
+    grey = np.asarray(grey)
+    if grey.dtype == np.uint8:
+        out = _values_to_occupancy(np.arange(256), negate, occupied_thresh, free_thresh, mode)[grey]
+        if mode == "scale" and alpha is not None:
+            out[np.asarray(alpha) < 255] = -1
+        return out
+    out = _values_to_occupancy(grey, negate, occupied_thresh, free_thresh, mode)
+    if mode == "scale" and alpha is not None:
+        out = np.where(np.asarray(alpha) < 255, np.int8(-1), out)
+    return out.astype(np.int8)
+
+
+def _values_to_occupancy(grey: np.ndarray, negate: bool, occupied_thresh: float, free_thresh: float,
+                         mode: str) -> np.ndarray:
+    """:func:`image_to_occupancy` without alpha, element by element on int pixel values."""
     grey = np.asarray(grey, dtype=np.int64)
     if mode == "raw":
         v = 255 - grey if negate else grey
@@ -212,8 +235,6 @@ def image_to_occupancy(grey: np.ndarray, alpha: np.ndarray | None, negate: bool,
         out = mid
     out = np.where(p > occupied_thresh, np.int8(100), out)
     out = np.where(p < free_thresh, np.int8(0), out)
-    if mode == "scale" and alpha is not None:
-        out = np.where(np.asarray(alpha) < 255, np.int8(-1), out)
     return out.astype(np.int8)
 
 

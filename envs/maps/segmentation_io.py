@@ -58,6 +58,22 @@ def _check_index_map(values: np.ndarray, what: str) -> np.ndarray:
     return v  # its own integer type: no 8-byte-per-pixel copy of a large map
 
 
+#: rows of a map :func:`value_counts` counts at a time
+COUNT_BAND_ROWS = 1024
+
+
+def value_counts(values: np.ndarray, n: int, band_rows: int = COUNT_BAND_ROWS) -> np.ndarray:
+    """(n,) int64: how many pixels of the (H, W) int map ``values`` hold each value 0..n - 1
+    (negative values are not counted; every value must be < n). ``np.bincount`` of the
+    values >= 0, ``band_rows`` rows at a time: its 64-bit copy of the values is a band's, not
+    the map's."""
+    counts = np.zeros(n, np.int64)
+    for r0 in range(0, values.shape[0], max(int(band_rows), 1)):
+        band = values[r0:r0 + max(int(band_rows), 1)]
+        counts += np.bincount(band[band >= 0].ravel(), minlength=n)
+    return counts
+
+
 def _marked(v: np.ndarray, dtype, marker: int) -> np.ndarray:
     """``v`` (values -1..marker - 1) as ``dtype`` with ``marker`` for -1, without an int64
     temporary (a large map's image costs its own bytes and a bool mask)."""
@@ -203,7 +219,7 @@ def rooms_geojson(segments: np.ndarray, grid: GridMap, segment_classes: Sequence
         raise ValueError(f"segment map has {n} segments but {len(segment_classes)} segment classes")
     boxes = ndimage.find_objects(seg + 1, max_label=n) if n else []
     feats = []
-    counts = np.bincount(seg[seg >= 0].ravel(), minlength=n) if n else np.zeros(0, np.int64)
+    counts = value_counts(seg, n)
     for k in range(n):
         if boxes[k] is None:
             continue
