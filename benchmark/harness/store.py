@@ -428,7 +428,9 @@ def read_metrics(path: str | Path):
     try:
         import io
 
-        df = pd.read_csv(io.BytesIO(raw), keep_default_na=True)
+        # low_memory=False: one type per column over the whole file (a large sweep's file read in
+        # chunks could give a column floats in one chunk and text in another)
+        df = pd.read_csv(io.BytesIO(raw), keep_default_na=True, low_memory=False)
     except Exception as e:  # noqa: BLE001 - any parser error is a malformed file
         raise ValueError(f"{path}: malformed CSV ({type(e).__name__}: {str(e).strip()[:120]})") from None
     _check_fractions(path, df)
