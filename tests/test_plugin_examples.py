@@ -80,6 +80,11 @@ def test_nearest_view_aggregator():
     assert far[grid.world_to_cell(0.1, 3.9)] == -1 and far[grid.world_to_cell(2.5, 2.5)] == 5
     with pytest.raises(ValueError, match="max_distance_m=-1"):
         m.NearestView(max_distance_m=-1)
+    # its annotation is the config check's range: one line before any work, as for a bundled stage
+    from benchmark.harness.typed import ConfigError, check_targets
+
+    with pytest.raises(ConfigError, match=r"^aggregator.max_distance_m=-1: expected metres > 0$"):
+        check_targets({"aggregator": {"_target_": "my_aggregator.nearest_view.NearestView", "max_distance_m": -1}})
 
 
 def test_door_cut_segmenter():

@@ -6,8 +6,12 @@ Simpler than the bundled ones on purpose: no vote, no line of sight, no geodesic
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from scipy.spatial import cKDTree
+
+from envs.ranges import Metres
 
 
 class NearestView:
@@ -17,7 +21,9 @@ class NearestView:
         max_distance_m: cells farther than this (metres) from every view stay unlabelled (-1).
     """
 
-    def __init__(self, max_distance_m: float = 3.0):
+    # the annotation is the config check's: aggregator.max_distance_m=-1 is refused in one line
+    # before any work (docs/plugins.md, "Value ranges"); the check below is for Python callers
+    def __init__(self, max_distance_m: Annotated[float, Metres()] = 3.0):
         if isinstance(max_distance_m, bool) or not isinstance(max_distance_m, int | float) or not max_distance_m > 0:
             raise ValueError(f"aggregator.max_distance_m={max_distance_m!r}: expected a distance > 0 in metres")
         self.max_distance_m = float(max_distance_m)
