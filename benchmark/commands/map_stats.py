@@ -92,31 +92,9 @@ def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
 
 def draw(maps: dict[str, np.ndarray], out: Path) -> None:
     """Panels, 4 per row: free white, occupied black, unknown grey."""
-    import io
+    from benchmark.reports.plotting import occupancy_panels
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from envs.atomic import atomic_write_bytes
-
-    cols = 4
-    rows = (len(maps) + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
-    for ax, (name, occ) in zip(axes.ravel(), maps.items(), strict=False):
-        img = np.full(occ.shape, 0.6)
-        img[occ == 0], img[occ == 100] = 1.0, 0.0
-        ax.imshow(img, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
-        ax.set_title(name, fontsize=9)
-        ax.axis("off")
-    for ax in axes.ravel()[len(maps):]:
-        ax.axis("off")
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    atomic_write_bytes(out, buf.getvalue())
+    occupancy_panels(maps, out, cols=4, panel_in=3.2, dpi=90, fontsize=9)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -157,6 +157,35 @@ def output_paths(path, formats: Sequence[str] | None = None) -> list:
     return [path.with_suffix("." + f) for f in parse_formats(formats)]
 
 
+def occupancy_panels(maps: dict[str, np.ndarray], out, cols: int, panel_in: float, dpi: int,
+                     fontsize: float | None = None) -> None:
+    """Trinary occupancy maps side by side, ``cols`` panels a row (``panel_in`` inches square
+    each), titled by their keys: free (0) white, occupied (100) black, unknown grey; written
+    atomically to the PNG ``out`` at ``dpi``.
+
+    Args:
+        maps: title -> (H, W) int8 occupancy (-1 / 0 / 100, as ``nav_msgs/OccupancyGrid``)."""
+    import io
+
+    from envs.atomic import atomic_write_bytes
+
+    rows = (len(maps) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(panel_in * cols, panel_in * rows), squeeze=False)
+    for ax, (title, occ) in zip(axes.ravel(), maps.items(), strict=False):
+        img = np.full(occ.shape, 0.6)
+        img[occ == 0], img[occ == 100] = 1.0, 0.0
+        ax.imshow(img, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+        ax.set_title(title, **({} if fontsize is None else {"fontsize": fontsize}))
+        ax.axis("off")
+    for ax in axes.ravel()[len(maps):]:
+        ax.axis("off")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    atomic_write_bytes(out, buf.getvalue())
+
+
 def save(fig, path, formats: Sequence[str] | None = None, tight: bool = True) -> list:
     """Save ``fig`` to ``path`` (in each of ``formats``: png at :data:`PNG_DPI` and
     :data:`PNG_COMPRESS_LEVEL`, pdf, svg;

@@ -104,33 +104,11 @@ def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) ->
 
 
 def draw(maps: dict[str, np.ndarray], out: Path) -> None:
-    """One panel per level: free white, occupied black, unknown grey."""
-    import matplotlib
+    """One panel per level, 3 a row: free white, occupied black, unknown grey."""
+    from benchmark.reports.plotting import occupancy_panels
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from envs.atomic import atomic_write_bytes
-
-    n = len(maps)
-    cols = min(n, 3)
-    rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 4 * rows), squeeze=False)
-    for ax, (level, occ) in zip(axes.ravel(), maps.items(), strict=False):
-        img = np.full(occ.shape, 0.6)
-        img[occ == 0], img[occ == 100] = 1.0, 0.0
-        ax.imshow(img, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
-        ax.set_title(level if level != "clean" else "true poses (severity 0)")
-        ax.axis("off")
-    for ax in axes.ravel()[n:]:
-        ax.axis("off")
-    fig.tight_layout()
-    import io
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80)
-    plt.close(fig)
-    atomic_write_bytes(out, buf.getvalue())
+    titles = {(level if level != "clean" else "true poses (severity 0)"): occ for level, occ in maps.items()}
+    occupancy_panels(titles, out, cols=min(len(maps), 3), panel_in=4, dpi=80)
 
 
 def main(argv: list[str] | None = None) -> int:
