@@ -50,7 +50,11 @@ def read_occupancy(path: Path, resolution: float, free_min: int, occupied_max: i
 def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
     """(rows of statistics per (house, level), {level: house 0's occupancy}) for scan_0..5, slam_1..5."""
 
-    from benchmark.commands.maintainer.slam_levels import level_route, level_scanner, level_settings
+    from benchmark.commands.maintainer.slam_levels import (
+        level_mapping,
+        level_scanner,
+        level_settings,
+    )
     from benchmark.conditions.exploration import exploration_route
     from benchmark.conditions.slam import OdometrySlam
     from benchmark.viewpoints import Autotrace
@@ -63,7 +67,7 @@ def simulated_maps(n: int) -> tuple[list[dict], dict[str, np.ndarray]]:
 
     scanners = {"scan_0": ("views", level_scanner("clean"))}
     for k in range(1, 6):
-        scanners[f"scan_{k}"] = (level_route(f"scan_{k}"), level_scanner(f"scan_{k}"))
+        scanners[f"scan_{k}"] = level_mapping(f"scan_{k}")
     rows, first = [], {}
     for hid, house in enumerate(load_houses(procthor_houses(), 0, n)):
         scene = rasterise_house(house)

@@ -41,9 +41,10 @@ def level_settings(level: str) -> dict:
     return node
 
 
-def level_scanner(level: str):
-    """The :class:`envs.maps.scan.ScanSettings` of ``conf/corruption/<level>.yaml``'s ``mapping`` over
-    ``conf/mapping/scan.yaml`` (``clean``: the defaults)."""
+def level_mapping(level: str):
+    """(``mapping.route``, :class:`envs.maps.scan.ScanSettings`) of ``conf/corruption/<level>.yaml``'s
+    ``mapping`` over ``conf/mapping/scan.yaml`` (``clean``: the defaults): where the mapping robot
+    drives (``views`` or ``explore``) and its scanner."""
     from omegaconf import OmegaConf
 
     from envs.maps.scan import ScanSettings
@@ -53,19 +54,13 @@ def level_scanner(level: str):
     over = OmegaConf.load(path).get("mapping", {}) if level != "clean" and path.is_file() else {}
     node = OmegaConf.to_container(OmegaConf.merge(base, over), resolve=True)
     node.pop("_target_", None)
-    node.pop("route", None)  # where the robot drives, not the scanner (level_route)
-    return ScanSettings(**node).check()
+    route = str(node.pop("route", "views"))
+    return route, ScanSettings(**node).check()
 
 
-def level_route(level: str) -> str:
-    """Where the mapping robot of ``conf/corruption/<level>.yaml`` drives (``mapping.route``:
-    ``views`` or ``explore``) over ``conf/mapping/scan.yaml`` (``clean``: ``views``)."""
-    from omegaconf import OmegaConf
-
-    path = Path(CONF_DIR) / "corruption" / f"{level}.yaml"
-    over = OmegaConf.load(path).get("mapping", {}) if level != "clean" and path.is_file() else {}
-    base = OmegaConf.load(Path(CONF_DIR) / "mapping" / "scan.yaml")
-    return str(OmegaConf.merge(base, over).get("route", "views"))
+def level_scanner(level: str):
+    """The scanner of :func:`level_mapping`."""
+    return level_mapping(level)[1]
 
 
 def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) -> tuple[list[dict], dict[str, np.ndarray]]:
