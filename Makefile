@@ -76,11 +76,12 @@ bench-publish: setup  ## fresh timed `make bench`, its metrics -> results/publis
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory bench RESULTS=$(PUBLISH_TMP) BENCH_OUT=$(PUBLISH_TMP)/bench
 	$(PY) -m benchmark.commands.maintainer.readme_tables publish $(PUBLISH_TMP)/runs/bench --name bench --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt
 
-robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results/published/robustness (then: make readme-tables)
+robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results/published/robustness, where its time went -> results/published/robustness_profile.md (then: make readme-tables)
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/compile-time.txt $(PY) -m benchmark.commands.compile_kernels
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
 	$(PY) -m benchmark.commands.maintainer.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness" --columns robustness
+	$(PY) -m benchmark.commands.maintainer.grid_profile $(PUBLISH_TMP)/runs/robustness --out results/published/robustness_profile.md
 
 # make leaderboard: every method on the same maps (shared ProcTHOR houses from 75, after the
 # objects_procthor classifier's training houses): view-based methods, geometric segmenters,

@@ -1,0 +1,101 @@
+"""``python -m benchmark.commands.maintainer.grid_profile``: where a sweep's time went, per
+condition family and stage.
+
+Reads a finished sweep folder (``results/runs/robustness``): each job's ``summary.json``
+(its wall time), ``job.json`` (its condition and dataset) and ``timings.csv`` (per house, the
+seconds of each stage the pipeline timed: ``t_scene`` builds the house and the robot's map,
+``t_viewpoints``, ``t_render``, ``t_classify``, ``t_aggregate``, ``t_postprocess``,
+``t_score``). For each dataset and condition family (``scan``, ``slam``, ``explore``, ...) it
+prints one row:
+
+- jobs and house-runs (computed / read from the results cache);
+- job-seconds: the sum of the jobs' wall times, and its share of the sweep's total;
+- per stage, seconds summed over the houses computed;
+- ``outside houses s``: job wall time not spent inside a house (composing the job, loading the
+  houses, writing and checking rows), summed over jobs.
+
+Job-seconds are wall seconds of one job each; with W workers the sweep's wall time is about
+their sum over W. A row ``all`` closes each dataset. Exit status 2 when the folder holds no job.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from benchmark.commands import cli
+
+#: stages in pipeline order (others follow alphabetically)
+STAGES = ("t_scene", "t_map", "t_viewpoints", "t_coverage", "t_render", "t_render_load", "t_classify",
+          "t_aggregate", "t_postprocess", "t_segment", "t_score")
+
+
+def job_rows(sweep: Path) -> pd.DataFrame:
+    """One row per job of ``sweep`` that finished: ``dataset``, ``family``, ``wall_s``,
+    ``computed``, ``cached``, ``houses_s`` (seconds inside houses) and one column per stage
+    (seconds summed over the houses computed)."""
+    rows = []
+    for summary in sorted(sweep.glob("*/summary.json")):
+        job = summary.parent
+        s = json.loads(summary.read_text(encoding="utf-8"))
+        settings = json.loads((job / "job.json").read_text(encoding="utf-8"))["settings"]
+        t = pd.read_csv(job / "timings.csv") if (job / "timings.csv").is_file() else pd.DataFrame()
+        fresh = t[~t["cached"].astype(bool)] if len(t) else t
+        row = {"dataset": settings.get("env.name", "?"), "family": settings.get("robot.corruption", "clean"),
+               "wall_s": float(s.get("wall_time_s", 0.0)), "computed": len(fresh), "cached": len(t) - len(fresh),
+               "houses_s": float(t["house_s"].sum()) if len(t) else 0.0}
+        for c in t.columns:
+            if c.startswith("t_"):
+                row[c] = float(fresh[c].sum())
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def profile(jobs: pd.DataFrame) -> pd.DataFrame:
+    """Per dataset and family (and ``all`` per dataset): the table the command prints."""
+    stages = [c for c in STAGES if c in jobs] + sorted(c for c in jobs if c.startswith("t_") and c not in STAGES)
+    total = jobs["wall_s"].sum()
+    out = []
+    for dataset, d in jobs.groupby("dataset", sort=True):
+        groups = sorted(d.groupby("family"), key=lambda kv: -kv[1]["wall_s"].sum())
+        for family, g in [*groups, ("all", d)]:
+            row = {"dataset": dataset, "family": family, "jobs": len(g), "houses computed": int(g["computed"].sum()),
+                   "houses cached": int(g["cached"].sum()), "job s": g["wall_s"].sum(),
+                   "share %": 100 * g["wall_s"].sum() / total if total else 0.0}
+            for c in stages:
+                row[f"{c[2:]} s"] = g[c].fillna(0).sum()
+            row["outside houses s"] = (g["wall_s"] - g["houses_s"]).sum()
+            out.append(row)
+    return pd.DataFrame(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+                            epilog="e.g. python -m benchmark.commands.maintainer.grid_profile results/runs/robustness")
+    ap.add_argument("sweep", type=Path, help="a sweep's folder (results/runs/<name>)")
+    ap.add_argument("--out", type=Path, default=None, help="also write the table here (Markdown)")
+    a = ap.parse_args(argv)
+    jobs = job_rows(a.sweep) if a.sweep.is_dir() else pd.DataFrame()
+    if jobs.empty:
+        print(f"grid_profile: error: {a.sweep}: no finished job (expected a sweep folder with <job>/summary.json)",
+              file=sys.stderr)
+        return 2
+    table = profile(jobs)
+    md = table.to_markdown(index=False, floatfmt=".1f")
+    note = (f"\n{len(jobs)} jobs, {jobs['wall_s'].sum():.0f} job-seconds. Stage columns: seconds summed over the "
+            f"houses computed (timings.csv); 'outside houses': job wall time not inside a house.")
+    print(md)
+    print(note)
+    if a.out is not None:
+        from benchmark.harness.cache import atomic_write_text
+
+        atomic_write_text(a.out, f"Profile of `{a.sweep}` by `python -m benchmark.commands.maintainer.grid_profile`."
+                                 f"\n\n{md}\n{note}\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

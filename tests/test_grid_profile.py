@@ -1,0 +1,48 @@
+"""The sweep profile (``benchmark.commands.maintainer.grid_profile``): a hand-made sweep of three
+jobs with known stage seconds gives the sums, shares and time outside houses they imply."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from benchmark.commands.maintainer import grid_profile
+
+
+def _job(root, name, dataset, family, wall, rows):
+    d = root / name
+    d.mkdir(parents=True)
+    (d / "summary.json").write_text(json.dumps({"wall_time_s": wall}))
+    (d / "job.json").write_text(json.dumps({"settings": {"env.name": dataset, "robot.corruption": family}}))
+    cols = sorted({k for r in rows for k in r})
+    lines = [",".join(cols)] + [",".join(str(r.get(c, "")) for c in cols) for r in rows]
+    (d / "timings.csv").write_text("\n".join(lines) + "\n")
+
+
+def test_sums_shares_and_time_outside_houses(tmp_path, capsys):
+    _job(tmp_path, "a", "procthor", "scan", 10.0,
+         [{"house_id": "h0", "cached": False, "house_s": 3.0, "t_map": 2.0, "t_score": 1.0},
+          {"house_id": "h1", "cached": False, "house_s": 4.0, "t_map": 3.0, "t_score": 1.0}])
+    _job(tmp_path, "b", "procthor", "scan", 2.0,  # a second method on the same maps: read from the cache
+         [{"house_id": "h0", "cached": True, "house_s": 0.5, "t_map": "", "t_score": ""},
+          {"house_id": "h1", "cached": False, "house_s": 1.0, "t_map": "", "t_score": 0.5}])
+    _job(tmp_path, "c", "synthetic", "clean", 8.0,
+         [{"house_id": "s0", "cached": False, "house_s": 6.0, "t_score": 6.0}])
+    (tmp_path / "unfinished").mkdir()  # no summary.json: not counted
+    table = grid_profile.profile(grid_profile.job_rows(tmp_path)).set_index(["dataset", "family"])
+    scan = table.loc[("procthor", "scan")]
+    assert (scan["jobs"], scan["houses computed"], scan["houses cached"]) == (2, 3, 1)
+    assert scan["job s"] == pytest.approx(12.0) and scan["share %"] == pytest.approx(60.0)
+    assert scan["map s"] == pytest.approx(5.0) and scan["score s"] == pytest.approx(2.5)
+    assert scan["outside houses s"] == pytest.approx((10 - 7) + (2 - 1.5))
+    assert table.loc[("synthetic", "all"), "share %"] == pytest.approx(40.0)
+    assert list(table.columns).index("map s") < list(table.columns).index("score s")  # pipeline order
+    assert grid_profile.main([str(tmp_path), "--out", str(tmp_path / "p.md")]) == 0
+    assert "| procthor  | scan" in (tmp_path / "p.md").read_text()
+
+
+def test_a_folder_without_jobs_is_one_line(tmp_path, capsys):
+    assert grid_profile.main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(tmp_path) in err[0] and "no finished job" in err[0]
