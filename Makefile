@@ -124,9 +124,11 @@ perf-publish: setup  ## make perf's tables -> results/published/perf.md (include
 
 # the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
 # fails when it writes other numbers)
-docs-numbers: setup  ## robot coverage, house statistics -> results/published/{robot_coverage,house_stats}.md (included by the docs)
+docs-numbers: setup  ## robot coverage, house statistics, clutter tables, tables examples -> results/published/{robot_coverage,house_stats,clutter_tables,tables_examples}.md (included by the docs)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.house_stats --synthetic 500 --out results/published/house_stats.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.clutter_tables --offices 7 --houses 40 --out results/published/clutter_tables.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.tables_examples --small 2 --large 3 --houses 4 --out results/published/tables_examples.md
 
 # On a GPU workstation: the active environment's python (conda, README) unless .venv exists.
 GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)

@@ -59,7 +59,10 @@ def test_a_command_from_a_subfolder_says_where_to_run_it(monkeypatch, capsys):
 @pytest.mark.slow
 @pytest.mark.skipif(not SHARED.is_dir(), reason="the shared ProcTHOR houses are absent")
 @pytest.mark.parametrize("name, page, typed", [("robot_coverage", "robot-conditions.md", r"\| frontier 40 m \|"),
-                                               ("house_stats", "houses.md", r"\| rooms per house +\|")])
+                                               ("house_stats", "houses.md", r"\| rooms per house +\|"),
+                                               ("clutter_tables", "maps-and-clutter.md", r"\| +\d+ / 38 \|"),
+                                               ("tables_examples", "reliability-tables.md", r"\| oracle +\| graph KNN +\|"),
+                                               ])
 def test_the_published_docs_numbers_are_what_the_commands_write(name, page, typed, tmp_path, monkeypatch, capsys):
     """A page includes results/published/<name>.md; the command the file names (a line of the
     Makefile's docs-numbers) writes it again byte for byte, and the page types no copy of it."""
