@@ -124,11 +124,15 @@ perf-publish: setup  ## make perf's tables -> results/published/perf.md (include
 
 # the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
 # fails when it writes other numbers)
-docs-numbers: setup  ## robot coverage, house statistics, clutter tables, tables examples -> results/published/{robot_coverage,house_stats,clutter_tables,tables_examples}.md (included by the docs)
+docs-numbers: setup  ## the numbers the docs include -> results/published/: robot coverage, house statistics, clutter tables, tables examples, SeLRoS Table V, leaderboard, objects accuracy, sensitivity (ROSE2=<checkout> adds ROSE²)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.house_stats --synthetic 500 --out results/published/house_stats.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.clutter_tables --offices 7 --houses 40 --out results/published/clutter_tables.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.tables_examples --small 2 --large 3 --houses 4 --out results/published/tables_examples.md
+	ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_ROSE2=$(ROSE2) $(PY) -m benchmark.commands.selros --markdown results/published/selros_table5.md
+	ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_ROSE2=$(ROSE2) $(PY) -m benchmark.commands.maintainer.sweep_table experiment=leaderboard run.limit=5 --rose2-with env=procthor_shared --rose2-with env.start=75 --table table5 --out results/published/leaderboard.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.objects_accuracy --train 0:75 --train generated:100000:100200 --eval 75:150 --out results/published/objects_accuracy.md
+	$(PY) -m benchmark.commands.maintainer.sweep_table experiment=sensitivity env=synthetic run.limit=5 --table sensitivity --out results/published/sensitivity.md
 
 # On a GPU workstation: the active environment's python (conda, README) unless .venv exists.
 GPU_PY ?= $(if $(wildcard $(PY)),$(PY),python3)

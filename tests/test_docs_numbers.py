@@ -93,3 +93,55 @@ def test_the_data_page_runs_in_a_new_shell_from_a_fresh_copy(tmp_path, capsys):
     out = capsys.readouterr().out
     assert rc == 0, out
     assert "every block ran" in out
+
+
+#: the lines of a published table that a ROSE² run adds or changes (its rows, the line naming its
+#: checkout, the rankings, which group every row): compared only where ROOMSEG_ROSE2 names a checkout
+ROSE2_LINES = re.compile(r"rose2|ROSE²|^- Ranking on ", re.IGNORECASE)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, page, typed, shared", [
+    ("selros_table5", "baselines.md", r"\| SeLRoS +\| +30 \|", False),
+    ("leaderboard", "baselines.md", r"\| ProcTHOR \| distance +\|", True),
+    ("objects_accuracy", "method.md", r"\| shared ProcTHOR houses 0-74 +\|", True),
+    ("sensitivity", "method.md", r"\| independent \| 1\.0 \|", False)])
+def test_the_published_tables_are_what_their_commands_write(name, page, typed, shared, tmp_path, monkeypatch,
+                                                             capsys):
+    """A page includes results/published/<name>.md; the command its first line names (a line of
+    the Makefile's docs-numbers) writes it again line for line, and the page types no copy.
+    ROSE² needs a checkout (make rose2-env): without ROOMSEG_ROSE2 the command runs without it
+    and every line but those ROSE² changes (its rows, the line naming its commit, the rankings)
+    is compared; with it, every line is."""
+    import importlib
+    import os
+    import shlex
+
+    if shared and not SHARED.is_dir():
+        pytest.skip("the shared ProcTHOR houses are absent")
+    if not shared and name == "selros_table5" and not (SHARED.parent / "selros").is_dir():
+        pytest.skip("the SeLRoS release is absent")
+    published = ROOT / "results" / "published" / f"{name}.md"
+    text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+    assert f'--8<-- "results/published/{name}.md"' in text
+    assert not re.search(typed, text)  # no typed copy of the table beside the included one
+    want = published.read_text(encoding="utf-8").splitlines()
+    module, command = re.fullmatch(r"Written by `python -m (benchmark\.commands\.[\w.]+) (.*)`\.", want[0]).groups()
+    assert f"-m {module} {command}\n" in (ROOT / "Makefile").read_text(encoding="utf-8")
+    args = shlex.split(command)
+    out = tmp_path / f"{name}.md"
+    flag = "--markdown" if "--markdown" in args else "--out"
+    args[args.index(flag) + 1] = str(out)
+    monkeypatch.setenv("ROOMSEG_SHARED_DATA", str(SHARED.parent))
+    rose2 = os.environ.get("ROOMSEG_ROSE2")
+    if not (rose2 and Path(rose2).expanduser().is_dir()):
+        monkeypatch.delenv("ROOMSEG_ROSE2", raising=False)
+        rose2 = None
+    assert importlib.import_module(module).main(args) == 0
+    capsys.readouterr()
+    got = out.read_text(encoding="utf-8").splitlines()
+    assert got[0] == want[0].replace(str(published.relative_to(ROOT)), str(out))
+    if rose2 is None:
+        got, want = ([line for line in lines if not ROSE2_LINES.search(line)] for lines in (got, want))
+    assert got[1:] == want[1:]
+    assert len(got) > 5

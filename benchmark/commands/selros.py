@@ -5,11 +5,12 @@ all scored against the release's ground truth.
 
     python -m benchmark.commands.selros [--data DIR] [--resolution 0.02] [--out DIR] [--no-geometric]
         [--occupancy-dir DIR --occupancy-pattern '{id}_map.png'] [metrics.key=value ...]
-        [--rose2 CHECKOUT] [--method NAME=DIR ... --method-pattern '{id}.png']
+        [--rose2 CHECKOUT] [--method NAME=DIR ... --method-pattern '{id}.png'] [--markdown FILE.md]
 
 ``--rose2`` adds a ROSE² row run here (``make rose2-env``); ``--method`` puts your own method's
 maps (a folder of instance-coloured PNGs, one per map) in the same table: one command, one
-Table V (``table5.md``, ``.csv``, ``.tex`` with ``--out``).
+Table V (``table5.md``, ``.csv``, ``.tex`` with ``--out``). ``--markdown FILE`` writes the table
+headed by the command that made it (``make docs-numbers``: ``results/published/selros_table5.md``).
 
 Map ids come from the ground-truth file names by the rule ``--gt-pattern`` (default
 ``{id}_ground_truth.png``: ``office_a_ground_truth.png`` is ``office_a``). Trailing
@@ -72,6 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None,
                     help="folder for metrics.csv, table5.md/.csv/.tex and table5.html (written as a set)")
     ap.add_argument("--page-maps", type=int, default=3, help="maps drawn on table5.html (default 3)")
+    ap.add_argument("--markdown", type=Path, default=None,
+                    help="also write the table and its notes to this Markdown file, headed by the command that "
+                         "made it, with a line naming the ROSE2 commit of its ROSE² row (make docs-numbers: "
+                         "results/published/selros_table5.md, which docs/baselines.md includes)")
     a, rest = ap.parse_known_args(argv)
     bad = [r for r in rest if not r.startswith("metrics.")]
     if bad:
@@ -138,13 +143,49 @@ def main(argv: list[str] | None = None) -> int:
                                                   f"Table V: every method on {data}",
                                                   "Metrics: " + describe(params, res, colours=True) + note)}
     try:
-        report(df, params, a.out, note=note, resolution=res, extra=extra)
+        text = report(df, params, a.out, note=note, resolution=res, extra=extra)
     except OSError as e:  # a full disk, a read-only folder: one line naming the file
         from benchmark.harness.write_errors import cannot_write
 
         print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
         return 2
+    if a.markdown is not None:
+        from benchmark.reports.published import write_published
+
+        err = write_published(a.markdown, published_command(a, rest), text + "\n" + rose2_line(a.rose2))
+        if err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     return 0
+
+
+def rose2_line(checkout: str | None) -> str:
+    """The line under a published table that says where its ROSE² rows come from, or why it has none."""
+    if not checkout:
+        return ("No ROSE² row: no ROSE2 checkout was given (`--rose2 CHECKOUT` or `ROOMSEG_ROSE2=CHECKOUT`, "
+                "after `make rose2-env`).")
+    from benchmark.segmenters.rose2 import checkout_words
+
+    return f"ROSE² rows: run here from {checkout_words(checkout)} (`ROOMSEG_ROSE2` or `--rose2`)."
+
+
+def published_command(a, overrides: list[str]) -> str:  # noqa: ANN001 - the parsed arguments
+    """The command line that writes ``a.markdown`` again (defaults left out; the ROSE2 checkout, a
+    local path, is named by :func:`rose2_line` instead)."""
+    parts = ["python -m benchmark.commands.selros"]
+    for flag, value in (("--data", a.data), ("--resolution", a.resolution), ("--occupancy-dir", a.occupancy_dir),
+                        ("--occupancy-pattern", a.occupancy_pattern)):
+        if value is not None:
+            parts.append(f"{flag} {value}")
+    from benchmark.baselines.selros import GT_PATTERN
+
+    if a.gt_pattern != GT_PATTERN:
+        parts.append(f"--gt-pattern '{a.gt_pattern}'")
+    parts += [f"--method {m}" for m in a.method]
+    if a.method and a.method_pattern != "{id}.png":
+        parts.append(f"--method-pattern '{a.method_pattern}'")
+    parts += [flag for flag, on in (("--no-geometric", a.no_geometric), ("--no-sanity", a.no_sanity)) if on]
+    return " ".join([*parts, *overrides, f"--markdown {a.markdown}"])
 
 
 if __name__ == "__main__":

@@ -54,6 +54,20 @@ FREE, UNKNOWN, OCCUPIED = 255, 200, 0
 TMP_PREFIX = "roomseg-rose2-"
 
 
+def checkout_words(checkout: str | Path) -> str:
+    """Which ROSE2 a table's rows come from, in words: ``a ROSE2 checkout at commit 3a010b9e``
+    (its git HEAD, 8 hex digits), or ``a ROSE2 checkout of unknown commit`` (no git history)."""
+    import subprocess  # noqa: PLC0415
+
+    try:
+        head = subprocess.run(["git", "-C", str(Path(checkout).expanduser()), "rev-parse", "--short=8", "HEAD"],
+                              capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return "a ROSE2 checkout of unknown commit"
+    sha = head.stdout.strip()
+    return f"a ROSE2 checkout at commit {sha}" if head.returncode == 0 and sha else "a ROSE2 checkout of unknown commit"
+
+
 def clean_rose2_tmp() -> list[Path]:
     """Remove the driver folders (``<tmp>/roomseg-rose2-<pid>-*``) of processes that are gone
     (killed before they could remove their own); returns the folders removed."""
