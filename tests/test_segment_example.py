@@ -128,3 +128,17 @@ def test_bad_bands_leave_no_map(tmp_path, bands, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
         write_ros_map_rows(tmp_path / "m.yaml", img.shape, bands(img), 0.05)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_command_without_gt_writes_the_inputs_alone(tmp_path, capsys):
+    """``segment_example --no-gt``: the map, poses and labels write_example writes, no gt.png,
+    and the command that segments them without gt=."""
+    from benchmark.commands.segment_example import main
+
+    assert main([str(tmp_path / "a"), "--no-gt", "--rooms", "4x3"]) == 0
+    out = capsys.readouterr().out
+    assert "(340 x 260 px, 0.05 m/px, 12 rooms)" in out and "(192 views)" in out and "gt=" not in out
+    write_example(tmp_path / "b", 4, 3)
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["labels.csv", "map.pgm", "map.yaml", "poses.csv"]
+    for name in ("map.yaml", "map.pgm", "poses.csv", "labels.csv"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()

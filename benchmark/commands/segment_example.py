@@ -37,6 +37,7 @@ from envs.maps.frames import ros_origin_to_grid_origin, world_to_ros
 from envs.maps.gridmap import GridMap
 from envs.maps.label_png import write_label_png
 from envs.maps.ros import write_ros_map_rows
+from envs.maps.scene import MAX_MAP_PIXELS
 from envs.world.classes import PAPER_CLASSES
 
 #: ROS map thresholds written to the example YAML (ROS map_saver's).
@@ -252,19 +253,28 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rooms", type=_rooms, default=(3, 2), help="rooms across x up, e.g. 3x2 (default)")
     ap.add_argument("--room-m", type=float, default=4.0, help="room side, metres (default 4)")
     ap.add_argument("--resolution", type=float, default=0.05, help="metres per pixel (default 0.05)")
+    ap.add_argument("--no-gt", action="store_true",
+                    help="map, poses and labels only, written by bands of rows in tens of MB at any size "
+                         "(80x80 rooms of 10 m: 16020 x 16020 px); no gt.png")
     a = ap.parse_args(argv)
     try:
-        ex = write_example(a.out, *a.rooms, room_m=a.room_m, resolution=a.resolution)
+        if a.no_gt:
+            ins = write_example_inputs(a.out, *a.rooms, room_m=a.room_m, resolution=a.resolution)
+            shape, gt = ins.shape, None
+        else:
+            ex = write_example(a.out, *a.rooms, room_m=a.room_m, resolution=a.resolution)
+            shape, gt = ex.grid.shape, ex.gt
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    h, w = ex.grid.shape
-    n_views = len(ex.room_classes) * len(SPOTS) * len(HEADINGS_DEG)
-    print(f"wrote {ex.map_yaml} ({w} x {h} px, {ex.grid.resolution} m/px, {len(ex.room_classes)} rooms), "
-          f"{ex.poses} and {ex.labels} ({n_views} views), {ex.gt}")
+    h, w = shape
     d = a.out
+    n_rooms = a.rooms[0] * a.rooms[1]
+    print(f"wrote {d / 'map.yaml'} ({w} x {h} px, {a.resolution} m/px, {n_rooms} rooms), {d / 'poses.csv'} and "
+          f"{d / 'labels.csv'} ({n_rooms * len(SPOTS) * len(HEADINGS_DEG)} views)" + (f", {gt}" if gt else ""))
     print(f"segment it: roomseg-segment map={d}/map.yaml poses={d}/poses.csv frame=ros labels={d}/labels.csv "
-          f"gt={d}/gt.png gt_format=label out={d}/segmented")
+          + (f"gt={d}/gt.png gt_format=label " if gt else "")
+          + (f"max_map_pixels={h * w} " if h * w > MAX_MAP_PIXELS else "") + f"out={d}/segmented")
     return 0
 
 
