@@ -114,7 +114,8 @@ scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000
 scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
 	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
 
-# roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 1.5 GB), extrapolated to 16000^2 px
+# roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 1.5 GB), extrapolated to 16000^2 px;
+# measured there with `make perf PERF_SEGMENT_ROOMS="20 40 80"` (80: 16020^2 px, ~2 minutes more, 5.5 GB of memory)
 PERF_SEGMENT_ROOMS ?= 20 40
 perf:  setup ## time aggregators and post-processing against their references (prints ratios, memory)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.maintainer.perf --segment-rooms $(PERF_SEGMENT_ROOMS)

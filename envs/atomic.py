@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 #: tries before giving up on a free random name (each name has 48 random bits).
@@ -66,12 +66,20 @@ def atomic_write_bytes(path: str | Path, data: bytes, durable: bool = True) -> N
     written); cache entries skip it (``durable=False``) because they are verified on read and a
     torn one is recomputed, not served (100 generated houses: 5 % less wall time on this
     machine's disk)."""
+    atomic_write_chunks(path, (data,), durable)
+
+
+def atomic_write_chunks(path: str | Path, chunks: Iterable[bytes], durable: bool = True) -> None:
+    """:func:`atomic_write_bytes` of the concatenation of ``chunks``, written one at a time as
+    they come (a file larger than the memory one chunk takes: a map image by bands of rows);
+    a chunk that raises leaves no file and the old one in place."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = ordinary_temp_file(path.parent, "." + path.name + ".", ".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            for data in chunks:
+                f.write(data)
             f.flush()
             if durable:
                 os.fsync(f.fileno())

@@ -8,6 +8,7 @@ from benchmark.aggregators.reference import (
     euclidean_knn_reference,
     graph_knn_reference,
     vision_cone_reference,
+    vision_cone_votes_reference,
 )
 from benchmark.aggregators.vision_cone import VisionCone
 from envs.maps.gridmap import GridMap
@@ -244,5 +245,50 @@ def test_window_mode_one_class_at_a_time_equals_the_stacked_argmax(seed, window,
     assert np.array_equal(got, want)
     for band in (1, 2, 5, 22):  # bands of rows, windows reaching across their edges: the same
         assert np.array_equal(window_mode(counts, walkable, window, band_rows=band), want)
-    if seed % 2 == 0:  # whole votes as the cone counts them (uint16): the same
+    if seed % 2 == 0:  # whole votes as the cone counts them (uint8, uint16): the same
         assert np.array_equal(window_mode(counts.astype(np.uint16), walkable, window, band_rows=7), want)
+        assert np.array_equal(window_mode(counts.astype(np.uint8), walkable, window, band_rows=7), want)
+
+
+def test_vote_bound_counts_the_views_in_the_tiles_around_a_cell():
+    """max_votes_per_cell on known layouts (tiles of 10 px): views in the 3 x 3 tiles around
+    any one tile add up, views three tiles apart do not; no views, no votes."""
+    from benchmark.aggregators.vision_cone import max_votes_per_cell
+
+    def bound(*groups):
+        rows = np.concatenate([np.full(n, r) for n, r, _ in groups])
+        cols = np.concatenate([np.full(n, c) for n, _, c in groups])
+        return max_votes_per_cell((100, 120), rows, cols, 10)
+
+    assert bound((3, 0, 0), (5, 95, 115)) == 5
+    assert bound((3, 0, 0), (4, 15, 15)) == 7  # neighbouring tiles (0, 0) and (1, 1)
+    assert bound((3, 0, 0), (4, 25, 5)) == 7  # tiles (0, 0) and (2, 0): tile (1, 0) touches both
+    assert bound((3, 0, 0), (4, 35, 5)) == 4  # tiles (0, 0) and (3, 0): no tile touches both
+    assert bound((3, 9, 9), (4, 10, 10), (2, 99, 119)) == 7
+    assert max_votes_per_cell((100, 120), np.zeros(0, int), np.zeros(0, int), 10) == 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_cone_votes_equal_the_reference_in_the_smallest_type(seed):
+    """The cone's whole votes are the per-ray reference's counts, in uint8 (few views near any
+    cell), and no cell gets more votes than the bound the type was chosen by."""
+    from benchmark.aggregators.vision_cone import max_votes_per_cell, reach_px
+
+    grid, poses, proba = random_case(seed)
+    kw = dict(fov=120.0, max_range_m=0.8, blocked_ray_m=0.1)
+    cone = VisionCone(**kw)
+    got, want = cone.votes(grid, poses, proba), vision_cone_votes_reference(grid, poses, proba, **kw)
+    assert got.dtype == np.uint8 and want.max() >= 2 and np.array_equal(got, want)
+    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
+    assert want.sum(0).max() <= max_votes_per_cell(grid.shape, r, c, reach_px(0.8 / grid.resolution))
+
+
+@pytest.mark.parametrize(("n", "dtype"), [(255, np.uint8), (256, np.uint16), (65_535, np.uint16), (65_536, np.uint32)])
+def test_cone_votes_widen_where_a_cell_can_get_more_votes(n, dtype):
+    """n copies of one view: every cell it sees gets exactly n votes (n times the reference's
+    one view), in the narrowest type that holds n, including past 255 and 65,535."""
+    grid, poses, proba = random_case(0)
+    kw = dict(fov=90.0, max_range_m=0.8, blocked_ray_m=0.0)
+    one = vision_cone_votes_reference(grid, poses[:1], proba[:1], **kw)
+    got = VisionCone(**kw).votes(grid, np.repeat(poses[:1], n, 0), np.repeat(proba[:1], n, 0))
+    assert got.dtype == dtype and one.sum() > 10 and np.array_equal(got, one * n)

@@ -106,3 +106,17 @@ def test_perf_segment_memory_measures_each_size_in_its_own_process(tmp_path):
     last = df.iloc[-1]
     assert last["B/px (marginal)"] > 1 and last["16000^2 px extrapolated GB"] > last["peak RSS MB"] / 1024
     assert (tmp_path / "rooms4" / "segmented" / "labels.png").exists()
+
+
+def test_perf_segment_memory_note_says_measured_or_extrapolated():
+    """The large-map caption: measured when a row reaches 16000^2 px (its peak in GB), else
+    extrapolated (and says how to measure it)."""
+    import pandas as pd
+
+    from benchmark.commands.maintainer.perf import segment_memory_note
+
+    big = pd.DataFrame({"pixels": [64320400, 256640400], "peak RSS MB": [1532.0, 5294.2]})
+    assert segment_memory_note(big).endswith("measured at 256640400 px: 5.55 GB.")
+    small = pd.DataFrame({"pixels": [16160400, 64320400], "peak RSS MB": [659.0, 1532.0],
+                          "16000^2 px extrapolated GB": [float("nan"), 5.3]})
+    assert "extrapolated from the two largest maps, not run at that size" in segment_memory_note(small)

@@ -173,6 +173,15 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
                           blocked_ray_m: float = 0.3, window: int = 5, vote: str = "label",
                           ray_density: float = 1.0) -> np.ndarray:
     """Vision-cone voting by a per-ray Python loop."""
+    counts = vision_cone_votes_reference(grid, poses, proba, fov, max_range_m, blocked_ray_m, vote, ray_density)
+    return window_mode_reference(counts, grid.walkable, window)
+
+
+def vision_cone_votes_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_range_m: float = 10.0,
+                                blocked_ray_m: float = 0.3, vote: str = "label",
+                                ray_density: float = 1.0) -> np.ndarray:
+    """The vision cone's (C, H, W) float64 vote counts (before the window mode) by a per-ray
+    Python loop: each view's cells, gathered in a set, get one vote each."""
     r, c, yaw, p, _ = view_cells(grid, poses, proba)
     blocked = ~grid.walkable
     n_cls = p.shape[1]
@@ -191,7 +200,7 @@ def vision_cone_reference(grid: GridMap, poses, proba, fov: float = 90.0, max_ra
                 counts[int(np.argmax(p[i])), rr, cc] += 1
             else:
                 counts[:, rr, cc] += p[i]
-    return window_mode_reference(counts, grid.walkable, window)
+    return counts
 
 
-__all__ = ["graph_knn_reference", "vision_cone_reference", "window_mode_reference", "euclidean_knn_reference", "digital_line", "walk_ray", "grid_graph"]
+__all__ = ["graph_knn_reference", "vision_cone_reference", "vision_cone_votes_reference", "window_mode_reference", "euclidean_knn_reference", "digital_line", "walk_ray", "grid_graph"]

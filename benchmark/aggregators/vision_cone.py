@@ -8,7 +8,8 @@ and every walkable cell a ray reaches with clear line of sight gets one vote fro
 several rays of one view still gets one vote. The label of a cell is the class with the
 most votes summed over the ``window`` x ``window`` pixels around it (ties: lower class
 index); walkable cells with no vote in their window stay unlabelled.
-Memory: (C, H, W) vote counts (uint16 with label votes from fewer than 65,536 views, else
+Memory: (C, H, W) vote counts (label votes: uint8 while no cell can get 256 votes, from the
+views within the cone's reach of it, uint16 below 65,536, else uint32; probability votes:
 float32), an (H + 2, W + 2) int32 cell state (free, blocked or
 off the map, and the last view that voted there) and an (H, W) bool obstacle copy, linear in
 the map size, and nothing per ray or view: every cone shares one array of ray offsets around
@@ -43,8 +44,39 @@ def cone_state(walkable: np.ndarray) -> np.ndarray:
     one-cell border (a ray walks one cell per step, so it meets the border before leaving the
     map: no bounds checks in the walk). Cell (r, c) of the map is (r + 1, c + 1) here."""
     st = np.full((walkable.shape[0] + 2, walkable.shape[1] + 2), OUTSIDE, np.int32)
-    st[1:-1, 1:-1] = np.where(walkable, FREE, BLOCKED)
+    inner = st[1:-1, 1:-1]
+    inner[...] = BLOCKED
+    np.copyto(inner, FREE, where=walkable)  # in place: no map-sized 64-bit temporary
     return st
+
+
+def reach_px(max_range: float) -> int:
+    """How far a cone of ``max_range`` pixels votes from its view's cell, along either axis, at
+    most: its rays end at :func:`envs.maps.rays.ray_end`'s cell, ``floor(0.5 + max_range)``
+    px away at most, and their lines never pass beyond their ends (one pixel spare)."""
+    return int(np.ceil(max_range)) + 2
+
+
+def max_votes_per_cell(shape: tuple[int, int], rows: np.ndarray, cols: np.ndarray, reach: int) -> int:
+    """An upper bound on the whole votes any one cell can get: the views within ``reach`` px of
+    it along both axes (a view votes at most once per cell). Counted on square tiles of
+    ``reach`` px: such views lie in the cell's tile or one of the 8 around it, so the bound is
+    the largest 3 x 3 sum of views per tile (a (H / reach) x (W / reach) array, not per pixel).
+
+    Args:
+        shape: (H, W) map size, pixels.
+        rows, cols: (N,) the views' cells.
+        reach: :func:`reach_px` of the cone, pixels (>= 1).
+
+    Returns:
+        The bound (0 without views).
+    """
+    t = max(int(reach), 1)
+    th, tw = shape[0] // t + 3, shape[1] // t + 3  # one empty tile around the map
+    flat = (np.asarray(rows, np.int64) // t + 1) * tw + np.asarray(cols, np.int64) // t + 1
+    tiles = np.bincount(flat, minlength=th * tw).reshape(th, tw)
+    near = sum(tiles[1 + a:th - 1 + a, 1 + b:tw - 1 + b] for a in (-1, 0, 1) for b in (-1, 0, 1))
+    return int(near.max()) if len(flat) else 0
 
 
 #: the most bytes :func:`ray_paths` keeps for one range; beyond it (ranges of several thousand
@@ -296,7 +328,7 @@ def window_mode(counts: np.ndarray, walkable: np.ndarray, window: int, band_rows
     :func:`benchmark.aggregators.reference.window_mode_reference` is the whole-map stacked argmax.
 
     Args:
-        counts: (C, H, W) votes per class (uint16, float32 or any real type).
+        counts: (C, H, W) votes per class (uint8, uint16, float32 or any real type).
         walkable: (H, W) bool.
         window: odd box size, pixels.
         band_rows: rows per band (>= 1).
@@ -318,9 +350,9 @@ def window_mode(counts: np.ndarray, walkable: np.ndarray, window: int, band_rows
         out[:] = 0
         best = None
         for k, c in enumerate(counts):
-            # float32 window sums straight from the counts (uint16 counts need no float copy;
-            # sums of whole votes stay exact below 2**24)
-            src = c[a:b] if c.dtype in (np.uint16, np.float32) else c[a:b].astype(np.float32)
+            # float32 window sums straight from the counts (uint8 / uint16 counts need no float
+            # copy; sums of whole votes stay exact below 2**24)
+            src = c[a:b] if c.dtype in (np.uint8, np.uint16, np.float32) else c[a:b].astype(np.float32)
             summed = cv2.boxFilter(src, cv2.CV_32F, (window, window), normalize=False,
                                    borderType=cv2.BORDER_CONSTANT)[r0 - a:r1 - a]
             if best is None:
@@ -366,9 +398,11 @@ class VisionCone(Aggregator):
         self.last_used = 0
 
     def votes(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
-        """(C, H, W) vote counts (before the window mode): with ``vote="label"`` whole votes, uint16
-        (a cell gets at most one vote per view, so fewer than 65,536 views cannot overflow it;
-        uint32 beyond), else float32 sums of probabilities."""
+        """(C, H, W) vote counts (before the window mode): with ``vote="label"`` whole votes, in
+        the smallest of uint8, uint16 and uint32 that holds :func:`max_votes_per_cell` (a cell
+        gets at most one vote per view, from views within the cone's reach of it: 16 views per
+        10 m room with a 10 m cone need uint8 at any map size, 1 byte a pixel per class), else
+        float32 sums of probabilities."""
         r, c, yaw, p, _ = view_cells(grid, poses, proba)
         n_cls = p.shape[1]
         labels = np.argmax(p, axis=1).astype(np.int64) if self.vote == "label" else np.full(len(p), -1, np.int64)
@@ -376,7 +410,8 @@ class VisionCone(Aggregator):
         # every cone has the same ray offsets around its heading: no (views x rays) array, so
         # memory does not grow with the number of views (a million views fit)
         offsets = cone_thetas(0.0, self.fov, max_px, self.ray_density)
-        whole = np.uint16 if len(p) < 2**16 else np.uint32
+        most = min(len(p), max_votes_per_cell(grid.shape, r, c, reach_px(max_px)))
+        whole = np.uint8 if most < 2**8 else np.uint16 if most < 2**16 else np.uint32
         counts = np.zeros((n_cls, *grid.shape), whole if self.vote == "label" else np.float32)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), cone_state(grid.walkable),
                                      r.astype(np.int64), c.astype(np.int64), np.deg2rad(yaw), offsets, float(max_px),

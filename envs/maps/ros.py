@@ -54,6 +54,7 @@ from __future__ import annotations
 import io
 import math
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,7 +62,7 @@ import numpy as np
 import yaml
 from PIL import Image
 
-from envs.atomic import atomic_write_bytes, atomic_write_text
+from envs.atomic import atomic_write_bytes, atomic_write_chunks, atomic_write_text
 from envs.maps.frames import grid_origin_to_ros_origin, ros_origin_to_grid_origin
 from envs.maps.gridmap import GridMap
 from envs.maps.images import open_image
@@ -383,6 +384,62 @@ def write_ros_map(yaml_path: str | Path, values: np.ndarray, resolution: float,
     if values.ndim != 2 or values.size == 0 or values.dtype != np.uint8:
         raise ValueError(f"{yaml_path}: values must be a non-empty (H, W) uint8 image, got shape {values.shape} "
                          f"dtype {values.dtype}")
+    image_name = _check_map_fields(yaml_path, resolution, origin, occupied_thresh, free_thresh, mode, image_name)
+    fmt = {".pgm": "PPM", ".png": "PNG"}[Path(image_name).suffix.lower()]
+    buf = io.BytesIO()
+    Image.fromarray(values, mode="L").save(buf, format=fmt)
+    atomic_write_bytes(yaml_path.parent / image_name, buf.getvalue())
+    return _write_map_yaml(yaml_path, image_name, resolution, origin, negate, occupied_thresh, free_thresh, mode)
+
+
+def write_ros_map_rows(yaml_path: str | Path, shape: tuple[int, int], bands: Iterable[np.ndarray],
+                       resolution: float, origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                       negate: bool = False, occupied_thresh: float = ROS_OCCUPIED_THRESH,
+                       free_thresh: float = ROS_FREE_THRESH, mode: str = "trinary",
+                       image_name: str | None = None) -> Path:
+    """:func:`write_ros_map` of an image given as bands of rows, top band first, each written
+    as it comes (a map larger than the memory one band takes); binary PGM (P5) only, the same
+    bytes :func:`write_ros_map` writes for the whole image.
+
+    Args:
+        shape: (H, W) of the whole image, pixels.
+        bands: (h_k, W) uint8 arrays whose rows add up to H, in order from row 0.
+        Others: as :func:`write_ros_map` (``image_name`` must end in ``.pgm``).
+
+    Raises:
+        ValueError: a band of another width or type, or rows that do not add up to H (no
+            image file is left).
+    """
+    yaml_path = Path(yaml_path)
+    h, w = (int(v) for v in shape)
+    if h <= 0 or w <= 0:
+        raise ValueError(f"{yaml_path}: shape {tuple(shape)}; expected (H, W) > 0")
+    image_name = _check_map_fields(yaml_path, resolution, origin, occupied_thresh, free_thresh, mode, image_name)
+    if Path(image_name).suffix.lower() != ".pgm":
+        raise ValueError(f"{yaml_path}: image name {image_name!r}; writing by bands of rows needs a .pgm file name")
+
+    def chunks():
+        yield b"P5\n%d %d\n255\n" % (w, h)
+        rows = 0
+        for band in bands:
+            band = np.asarray(band)
+            if band.ndim != 2 or band.shape[1] != w or band.dtype != np.uint8:
+                raise ValueError(f"{yaml_path}: band of shape {band.shape} dtype {band.dtype} at row {rows}; "
+                                 f"expected (rows, {w}) uint8")
+            rows += band.shape[0]
+            if rows > h:
+                raise ValueError(f"{yaml_path}: bands hold more than the {h} rows of the image")
+            yield np.ascontiguousarray(band).tobytes()
+        if rows != h:
+            raise ValueError(f"{yaml_path}: bands hold {rows} rows; expected {h}")
+
+    atomic_write_chunks(yaml_path.parent / image_name, chunks())
+    return _write_map_yaml(yaml_path, image_name, resolution, origin, negate, occupied_thresh, free_thresh, mode)
+
+
+def _check_map_fields(yaml_path: Path, resolution: float, origin, occupied_thresh: float, free_thresh: float,
+                      mode: str, image_name: str | None) -> str:
+    """Refuse bad map settings in one line; the image file name (default ``<yaml stem>.pgm``)."""
     if mode not in MODES:
         raise ValueError(f"{yaml_path}: mode {mode!r}; expected one of {list(MODES)}")
     if not (math.isfinite(resolution) and resolution > 0):
@@ -393,13 +450,13 @@ def write_ros_map(yaml_path: str | Path, values: np.ndarray, resolution: float,
     if len(origin) != 3 or not all(math.isfinite(float(v)) for v in origin):
         raise ValueError(f"{yaml_path}: origin {origin!r}; expected finite (x, y, yaw)")
     image_name = image_name or yaml_path.stem + ".pgm"
-    suffix = Path(image_name).suffix.lower()
-    fmt = {".pgm": "PPM", ".png": "PNG"}.get(suffix)
-    if fmt is None:
+    if Path(image_name).suffix.lower() not in (".pgm", ".png"):
         raise ValueError(f"{yaml_path}: image name {image_name!r}; expected a .pgm or .png file name")
-    buf = io.BytesIO()
-    Image.fromarray(values, mode="L").save(buf, format=fmt)
-    atomic_write_bytes(yaml_path.parent / image_name, buf.getvalue())
+    return image_name
+
+
+def _write_map_yaml(yaml_path: Path, image_name: str, resolution: float, origin, negate: bool,
+                    occupied_thresh: float, free_thresh: float, mode: str) -> Path:
     text = (f"image: {image_name}\n"
             f"mode: {mode}\n"
             f"resolution: {_fmt(resolution)}\n"
