@@ -34,19 +34,16 @@ def main(argv: list[str] | None = None) -> int:
     md = pd.DataFrame(table).to_markdown()
     print(md)
     if a.out is not None:
-        from envs.atomic import atomic_write_text
+        import sys
+
+        from benchmark.reports.published import write_published
 
         command = f"python -m benchmark.commands.house_stats --synthetic {a.synthetic}"
         if a.procthor != default:
             command += f" --procthor {a.procthor}"
-        try:
-            atomic_write_text(a.out, f"Written by `{command} --out {a.out}`.\n\n{md}\n")
-        except OSError as e:  # a full disk, a read-only folder: one line naming the file
-            import sys
-
-            from benchmark.harness.write_errors import cannot_write
-
-            print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
+        err = write_published(a.out, f"{command} --out {a.out}", md)
+        if err:
+            print(f"error: {err}", file=sys.stderr)
             return 2
     print(f"\ngeneration: {ms:.2f} ms per house (mean over {a.synthetic} seeds)")
     if a.figure:

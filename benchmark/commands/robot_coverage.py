@@ -124,14 +124,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {one_line(e)}", file=sys.stderr)
         return 2
     if a.out is not None:
-        from envs.atomic import atomic_write_text
+        from benchmark.reports.published import write_published
 
-        try:
-            atomic_write_text(a.out, f"Written by `{published_command(a)}`.\n\n" + text)
-        except OSError as e:  # a full disk, a read-only folder: one line naming the file
-            from benchmark.harness.write_errors import cannot_write
-
-            print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
+        err = write_published(a.out, published_command(a), text)
+        if err:
+            print(f"error: {err}", file=sys.stderr)
             return 2
     print(text)
     return 0

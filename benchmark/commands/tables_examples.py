@@ -105,16 +105,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {one_line(e)}", file=sys.stderr)
         return 2
     if a.out is not None:
-        from envs.atomic import atomic_write_text
+        from benchmark.reports.published import write_published
 
-        command = (f"python -m benchmark.commands.tables_examples --small {a.small} --large {a.large} "
-                   f"--houses {a.houses} --out {a.out}")
-        try:
-            atomic_write_text(a.out, f"Written by `{command}`.\n\n" + text)
-        except OSError as e:  # a full disk, a read-only folder: one line naming the file
-            from benchmark.harness.write_errors import cannot_write
-
-            print(f"error: {cannot_write(e, a.out)}", file=sys.stderr)
+        err = write_published(a.out, f"python -m benchmark.commands.tables_examples --small {a.small} "
+                                     f"--large {a.large} --houses {a.houses} --out {a.out}", text)
+        if err:
+            print(f"error: {err}", file=sys.stderr)
             return 2
     print(text)
     return 0
