@@ -73,3 +73,21 @@ def test_a_sweep_prints_its_progress_and_keeps_job_lines_in_their_logs(tmp_path)
     assert "#1 : " in (run / "sweep.log").read_text()
     logs = sorted(run.glob("*/bench.log"))
     assert len(logs) == 2 and all("2 houses, 2 ok, 0 failed; mean IoU" in f.read_text() for f in logs)
+
+
+@pytest.mark.slow
+def test_a_warning_repeated_by_every_job_shows_once_and_stays_whole_in_the_logs(tmp_path):
+    """A pose error pushes views off the map in every house of every job: the console shows that
+    warning once per worker process; each job's bench.log keeps every one of its own."""
+    r = subprocess.run([sys.executable, "-m", "benchmark.commands.bench", "-m", "env=synthetic", "env.resolution=0.1",
+                        "classifier=oracle", "aggregator=graph_knn,vision_cone", "corruption=pose_5", "run.limit=3",
+                        "run.name=w", f"run.results_dir={tmp_path}", "run.workers=1"], cwd=ROOT, capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    console = r.stdout + r.stderr
+    message = "viewpoints are off the walkable map and were dropped"
+    logs = sorted((tmp_path / "runs" / "w").glob("*/bench.log"))
+    in_logs = [sum(message in line for line in f.read_text().splitlines()) for f in logs]
+    assert len(logs) == 2 and sum(in_logs) >= 3, in_logs  # the condition does drop views (known: pose_5 at 0.1 m/px)
+    assert console.count(message) == 1, console
+    assert "shows here once per worker" in console

@@ -105,14 +105,33 @@ def app(cfg: DictConfig) -> float:
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
 
 
+class _OncePerProcess:
+    """A console filter of a sweep's jobs: each warning (its logger and message template, e.g.
+    "%d of %d viewpoints are off the walkable map and were dropped") passes the first time this
+    process logs it. A sweep's jobs repeat one warning for many houses and conditions (8,000
+    lines in a robustness run); every one still goes to its job's ``bench.log``."""
+
+    seen: set[tuple[str, str]] = set()  # per process: a fork worker runs many jobs
+
+    def filter(self, record) -> bool:  # noqa: ANN001 - a logging.LogRecord
+        key = (record.name, str(record.msg))
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True
+
+
 def _console_warnings_only() -> None:
-    """Raise the job's console log handlers (Hydra's ``job_logging`` console) to WARNING: the
-    job's INFO lines still go to its log file (``<job>/bench.log``)."""
+    """Raise the job's console log handlers (Hydra's ``job_logging`` console) to WARNING and show
+    each warning once per process (:class:`_OncePerProcess`): the job's INFO lines and every
+    warning still go to its log file (``<job>/bench.log``)."""
     import logging
 
     for h in logging.getLogger().handlers:
         if isinstance(h, logging.StreamHandler) and not isinstance(h, logging.FileHandler):
             h.setLevel(max(h.level, logging.WARNING))
+            if not any(isinstance(f, _OncePerProcess) for f in h.filters):
+                h.addFilter(_OncePerProcess())
 
 
 def _finished_jobs() -> tuple[int, int]:

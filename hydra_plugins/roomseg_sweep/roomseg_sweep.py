@@ -301,7 +301,8 @@ class LocalLauncher(Launcher):
             for i, overrides in enumerate(job_overrides):
                 f.write(f"\t#{initial_job_idx + i} : {' '.join(filter_overrides(overrides))}\n")
         log.info(f"Launching {len(job_overrides)} jobs {how} -> {sweep_dir} (jobs: {listing.name}; "
-                 f"each job's log: <job>/bench.log)")
+                 f"each job's log, all its warnings included: <job>/bench.log; a warning repeated by later "
+                 f"houses or jobs shows here once per worker)")
         _SWEEP = (self.hydra_context, self.config, self.task_function, Singleton.get_state())
         jobs = [(initial_job_idx + i, list(o)) for i, o in enumerate(job_overrides)]
         progress = SweepProgress(len(jobs))
