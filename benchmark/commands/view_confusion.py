@@ -122,7 +122,8 @@ def summary(record: dict) -> str:
     wrong = m.sum() - np.trace(m)
     rows.append({"true class": "all", "views": f"{int(m.sum()):,}", "right %": f"{100 * np.trace(m) / m.sum():.1f}",
                  "errors": f"{int(wrong):,}", "errors' most common class": "", "its share of the errors %": ""})
-    table = pd.DataFrame(rows).to_markdown(index=False, colalign=["left", "right", "right", "right", "left", "right"])
+    table = pd.DataFrame(rows).to_markdown(index=False, colalign=["left", "right", "right", "right", "left", "right"],
+                                                  disable_numparse=True)
     note = (f"{record['model']} on rendered views ({record['data']}), truth: the {record['truth']}; "
             "`all`: pooled over views.")
     return f"{table}\n\n{note}\n"
