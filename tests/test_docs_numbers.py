@@ -107,7 +107,9 @@ ROSE2_LINES = re.compile(r"rose2|ROSE²|^- Ranking on ", re.IGNORECASE)
     ("leaderboard", "baselines.md", r"\| ProcTHOR \| distance +\|", True),
     ("objects_accuracy", "method.md", r"\| shared ProcTHOR houses 0-74 +\|", True),
     ("sensitivity", "method.md", r"\| independent \| 1\.0 \|", False),
-    ("oracle_confusion", "method.md", r"rendered views of 50 other generated houses \(\d", False)])
+    ("oracle_confusion", "method.md", r"rendered views of 50 other generated houses \(\d", False),
+    ("slam_levels", "robot-conditions.md", r"\| slam_1 +\| +\d", True),
+    ("map_calibration", "robot-conditions.md", r"\| intel_map\.png +\| +\d", True)])
 def test_the_published_tables_are_what_their_commands_write(name, page, typed, shared, tmp_path, monkeypatch,
                                                              capsys):
     """A page includes results/published/<name>.md; the command its first line names (a line of
@@ -123,6 +125,8 @@ def test_the_published_tables_are_what_their_commands_write(name, page, typed, s
         pytest.skip("the shared ProcTHOR houses are absent")
     if not shared and name == "selros_table5" and not (SHARED.parent / "selros").is_dir():
         pytest.skip("the SeLRoS release is absent")
+    if name == "map_calibration" and not (SHARED.parent / "real_maps").is_dir():
+        pytest.skip("the real laser maps are absent")
     published = ROOT / "results" / "published" / f"{name}.md"
     text = (ROOT / "docs" / page).read_text(encoding="utf-8")
     assert f'--8<-- "results/published/{name}.md"' in text
