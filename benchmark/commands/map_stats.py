@@ -113,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--real-dir", type=Path, default=None, help="folder of the real maps (../shared/data/real_maps)")
     ap.add_argument("--n", type=int, default=5, help="shared houses for the simulated maps")
     ap.add_argument("--figure", type=Path, default=None, help="PNG of the real and simulated maps (with --calibrate)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="also write the table to this Markdown file, headed by the command that made it "
+                         "(make docs-numbers: results/published/map_calibration.md, which "
+                         "docs/robot-conditions.md includes)")
     a = ap.parse_args(argv)
     try:
         if not a.maps and not a.calibrate:
@@ -140,12 +144,26 @@ def main(argv: list[str] | None = None) -> int:
     except cli_errors() as e:
         print(f"error: {one_line(e)}", file=sys.stderr)
         return 2
-    print(pd.DataFrame(rows)[["map", *COLUMNS]].to_markdown(index=False, floatfmt=".3f"))
+    text = pd.DataFrame(rows)[["map", *COLUMNS]].to_markdown(index=False, floatfmt=".3f")
     if a.calibrate:
-        print(f"\nReal maps at {REAL_RESOLUTION} m/px; simulated: means over {a.n} shared houses (autotrace views, "
-              f"0.05 m/px). wall_thickness_m mean; speckle and clutter per m^2 of free space; clutter_median_m2 "
-              f"median blob area; unknown_inside share of the outline; wall_straight share of wall skeleton on "
-              f"straight segments >= 1 m.")
+        text += (f"\n\nReal maps at {REAL_RESOLUTION} m/px; simulated: means over {a.n} shared houses (autotrace "
+                 f"views, 0.05 m/px). wall_thickness_m mean; speckle and clutter per m^2 of free space; "
+                 f"clutter_median_m2 median blob area; unknown_inside share of the outline; wall_straight share of "
+                 f"wall skeleton on straight segments >= 1 m.")
+    print(text)
+    if a.out is not None:
+        from benchmark.reports.published import write_published
+
+        command = ["python -m benchmark.commands.map_stats", *(str(m) for m in a.maps)]
+        defaults = {"resolution": 0.05, "free_min": 250, "occupied_max": 50}
+        command += [f"--{k.replace('_', '-')} {getattr(a, k):g}" for k, v in defaults.items()
+                    if a.maps and getattr(a, k) != v]
+        if a.calibrate:
+            command += ["--calibrate", f"--n {a.n}"] + ([f"--real-dir {a.real_dir}"] if a.real_dir else [])
+        err = write_published(a.out, " ".join([*command, f"--out {a.out}"]), text)
+        if err is not None:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     return 0
 
 

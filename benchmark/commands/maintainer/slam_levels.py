@@ -112,6 +112,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=10, help="first N houses")
     ap.add_argument("--levels", nargs="+", default=list(LEVELS), help="corruption levels (conf/corruption names)")
     ap.add_argument("--figure", type=Path, default=None, help="PNG of the first house's maps at every level")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="also write the table to this Markdown file, headed by the command that made it "
+                         "(make docs-numbers: results/published/slam_levels.md, which docs/robot-conditions.md "
+                         "includes)")
     a = ap.parse_args(argv)
     try:
         if a.n < 1:
@@ -136,10 +140,23 @@ def main(argv: list[str] | None = None) -> int:
     order = list(dict.fromkeys(df["level"]))
     cols = ["route_m", "loop_closures", "wrong_closures", "kidnapped_m", "odometry_ate_m", "ate_rmse_m", "ate_per_100m",
             "view_error_m", "map_free_iou"]
-    print(df.groupby("level", sort=False)[cols].mean().loc[order].reset_index().to_markdown(index=False,
-                                                                                               floatfmt=".3f"))
-    print(f"\nMeans over {df['house'].nunique()} houses; autotrace views, a node every 0.5 m, each level's scanner. "
-          f"ATE: RMSE (m) after rigid alignment; ate_per_100m in metres per 100 m of route.")
+    text = (df.groupby("level", sort=False)[cols].mean().loc[order].reset_index().to_markdown(index=False,
+                                                                                               floatfmt=".3f")
+            + f"\n\nMeans over {df['house'].nunique()} houses; autotrace views, a node every 0.5 m, each level's "
+              f"scanner. ATE: RMSE (m) after rigid alignment; ate_per_100m in metres per 100 m of route.")
+    print(text)
+    if a.out is not None:
+        from benchmark.reports.published import write_published
+
+        command = ["python -m benchmark.commands.maintainer.slam_levels", f"--n {a.n}"]
+        if Path(a.houses) != procthor_houses():
+            command.append(f"--houses {a.houses}")
+        if list(a.levels) != list(LEVELS):
+            command.append("--levels " + " ".join(a.levels))
+        err = write_published(a.out, " ".join([*command, f"--out {a.out}"]), text)
+        if err is not None:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     return 0
 
 
