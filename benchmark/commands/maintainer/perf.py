@@ -323,7 +323,8 @@ def main(argv: list[str] | None = None) -> int:
 
         with tempfile.TemporaryDirectory(prefix="roomseg-perf-") as d:
             seg = run_segment_memory(a.segment_rooms, Path(d))
-        parts += [seg.to_markdown(index=False, floatfmt=".1f"), segment_memory_note(seg)]
+        blank = seg.astype(object).where(seg.notna(), None)  # a cell with no value is empty, not "nan"
+        parts += [blank.to_markdown(index=False, floatfmt=".1f", missingval=""), segment_memory_note(seg)]
         print("\n" + "\n\n".join(parts[-2:]) + "\n")
     if a.houses == 0 and a.synthetic == 0:
         return _write(a.out, parts, argv)
