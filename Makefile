@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish docs-numbers clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -123,8 +123,20 @@ perf:  setup ## time aggregators and post-processing against their references (p
 perf-publish: setup  ## make perf's tables -> results/published/perf.md (included by docs/robot-conditions.md)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.maintainer.perf --robot-houses 10 --out results/published/perf.md
 
+# Measurements (timings and sizes: not re-made by a test, each file's first line says when, where
+# and by which command it was measured); the docs pages include them as they are.
+segment-memory-publish: setup  ## roomseg-segment's peak memory and time on 8020^2 and 16020^2 px maps (~2 min, 5.5 GB) -> results/published/segment_memory.md (docs/own-robot-data.md)
+	$(PY) -m benchmark.commands.maintainer.perf --houses 0 --synthetic 0 --robot-houses 0 --segment-rooms 40 80 --out results/published/segment_memory.md
+
+compile-publish: setup  ## the numba warm-up timed with an empty and a filled cache -> results/published/compile_kernels.md (docs/sweeps-and-clusters.md)
+	$(PY) -m benchmark.commands.compile_kernels --measure --out results/published/compile_kernels.md
+
+install-sizes-publish: setup-test  ## .venv's size by install step (core, docs, test extras, torch, CUDA) -> results/published/install_sizes.md (docs/getting-started.md)
+	$(PY) -m benchmark.commands.maintainer.install_sizes --out results/published/install_sizes.md
+
 # the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
-# fails when it writes other numbers)
+# fails when it writes other numbers); the measured ones (timings, memory, sizes) are written by
+# the *-publish targets: perf, scaling, segment-memory, compile, install-sizes, bench, robustness
 docs-numbers: setup  ## the numbers the docs include -> results/published/: autotrace coverage, the default confusion matrix, robot coverage, SLAM levels, map calibration, house statistics, clutter tables, tables examples, SeLRoS Table V, leaderboard, objects accuracy, sensitivity (ROSE2=<checkout> adds ROSE²)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.coverage --range 0:150 --out results/published/coverage.md

@@ -64,3 +64,41 @@ def test_warm_up_compiles_every_kernel_and_a_run_after_it_compiles_nothing(tmp_p
                          env=env, cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-2000:]
     assert _cache_files(cache) == before  # every kernel a run calls was loaded, none compiled
+
+
+def _record(stages: dict[str, float], process: float, sigs: dict[str, int]) -> dict:
+    return {"import numba": 0.1, "stages": stages, "process": process, "signatures": sigs}
+
+
+COLD = _record({"setup (house, autotrace)": 0.5, "graph_knn": 1.25, "postprocess": 2.0}, 4.5,
+               {"m.a": 1, "m.b": 2, "m.c": 0})
+WARM = _record({"setup (house, autotrace)": 0.25, "graph_knn": 0.01, "postprocess": 0.02}, 1.0, {})
+
+
+def test_the_measure_table_of_two_known_warm_ups():
+    from benchmark.commands.compile_kernels import measure_table
+
+    lines = measure_table(COLD, WARM).splitlines()
+    assert lines[2:6] == ["| setup (house, autotrace) | 0.50 | 0.25 |", "| graph_knn | 1.25 | 0.01 |",
+                          "| postprocess | 2.00 | 0.02 |", "| **all stages** | **3.75** | **0.28** |"]
+    assert lines[6] == "| whole process (python start, imports, stages) | 4.50 | 1.00 |"
+    assert lines[8] == ("3 kernels, compiled for 3 argument-type signatures (more than one: m.b x2; a call inside "
+                        "another kernel counts too); inlined only into the kernels that call them: m.c.")
+
+
+def test_measure_out_writes_the_table_under_a_measured_line(tmp_path, monkeypatch, capsys):
+    from benchmark.commands import compile_kernels as ck
+
+    records = iter([COLD, WARM])
+    monkeypatch.setattr(ck, "_measure_once", lambda cache_dir: next(records))
+    out = tmp_path / "pub" / "compile.md"
+    assert ck.main(["--measure", "--out", str(out)]) == 0
+    text = out.read_text()
+    head, rest = text.split("\n\n", 1)
+    assert head.startswith("Measured on ") and head.endswith(
+        f"by `python -m benchmark.commands.compile_kernels --measure --out {out}`.")
+    assert rest == ck.measure_table(COLD, WARM) + "\n"
+    with pytest.raises(SystemExit) as e:
+        ck.main(["--out", str(out)])
+    assert e.value.code == 2
+    assert f"--out {out}: only with --measure" in capsys.readouterr().err

@@ -15,7 +15,9 @@ kernel is compiled (or loaded) with exactly the signature a run needs:
 an empty cache (a temporary ``NUMBA_CACHE_DIR``: what a fresh clone pays) and with the
 cache filled (what every run after ``make setup`` pays), and how many signatures the kernels
 were compiled for (each one is a separate compile). Nothing
-outside the temporary folder is written by ``--measure``.
+outside the temporary folder is written by ``--measure`` but the table to ``--out`` (under a line
+saying when, where and by which command it was measured: ``make compile-publish`` writes
+``results/published/compile_kernels.md``, which docs/sweeps-and-clusters.md includes).
 
 Every ``numba`` dispatcher in the ``benchmark`` and ``envs`` packages must be reached here:
 :func:`kernels` lists them and the test suite checks none is left uncompiled.
@@ -151,6 +153,14 @@ def measure() -> str:
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as d:
         cold = _measure_once(d)
         warm_ = _measure_once(d)
+    return measure_table(cold, warm_)
+
+
+def measure_table(cold: dict, warm_: dict) -> str:
+    """The Markdown table of two warm-up processes' records (``{"stages": {name: seconds},
+    "process": seconds, "signatures": {kernel: count}}``; ``cold`` with an empty numba cache,
+    ``warm_`` with it filled): seconds per stage, their sums, the whole processes, then a line on
+    the kernels and their signatures as ``cold`` compiled them."""
     lines = ["| stage | empty numba cache (s) | filled cache (s) |", "|---|---:|---:|"]
     for k in cold["stages"]:
         lines.append(f"| {k} | {cold['stages'][k]:.2f} | {warm_['stages'][k]:.2f} |")
@@ -171,14 +181,28 @@ def measure() -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--measure", action="store_true",
-                    help="time the warm-up with an empty and a filled numba cache in fresh processes (writes nothing)")
+                    help="time the warm-up with an empty and a filled numba cache in fresh processes (writes nothing "
+                         "but --out)")
+    ap.add_argument("--out", default=None,
+                    help="with --measure: also write the table here (Markdown, under a line with the date, machine, "
+                         "commit and command)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         _child()
         return 0
+    if a.out is not None and not a.measure:
+        ap.error(f"--out {a.out}: only with --measure (expected --measure --out FILE)")
     if a.measure:
-        print(measure())
+        text = measure()
+        print(text)
+        if a.out is not None:
+            from benchmark.reports.readme_tables import measured_line
+            from envs.atomic import atomic_write_text
+
+            head = measured_line("benchmark.commands.compile_kernels", list(argv if argv is not None else sys.argv[1:]))
+            os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
+            atomic_write_text(a.out, head + "\n\n" + text + "\n")
         return 0
     t0 = time.perf_counter()
     warm()
