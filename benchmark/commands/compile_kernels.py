@@ -2,8 +2,8 @@
 
 numba compiles a kernel on its first call and keeps the machine code in its on-disk cache
 (``cache=True``: ``__pycache__`` beside the source, or ``NUMBA_CACHE_DIR``); a later process
-loads it in milliseconds. A fresh clone has no cache, so its first run used to wait ~9 s
-of compiling (2 cores) before any house was done, and so did every pool or Ray worker on a
+loads it in milliseconds. A fresh clone has no cache, so its first run used to wait seconds
+of compiling before any house was done (``--measure`` says how many), and so did every pool or Ray worker on a
 fresh machine. This command calls every stage that has a kernel through its public
 function on one small generated house, with the argument types a run passes, so each
 kernel is compiled (or loaded) with exactly the signature a run needs:
