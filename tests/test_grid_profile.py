@@ -36,6 +36,7 @@ def test_sums_shares_and_time_outside_houses(tmp_path, capsys):
     assert scan["job s"] == pytest.approx(12.0) and scan["share %"] == pytest.approx(60.0)
     assert scan["map s"] == pytest.approx(5.0) and scan["score s"] == pytest.approx(2.5)
     assert scan["outside houses s"] == pytest.approx((10 - 7) + (2 - 1.5))
+    assert scan["in houses, untimed s"] == pytest.approx((7 - 5 - 2) + (1.0 - 0.5))  # the cached house counts no time
     assert table.loc[("synthetic", "all"), "share %"] == pytest.approx(40.0)
     assert list(table.columns).index("map s") < list(table.columns).index("score s")  # pipeline order
     assert grid_profile.main([str(tmp_path), "--out", str(tmp_path / "p.md")]) == 0

@@ -119,7 +119,7 @@ def test_robustness_sentences_follow_the_paired_intervals():
     "tied" one that holds it; "change places at severity s" only follows a lead of the other side
     the intervals support; known verdicts of the published run (ProcTHOR, 149 houses: exploration
     tied at the short budgets with no change of places; classifier noise flips at 5); no mCE on
-    the paper's IoU; the power report."""
+    the paper's IoU; the power report (ProcTHOR 149 houses, synthetic 200)."""
     import re
 
     block = rt.blocks_in((ROOT / "docs" / "robustness.md").read_text(encoding="utf-8"))["robustness"]
@@ -144,6 +144,6 @@ def test_robustness_sentences_follow_the_paired_intervals():
     classifier = next(x for x in procthor.splitlines() if x.startswith("- classifier noise:"))
     assert "they change places at severity 5" in classifier
     assert "paper IoU" not in block and "| mCE | rel mCE | realistic (apart) |" in block
-    assert "With its 149 houses this run detects" in block and "With its 20 houses this run detects" in block
+    assert "With its 149 houses this run detects" in block and "With its 200 houses this run detects" in block
     power = rt.blocks_in((ROOT / "README.md").read_text(encoding="utf-8"))["robustness-power"]
     assert "With its 149 houses this run detects" in power and "| mCE |" not in power  # the README: power only

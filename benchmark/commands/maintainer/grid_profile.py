@@ -11,6 +11,8 @@ prints one row:
 - jobs and house-runs (computed / read from the results cache);
 - job-seconds: the sum of the jobs' wall times, and its share of the sweep's total;
 - per stage, seconds summed over the houses computed;
+- ``in houses, untimed s``: time inside the houses computed that no stage timer covers (e.g.
+  a SLAM estimate's pose-graph solve), summed;
 - ``outside houses s``: job wall time not spent inside a house (composing the job, loading the
   houses, writing and checking rows), summed over jobs.
 
@@ -47,9 +49,12 @@ def job_rows(sweep: Path) -> pd.DataFrame:
         row = {"dataset": settings.get("env.name", "?"), "family": settings.get("robot.corruption", "clean"),
                "wall_s": float(s.get("wall_time_s", 0.0)), "computed": len(fresh), "cached": len(t) - len(fresh),
                "houses_s": float(t["house_s"].sum()) if len(t) else 0.0}
-        for c in t.columns:
-            if c.startswith("t_"):
-                row[c] = float(fresh[c].sum())
+        stage_cols = [c for c in t.columns if c.startswith("t_")]
+        for c in stage_cols:
+            row[c] = float(fresh[c].sum())
+        # inside computed houses but in no timed stage (e.g. a SLAM estimate's pose-graph solve)
+        row["untimed_s"] = (float(fresh["house_s"].sum()) - float(fresh[stage_cols].fillna(0).to_numpy().sum())
+                            if len(fresh) else 0.0)
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -67,6 +72,7 @@ def profile(jobs: pd.DataFrame) -> pd.DataFrame:
                    "share %": 100 * g["wall_s"].sum() / total if total else 0.0}
             for c in stages:
                 row[f"{c[2:]} s"] = g[c].fillna(0).sum()
+            row["in houses, untimed s"] = g["untimed_s"].sum()
             row["outside houses s"] = (g["wall_s"] - g["houses_s"]).sum()
             out.append(row)
     return pd.DataFrame(out)
@@ -86,13 +92,15 @@ def main(argv: list[str] | None = None) -> int:
     table = profile(jobs)
     md = table.to_markdown(index=False, floatfmt=".1f")
     note = (f"\n{len(jobs)} jobs, {jobs['wall_s'].sum():.0f} job-seconds. Stage columns: seconds summed over the "
-            f"houses computed (timings.csv); 'outside houses': job wall time not inside a house.")
+            f"houses computed (timings.csv); 'in houses, untimed': inside the houses computed but in no timed stage; "
+            f"'outside houses': job wall time not inside a house.")
     print(md)
     print(note)
     if a.out is not None:
         from benchmark.harness.cache import atomic_write_text
 
-        atomic_write_text(a.out, f"Profile of `{a.sweep}` by `python -m benchmark.commands.maintainer.grid_profile`."
+        atomic_write_text(a.out, f"Profile of the sweep in `{a.sweep}` by `python -m benchmark.commands.maintainer.grid_profile "
+                                 f"{a.sweep} --out {a.out}`."
                                  f"\n\n{md}\n{note}\n")
     return 0
 
