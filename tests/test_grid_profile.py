@@ -14,7 +14,9 @@ def _job(root, name, dataset, family, wall, rows):
     d = root / name
     d.mkdir(parents=True)
     (d / "summary.json").write_text(json.dumps({"wall_time_s": wall}))
-    (d / "job.json").write_text(json.dumps({"settings": {"env.name": dataset, "robot.corruption": family}}))
+    (d / "job.json").write_text(json.dumps({"key": name, "settings": {"env.name": dataset, "robot.corruption": family}}))
+    (d / "metrics.csv").write_text("house_id\n")
+    (d / "resolved_config.yaml").write_text("run: {}\n")
     cols = sorted({k for r in rows for k in r})
     lines = [",".join(cols)] + [",".join(str(r.get(c, "")) for c in cols) for r in rows]
     (d / "timings.csv").write_text("\n".join(lines) + "\n")
@@ -29,7 +31,8 @@ def test_sums_shares_and_time_outside_houses(tmp_path, capsys):
           {"house_id": "h1", "cached": False, "house_s": 1.0, "t_map": "", "t_score": 0.5}])
     _job(tmp_path, "c", "synthetic", "clean", 8.0,
          [{"house_id": "s0", "cached": False, "house_s": 6.0, "t_score": 6.0}])
-    (tmp_path / "unfinished").mkdir()  # no summary.json: not counted
+    (tmp_path / "unfinished").mkdir()  # rows but no summary.json yet: not counted
+    (tmp_path / "unfinished" / "metrics.csv").write_text("house_id\n")
     table = grid_profile.profile(grid_profile.job_rows(tmp_path)).set_index(["dataset", "family"])
     scan = table.loc[("procthor", "scan")]
     assert (scan["jobs"], scan["houses computed"], scan["houses cached"]) == (2, 3, 1)
@@ -47,3 +50,11 @@ def test_a_folder_without_jobs_is_one_line(tmp_path, capsys):
     assert grid_profile.main([str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(tmp_path) in err[0] and "no finished job" in err[0]
+
+
+def test_a_malformed_summary_is_one_line_naming_it(tmp_path, capsys):
+    _job(tmp_path, "a", "procthor", "scan", 1.0, [{"house_id": "h0", "cached": False, "house_s": 1.0}])
+    (tmp_path / "a" / "summary.json").write_text("{not json")
+    assert grid_profile.main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(tmp_path / "a" / "summary.json") in err[0] and "malformed JSON" in err[0]

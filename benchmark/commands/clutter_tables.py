@@ -147,14 +147,15 @@ def reachable_rows(houses: int) -> pd.DataFrame:
 
 def _table(df: pd.DataFrame, keys: list[str]) -> str:
     """Means over maps of one part's rows, one line per ``keys`` combination (first-seen order)."""
+    from benchmark.reports.formatting import METRIC_LABELS
+
     g = df.groupby(keys, sort=False)
     out = (g[list(METRICS)].mean() * 100.0).map(lambda v: f"{v:.2f}")
     out.insert(0, "segments / rooms", g["n_pred_segments"].sum().astype(int).astype(str) + " / " +
                g["n_gt_segments"].sum().astype(int).astype(str))
     out["segments − rooms"] = g["count_error"].mean().map(lambda v: f"{v:+.2f}".replace("-", "−"))
     out["largest segment %"] = (g["largest"].max() * 100.0).map(lambda v: f"{v:.2f}")
-    out = out.rename(columns={m: {"iou": "IoU", "matched_iou": "matched IoU", "pq": "PQ", "ipa_recall": "ipa R",
-                                  "ipa_precision": "ipa P"}[m] for m in METRICS})
+    out = out.rename(columns={m: METRIC_LABELS[m] for m in METRICS})
     return out.reset_index().to_markdown(index=False, disable_numparse=True,
                                          colalign=("left",) * len(keys) + ("right",) * out.shape[1])
 

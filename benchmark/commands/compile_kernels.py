@@ -197,12 +197,9 @@ def main(argv: list[str] | None = None) -> int:
         text = measure()
         print(text)
         if a.out is not None:
-            from benchmark.reports.readme_tables import measured_line
-            from envs.atomic import atomic_write_text
+            from benchmark.reports.published import write_measured
 
-            head = measured_line("benchmark.commands.compile_kernels", list(argv if argv is not None else sys.argv[1:]))
-            os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-            atomic_write_text(a.out, head + "\n\n" + text + "\n")
+            write_measured(a.out, "benchmark.commands.compile_kernels", argv, text)
         return 0
     t0 = time.perf_counter()
     warm()

@@ -26,3 +26,17 @@ def write_published(out: Path, command: str, text: str) -> str | None:
     except OSError as e:
         return cannot_write(e, out)
     return None
+
+
+def write_measured(out: Path, module: str, argv: list[str] | None, text: str) -> None:
+    """Write a measurement (``results/published/perf.md``, ``scaling.md``, ...) to ``out``
+    (atomically, its folder made): :func:`benchmark.reports.readme_tables.measured_line` (when,
+    where, at which commit and by ``python -m MODULE ARGV``; ``argv`` None: this process's
+    arguments), a blank line, ``text`` and a newline."""
+    import sys  # noqa: PLC0415
+
+    from benchmark.reports.readme_tables import measured_line  # noqa: PLC0415
+    from envs.atomic import atomic_write_text  # noqa: PLC0415
+
+    head = measured_line(module, list(argv if argv is not None else sys.argv[1:]))
+    atomic_write_text(out, f"{head}\n\n{text}\n")

@@ -152,13 +152,9 @@ def main(argv: list[str] | None = None) -> int:
                      f"({big['peak_rss_mib'] - small['peak_rss_mib']:+.1f} MiB)")
         print(lines[-1])
     if a.out:
-        from benchmark.reports.readme_tables import measured_line  # noqa: PLC0415
-        from envs.atomic import atomic_write_text  # noqa: PLC0415
+        from benchmark.reports.published import write_measured  # noqa: PLC0415
 
-        args = list(argv if argv is not None else sys.argv[1:])
-        text = measured_line("benchmark.commands.maintainer.bag_memory", args) + "\n\n" + "".join(f"- {x}\n" for x in lines)
-        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(a.out, text)
+        write_measured(Path(a.out), "benchmark.commands.maintainer.bag_memory", argv, "\n".join(f"- {x}" for x in lines))
     return 0
 
 

@@ -22,7 +22,6 @@ their sum over W. A row ``all`` closes each dataset. Exit status 2 when the fold
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -38,13 +37,17 @@ STAGES = ("t_scene", "t_map", "t_viewpoints", "t_coverage", "t_render", "t_rende
 def job_rows(sweep: Path) -> pd.DataFrame:
     """One row per job of ``sweep`` that finished: ``dataset``, ``family``, ``wall_s``,
     ``computed``, ``cached``, ``houses_s`` (seconds inside houses) and one column per stage
-    (seconds summed over the houses computed)."""
+    (seconds summed over the houses computed).
+
+    Raises:
+        FileNotFoundError: no finished job under ``sweep``.
+        ValueError: one line naming a job's malformed ``summary.json`` or config."""
+    from benchmark.harness.store import find_jobs
+
     rows = []
-    for summary in sorted(sweep.glob("*/summary.json")):
-        job = summary.parent
-        s = json.loads(summary.read_text(encoding="utf-8"))
-        settings = json.loads((job / "job.json").read_text(encoding="utf-8"))["settings"]
-        t = pd.read_csv(job / "timings.csv") if (job / "timings.csv").is_file() else pd.DataFrame()
+    for job in find_jobs([sweep]):
+        s, settings = job.summary(), job.settings() or {}
+        t = pd.read_csv(job.timings_path) if job.timings_path.is_file() else pd.DataFrame()
         fresh = t[~t["cached"].astype(bool)] if len(t) else t
         row = {"dataset": settings.get("env.name", "?"), "family": settings.get("robot.corruption", "clean"),
                "wall_s": float(s.get("wall_time_s", 0.0)), "computed": len(fresh), "cached": len(t) - len(fresh),
@@ -84,10 +87,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("sweep", type=Path, help="a sweep's folder (results/runs/<name>)")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (Markdown)")
     a = ap.parse_args(argv)
-    jobs = job_rows(a.sweep) if a.sweep.is_dir() else pd.DataFrame()
-    if jobs.empty:
+    try:
+        jobs = job_rows(a.sweep)
+    except FileNotFoundError:
         print(f"grid_profile: error: {a.sweep}: no finished job (expected a sweep folder with <job>/summary.json)",
               file=sys.stderr)
+        return 2
+    except ValueError as e:  # a malformed summary.json or config: one line naming it
+        print(f"grid_profile: error: {e}", file=sys.stderr)
         return 2
     table = profile(jobs)
     md = table.to_markdown(index=False, floatfmt=".1f")

@@ -186,13 +186,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(text)
     if a.out is not None:
-        from benchmark.reports.readme_tables import measured_line
-        from envs.atomic import atomic_write_text
+        from benchmark.reports.published import write_measured
 
-        head = measured_line("benchmark.commands.maintainer.install_sizes",
-                             list(argv if argv is not None else sys.argv[1:]))
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(a.out, head + "\n\n" + text + "\n")
+        write_measured(a.out, "benchmark.commands.maintainer.install_sizes", argv, text)
     return 0
 
 

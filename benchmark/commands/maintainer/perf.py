@@ -358,13 +358,10 @@ def _write(out: Path | None, parts: list[str], argv: list[str] | None) -> int:
     """The tables to ``out`` (when given) under a line saying when, where and by which command."""
     if out is None:
         return 0
-    import sys
 
-    from benchmark.reports.readme_tables import measured_line
-    from envs.atomic import atomic_write_text
+    from benchmark.reports.published import write_measured
 
-    head = measured_line("benchmark.commands.maintainer.perf", list(argv if argv is not None else sys.argv[1:]))
-    atomic_write_text(out, "\n\n".join([head, *parts]) + "\n")
+    write_measured(out, "benchmark.commands.maintainer.perf", argv, "\n\n".join(parts))
     return 0
 
 

@@ -218,10 +218,9 @@ def main(argv: list[str] | None = None) -> int:
     print(note)
     if a.out is not None:
         from benchmark.harness.cache import atomic_write_text
-        from benchmark.reports.readme_tables import measured_line
+        from benchmark.reports.published import write_measured
 
-        head = measured_line("benchmark.commands.maintainer.scaling", list(argv if argv is not None else sys.argv[1:])) + "\n\n"
-        atomic_write_text(a.out, head + md + "\n" + note + "\n")
+        write_measured(a.out, "benchmark.commands.maintainer.scaling", argv, md + "\n" + note)
         atomic_write_text(a.out.with_suffix(".csv"), table.to_csv(index=False))
     return 0 if all(r["rows identical"] == "yes" for r in rows) else 1
 

@@ -78,8 +78,6 @@ def _run(a, tmp: Path) -> int:  # noqa: ANN001 - the parsed arguments
     name = names[0]
     rose2_words = None
     if a.rose2_with and a.rose2:
-        from benchmark.segmenters.rose2 import checkout_words
-
         run_overrides = [o for o in a.overrides if o.startswith("run.")]
         rc = _bench([*a.rose2_with, "segmenter=rose2", f"segmenter.checkout={a.rose2}", *run_overrides,
                      f"run.name={name}", f"run.results_dir={tmp}", f"hydra.run.dir={tmp / 'runs' / name / 'rose2'}",
@@ -87,10 +85,10 @@ def _run(a, tmp: Path) -> int:  # noqa: ANN001 - the parsed arguments
         if rc != 0:
             print(f"error: the ROSE² run exited with {rc} (its lines above)", file=sys.stderr)
             return rc
-        rose2_words = f"ROSE² rows: run here from {checkout_words(a.rose2)} (`ROOMSEG_ROSE2` or `--rose2`)."
-    elif a.rose2_with:
-        rose2_words = ("No ROSE² row: no ROSE2 checkout was given (`ROOMSEG_ROSE2=CHECKOUT` or `--rose2 CHECKOUT`, "
-                       "after `make rose2-env`).")
+    if a.rose2_with:
+        from benchmark.commands.selros import rose2_line
+
+        rose2_words = rose2_line(a.rose2)
     files = _runs([tmp / "runs" / name])[name]
     text = render(files, [a.table], None, rows=load_rows(files))
     if rose2_words:
