@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -55,9 +54,12 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _bench(overrides: list[str]) -> int:
-    """``roomseg-bench OVERRIDES`` in a subprocess, its output on this command's stderr; its exit status."""
-    cmd = [sys.executable, "-m", "benchmark.commands.bench", *overrides]
-    done = subprocess.run(cmd, capture_output=True, text=True)
+    """``roomseg-bench OVERRIDES`` in a subprocess under :func:`benchmark.guarded.run_guarded` (its
+    whole process group killed when this command dies), the end of its output on this command's
+    stderr; its exit status."""
+    from benchmark.guarded import run_guarded
+
+    done = run_guarded([sys.executable, "-m", "benchmark.commands.bench", *overrides])
     sys.stderr.write(done.stdout + done.stderr)
     return done.returncode
 
