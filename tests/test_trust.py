@@ -194,6 +194,33 @@ def test_claim_names_what_differs(tmp_path):
     assert Job(d).identity()["key"] == "k1" * 8 and Job(folder).identity()["key"] == "k2" * 8
 
 
+def test_a_job_has_one_identity_wherever_the_shared_data_sits(tmp_path, monkeypatch):
+    """Two checkouts whose shared data sit in different places give a job the same key (the
+    folder names a sweep prints are the same on every machine); a folder written under the
+    earlier key, over the resolved paths, stays the job's own."""
+    from benchmark.config import compose_job
+    from benchmark.harness.runner import job_identity
+
+    keys, earlier = [], []
+    for root in ("../shared/data", "/one/shared/data", "/two/data/"):
+        monkeypatch.setenv("ROOMSEG_SHARED_DATA", root)
+        cfg, _ = compose_job(["env=procthor_shared"])
+        key, settings = job_identity(cfg, ["a"])
+        keys.append(key)
+        earlier.append(job_identity(cfg, ["a"], from_data_root=False)[0])
+        assert settings["env.path"].endswith("/procthor/procthor-10k-uniform-hard-val.jsonl.gz")
+        assert settings["env.path"].startswith("${paths.data_dir}/"), settings["env.path"]
+    assert len(set(keys)) == 1 and len(set(earlier)) == 3
+    monkeypatch.setenv("ROOMSEG_SHARED_DATA", "/one/data")
+    other, _ = compose_job(["env=procthor_shared", "env.path=/elsewhere/houses.jsonl.gz"])
+    assert job_identity(other, ["a"])[0] != keys[0]  # a file outside the data root is named as it is
+    d = tmp_path / "job"
+    claim_job_dir(d, earlier[1], {"env.path": "/one/shared/data/procthor/x"})
+    assert claim_job_dir(d, keys[0], {"env.path": "${paths.data_dir}/procthor/x"}, aliases=(earlier[1],)) == (d, "")
+    assert Job(d).identity()["key"] == earlier[1]
+    assert claim_job_dir(d, keys[0], {"env.path": "${paths.data_dir}/procthor/x"})[0] == tmp_path / f"job~{keys[0][:8]}"
+
+
 @pytest.mark.slow
 def test_multirun_over_two_house_files_writes_two_jobs_and_a_sweep_summary(tmp_path, procthor_file):
     houses = _lines(procthor_file, 2)

@@ -38,14 +38,16 @@ EXAMPLES = (
 )
 
 
-def _job(overrides: list[str], run_name: str, cache: Path) -> None:
-    """One job of a sweep into ``R/runs/<run_name>/<its overrides>`` (the working folder's ``R``)."""
+def _job(overrides: list[str], run_name: str, cache: Path, data: Path) -> None:
+    """One job of a sweep into ``R/runs/<run_name>/<its overrides>`` (the working folder's ``R``),
+    reading shared data under ``data`` (absolute: the working folder is not the checkout)."""
     from benchmark.config import compose_job, job_dirname
     from benchmark.harness.runner import run
 
     varying = sorted(o for o in overrides if not o.startswith("run."))
     cfg, choices = compose_job([*overrides, "run.progress=false", "run.workers=1", "run.results_dir=R",
-                                f"run.cache_dir={cache}", f"run.name={run_name}"])
+                                f"run.cache_dir={cache}", f"run.name={run_name}",
+                                f"paths.data_dir={data}"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         df = run(cfg, Path("R") / "runs" / run_name / job_dirname(",".join(varying)), choices)
@@ -68,15 +70,17 @@ def _tables(args: list[str]) -> tuple[str, str]:
 def examples(work: Path, small: int, large: int, houses: int) -> str:
     """The Markdown of every example, run in ``work`` (an empty folder; the working folder is
     ``work`` meanwhile)."""
+    from benchmark.paths import data_dir
+
     parts = []
-    here = Path.cwd()
+    here, data = Path.cwd(), data_dir().resolve()
     os.chdir(work)
     try:
         for title, name, (env,), common, jobs, targs in EXAMPLES:
             sizes = [small, large] if name == "x" else [houses if env == "procthor_shared" else small]
             for n in sizes:
                 for job in jobs:
-                    _job([f"env={env}", *common, *job, f"run.limit={n}"], name, work / "cache")
+                    _job([f"env={env}", *common, *job, f"run.limit={n}"], name, work / "cache", data)
             out, err = _tables([f"R/runs/{name}", *targs])
             parts += [f"**{title.format(a=small, b=large, n=sizes[0])}**", "", "`roomseg tables R/runs/" + name + " "
                       + " ".join(targs) + "` prints", "", out, "", "and on stderr:", "", "```", err, "```", ""]

@@ -291,10 +291,15 @@ def _in_multirun() -> bool:
         return False
 
 
-def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
+def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None = None,
+                 from_data_root: bool = True) -> tuple[str, dict[str, Any]]:
     """A job's identity: a key over every setting that changes its rows (the resolved config
     without :data:`NON_ROW_KEYS`, house selection and input paths included) and the selected
-    house ids. Editing a house's content keeps the identity (the rerun updates the job).
+    house ids. Editing a house's content keeps the identity (the rerun updates the job). Paths
+    under the shared-data root (``paths.data_dir``) count from that root, so the same job has
+    the same key on every checkout, wherever its ``ROOMSEG_SHARED_DATA`` points
+    (``from_data_root=False``: the key of earlier versions, over the paths as resolved, which a
+    job folder written by them holds).
 
     Returns:
         (key, settings): ``settings`` flat {dotted key: value} for "what differs" messages.
@@ -302,6 +307,10 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
     if plain is None:
         plain = OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
     settings = {k: v for k, v in flat_settings(plain).items() if k not in NON_ROW_KEYS}
+    root = str((plain.get("paths") or {}).get("data_dir") or "")
+    if root and from_data_root:  # where the shared data sits is the machine's, not the job's: the same job on any checkout
+        settings = {k: ("${paths.data_dir}" + v[len(root):] if isinstance(v, str) and (v == root or v.startswith(
+            root.rstrip("/") + "/")) else v) for k, v in settings.items()}
     settings["houses"] = f"{len(ids)} houses: {ids[0]} .. {ids[-1]} ({config_key(ids)})"
     return config_key("job", settings, ids), settings
 
@@ -334,11 +343,12 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     ids = select_houses(pipe.env.house_ids(), cfg.run.get("houses"), cfg.run.get("limit"))
     pipe.eval_ids = tuple(ids)
     key, settings = job_identity(cfg, ids, plain)
+    earlier = job_identity(cfg, ids, plain, from_data_root=False)[0]
     executor = choose_executor(cfg, pipe, len(ids))
     if hasattr(executor, "connect"):  # a cluster that cannot be reached: one line, before anything is written
         executor.connect()
     try:
-        out_dir, note = claim_job_dir(out_dir, key, settings)
+        out_dir, note = claim_job_dir(out_dir, key, settings, aliases=(earlier,))
     except OSError as e:
         raise ConfigError(f"cannot write the job folder {getattr(e, 'filename', None) or out_dir} "
                           f"({e.strerror or e})") from None

@@ -295,13 +295,15 @@ def _differences(old: dict[str, Any], new: dict[str, Any], limit: int = 4) -> st
     return "; ".join(parts) or "the house contents"
 
 
-def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tuple[Path, str]:
+def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any],
+                  aliases: tuple[str, ...] = ()) -> tuple[Path, str]:
     """The folder a job with identity ``key`` writes into, claimed by writing ``job.json``.
 
     ``out_dir`` if it is new, empty of results, or already holds this identity; otherwise
     (another run's results are there) the sibling ``<out_dir>~<key[:8]>``, claimed the same
     way. ``describe`` (flat {setting: value}) is recorded so that the message can say what
-    differs. Concurrent jobs are serialised by a lock beside the folder.
+    differs. ``aliases``: earlier keys of the same identity (a folder that holds one is this
+    job's; its ``job.json`` is kept). Concurrent jobs are serialised by a lock beside the folder.
 
     Returns:
         (folder, note): ``note`` is "" or one line saying why the job moved to a sibling.
@@ -320,7 +322,7 @@ def claim_job_dir(out_dir: str | Path, key: str, describe: dict[str, Any]) -> tu
             job = Job(cand)
             ident = job.identity()
             taken = ident is not None or job.metrics_path.exists() or job.identity_path.exists()
-            if ident is not None and ident["key"] == key or not taken:
+            if ident is not None and ident["key"] in (key, *aliases) or not taken:
                 cand.mkdir(parents=True, exist_ok=True)
                 if ident is None:
                     atomic_write_json(job.identity_path, {"key": key, "settings": describe})
