@@ -130,3 +130,56 @@ def test_exploration_and_pose_error_rows_record_what_the_robot_had(tmp_path):
     noisy = _run(tmp_path, "n", "corruption=classifier_5")
     assert noisy["label_noise_share"].between(0.3, 0.7).all()
     assert np.all(noisy["view_accuracy_seen"] < 0.8)
+
+
+@pytest.mark.slow
+def test_one_slam_estimate_per_house_is_shared_by_every_method_of_a_condition(tmp_path):
+    """A SLAM robot's estimate is solved once per house and condition, cached beside its map;
+    a second method loads it (no ``t_slam``) and scores what a run with an empty cache scores."""
+    cache = tmp_path / "R" / "cache"
+    first = _run(tmp_path, "knn", "corruption=slam_3", "aggregator=graph_knn")
+    assert (first["status"] == "ok").all() and (first["ate_rmse_m"] > 0).all()
+    timings = pd.read_csv(Path(first.attrs["job_dir"]) / "timings.csv")
+    assert (timings["t_slam"] > 0).all()
+    slam = _files(cache, "slam")
+    assert len(slam) == 2
+    shared = _run(tmp_path, "cone", "corruption=slam_3")
+    assert _files(cache, "slam") == slam
+    assert "t_slam" not in pd.read_csv(Path(shared.attrs["job_dir"]) / "timings.csv")
+    alone = _run(tmp_path, "cone", "corruption=slam_3", results="fresh")
+    assert _metrics_bytes(shared) == _metrics_bytes(alone)
+    assert (shared["ate_rmse_m"] == first["ate_rmse_m"]).all()
+    # a damaged entry is one warning and solved again, to the same rows
+    victim = cache / next(iter(slam))
+    victim.write_bytes(b"not an npz")
+    again = _run(tmp_path, "cone2", "corruption=slam_3", "run.force=[score]")
+    assert _metrics_bytes(again) == _metrics_bytes(alone)
+    assert set(load_npz(victim)) >= {"true", "estimate", "view_index"}
+
+
+def test_scenes_are_kept_per_process_up_to_a_memory_bound(monkeypatch):
+    """A worker keeps scenes up to ``ROOMSEG_SCENE_CACHE_MB``, least recently used dropped
+    first; each kept scene is the one the environment builds (compared array by array); a bad
+    bound is one line before any work."""
+    from benchmark.harness import pipeline as pl
+    from benchmark.harness.checks import ConfigError
+
+    cfg, ch = compose_job([*FAST, "env.n_houses=4"])
+    pipe = build_pipeline(cfg, ch)
+    ids = pipe.env.house_ids()
+    one = pl.scene_bytes(pipe.env.scene(ids[0]))
+    assert one > pipe.env.scene(ids[0]).instances.nbytes
+    monkeypatch.setattr(pl, "_SCENES", pl.OrderedDict())
+    monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", str(2.5 * one / 2**20))  # room for two such scenes
+    first = [pipe.scene(h) for h in ids]
+    assert [k[1] for k in pl._SCENES] == ids[-2:]
+    assert pipe.scene(ids[-1]) is first[-1] and pipe.scene(ids[0]) is not first[0]
+    fresh = pipe.env.scene(ids[0])
+    assert (pipe.scene(ids[0]).instances == fresh.instances).all()
+    assert (pipe.scene(ids[0]).grid.walkable == fresh.grid.walkable).all()
+    monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", "0")
+    pipe.scene(ids[1])
+    assert not pl._SCENES
+    monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", "lots")
+    with pytest.raises(ConfigError, match=r"^ROOMSEG_SCENE_CACHE_MB='lots': expected a number of MiB >= 0$"):
+        run(cfg, Path("/nonexistent/never"), ch)

@@ -174,15 +174,30 @@ class OdometrySlam:
             house_id: seeds the draws.
             spacing: metres between nodes (the scan map's spacing); default ``self.spacing``.
         """
+        key, poses, spacing = self._key(grid, poses, house_id, spacing)
+        if key not in self._memo:
+            self.remember(grid, poses, house_id, spacing, self._estimate(grid, poses, house_id, spacing))
+        return self._memo[key]
+
+    def known(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None) -> SlamEstimate | None:
+        """:meth:`estimate`'s answer for these arguments if it is at hand (made or remembered), else None."""
+        return self._memo.get(self._key(grid, poses, house_id, spacing)[0])
+
+    def remember(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None,
+                 est: SlamEstimate) -> None:
+        """Keep ``est`` as :meth:`estimate`'s answer for these arguments (the last four kept):
+        a caller that stored an estimate made with these settings hands it back here."""
+        key = self._key(grid, poses, house_id, spacing)[0]
+        self._memo[key] = est
+        while len(self._memo) > 4:
+            self._memo.popitem(last=False)
+
+    def _key(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None) -> tuple:
         poses = np.ascontiguousarray(poses, np.float64).reshape(-1, 3)
         spacing = self.spacing if spacing is None else float(spacing)
         key = (house_id, poses.tobytes(), spacing, grid.shape, grid.resolution, tuple(grid.origin),
                zlib.crc32(np.packbits(grid.walkable).tobytes()))
-        if key not in self._memo:
-            self._memo[key] = self._estimate(grid, poses, house_id, spacing)
-            while len(self._memo) > 4:
-                self._memo.popitem(last=False)
-        return self._memo[key]
+        return key, poses, spacing
 
     def _estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float) -> SlamEstimate:
         true, view_index = trajectory_with_views(grid.walkable, grid, poses, spacing)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import os
 import time
 import traceback
 from collections import OrderedDict
@@ -64,9 +65,45 @@ from envs.render.observation import poses_array
 log = logging.getLogger("roomseg-bench")
 T = TypeVar("T")
 
-#: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
-_SCENES: OrderedDict[tuple[str, str], Any] = OrderedDict()
-SCENE_CACHE_SIZE = 64
+#: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> (Scene, bytes).
+_SCENES: OrderedDict[tuple[str, str], tuple[Any, int]] = OrderedDict()
+#: the most memory (MiB) one process's scenes hold, the least recently used dropped first:
+#: ``$ROOMSEG_SCENE_CACHE_MB``, default 512 (a ProcTHOR house at 0.05 m/px holds about 1 MB, so a
+#: grid's workers keep the 350 houses of both datasets and rasterise each once per sweep).
+SCENE_CACHE_MB = 512
+
+
+def scene_bytes(scene: Any) -> int:
+    """Memory a scene's arrays hold (its grid's, ground truth's, walls', objects' and doors'), in bytes."""
+    total, seen = 0, set()
+
+    def add(v: Any) -> None:
+        nonlocal total
+        if isinstance(v, np.ndarray) and id(v) not in seen:
+            seen.add(id(v))
+            total += v.nbytes
+    for v in vars(scene).values() if hasattr(scene, "__dict__") else ():
+        add(v)
+        if isinstance(v, dict):
+            for x in v.values():
+                add(x)
+        elif isinstance(v, list | tuple):
+            total += 1024 * len(v)  # an object's footprint and fields
+        elif hasattr(v, "__dict__"):
+            for x in vars(v).values():
+                add(x)
+    return total
+
+
+def scene_cache_limit() -> int:
+    raw = os.environ.get("ROOMSEG_SCENE_CACHE_MB", "")
+    try:
+        mb = float(raw) if raw else SCENE_CACHE_MB
+    except ValueError:
+        raise ValueError(f"ROOMSEG_SCENE_CACHE_MB={raw!r}: expected a number of MiB >= 0") from None
+    if not mb >= 0:
+        raise ValueError(f"ROOMSEG_SCENE_CACHE_MB={raw!r}: expected a number of MiB >= 0")
+    return int(mb * 2**20)
 #: house content hashes kept per process, like scenes: (env key, house id) -> hex string.
 _HOUSE_CONTENTS: dict[tuple[str, str], str] = {}
 
@@ -249,18 +286,20 @@ class Pipeline(RobotStages):
 
     def scene(self, hid: str):
         """``env.scene(hid)``; with ``env_key`` set (the runner's key of a shared environment),
-        kept in a small per-process cache so that the jobs of a sweep in one worker rasterise
-        each house once. Scenes are read-only to every stage."""
+        kept in a per-process cache of at most :data:`SCENE_CACHE_MB` so that the jobs of a sweep
+        in one worker rasterise each house once. Scenes are read-only to every stage."""
         if self.env_key is None:
             return self.env.scene(hid)
         key = (self.env_key, hid)
         if key in _SCENES:
             _SCENES.move_to_end(key)
-            return _SCENES[key]
+            return _SCENES[key][0]
         scene = self.env.scene(hid)
-        _SCENES[key] = scene
-        while len(_SCENES) > SCENE_CACHE_SIZE:
-            _SCENES.popitem(last=False)
+        limit = scene_cache_limit()
+        _SCENES[key] = (scene, scene_bytes(scene))
+        held = sum(b for _, b in _SCENES.values())
+        while _SCENES and held > limit:
+            held -= _SCENES.popitem(last=False)[1][1]
         return scene
 
     @property
@@ -470,7 +509,10 @@ class MethodPipeline(Pipeline):
         # the camera saw from the true poses; the method receives the poses as the robot's SLAM
         # gives them and the classes as its classifier (and the classifier-noise stage) gives them
         def route():  # a SLAM pose error's route: every view's true pose, the cells it can drive, the scan spacing
-            return self._render_poses(hid), self._route_grid(scene), self._scan_spacing()
+            poses = self._render_poses(hid)
+            if self._slam_shapes_map():  # the estimate the map is built at, from its shared cache entry
+                self._slam_estimate(hid, scene, poses, timings)
+            return poses, self._route_grid(scene), self._scan_spacing()
 
         result = self.method.run(lambda: self._observations(hid, scene, timings), robot_grid,
                                  method.Context(scene=scene, house_id=hid, route=route), _HouseCache(self, hid, scene),
@@ -599,4 +641,4 @@ def _one_line(e: BaseException) -> str:
     return " ".join(f"{type(e).__name__}: {e}".split())
 
 
-__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "STAGES", "expand_force", "house_content"]
+__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "STAGES", "expand_force", "house_content", "scene_bytes", "scene_cache_limit", "SCENE_CACHE_MB"]

@@ -24,6 +24,41 @@ from envs.render.observation import poses_array
 COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 
 
+_SLAM_ARRAYS = ("true", "estimate", "odometry", "view_index", "travelled", "closures", "wrong")
+_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m")
+
+
+def slam_arrays(est) -> dict[str, np.ndarray]:
+    """A :class:`benchmark.conditions.slam.SlamEstimate` as named arrays (a cache entry)."""
+    out = {k: np.asarray(getattr(est, k)) for k in _SLAM_ARRAYS}
+    out.update({k: np.asarray(getattr(est, k)) for k in _SLAM_SCALARS})
+    return out
+
+
+def slam_from_arrays(arrays, n_views: int):
+    """The estimate :func:`slam_arrays` stored, checked against the ``n_views`` views it was made along.
+
+    Raises:
+        BadEntry: a missing array or shapes that disagree (one line naming them)."""
+    from benchmark.conditions.slam import SlamEstimate
+
+    missing = [k for k in (*_SLAM_ARRAYS, *_SLAM_SCALARS) if k not in arrays]
+    if missing:
+        raise BadEntry(f"no {', '.join(missing)}")
+    a = {k: np.asarray(arrays[k]) for k in (*_SLAM_ARRAYS, *_SLAM_SCALARS)}
+    m = len(a["true"])
+    shapes_ok = (a["true"].shape == a["estimate"].shape == a["odometry"].shape == (m, 3)
+                 and a["travelled"].shape == (m,) and a["view_index"].shape == (n_views,)
+                 and (n_views == 0 or 0 <= a["view_index"].min() <= a["view_index"].max() < m)
+                 and all(a[k].ndim == 2 and a[k].shape[1] == 2 for k in ("closures", "wrong")))
+    if not shapes_ok:
+        raise BadEntry(f"true {a['true'].shape}, estimate {a['estimate'].shape}, view_index {a['view_index'].shape}: "
+                       f"expected (M, 3) trajectories and one node per each of {n_views} views")
+    return SlamEstimate(a["true"], a["estimate"], a["odometry"], a["view_index"].astype(np.int64), a["travelled"],
+                        a["closures"].astype(np.int64), a["wrong"].astype(np.int64), float(a["chi2"]), int(a["dof"]),
+                        float(a["kidnapped_m"]))
+
+
 def rooms_mapped(instances: np.ndarray, free: np.ndarray) -> dict[str, int]:
     """How many ground-truth rooms the robot saw: those its map reaches.
 
@@ -84,9 +119,9 @@ class RobotStages:
             return free
 
         def compute() -> np.ndarray:
+            # a SLAM robot's scans sit at its estimate (timed apart: t_slam)
+            est = self._slam_estimate(hid, scene, views(), timings) if self._slam_shapes_map() else None
             t = time.perf_counter()
-            # a SLAM robot's scans sit at its estimate
-            est = self._slam_estimate(hid, scene, views()) if self._slam_shapes_map() else None
             kw = {} if est is None else {"estimate": (est.true, est.estimate, est.view_index)}
             if getattr(self.mapping, "uses_exploration", False):  # mapping=explored: the explorer's own map
                 kw["exploration"] = self._exploration(scene, views())
@@ -109,7 +144,7 @@ class RobotStages:
         free = self._cached("map", self.entry("robot_map", hid), load, compute, save)
         walk = scene.grid.walkable
         info: dict[str, Any] = {}
-        est = self._slam_estimate(hid, scene, views()) if self._slam_shapes_map() else None
+        est = self._slam_estimate(hid, scene, views(), timings) if self._slam_shapes_map() else None
         if est is not None:
             # the map is in the robot's frame: the ground truth comes to it (issue 37, item 2)
             from benchmark.conditions.alignment import align_rigid, to_map_frame
@@ -141,13 +176,43 @@ class RobotStages:
         map: the house's own unless the map was built at a SLAM estimate (:meth:`_robot_grid`)."""
         return self._frames.get(hid, (scene.instances, scene.grid.walkable))
 
-    def _slam_estimate(self, hid: str, scene, views: np.ndarray):
+    def _slam_estimate(self, hid: str, scene, views: np.ndarray, timings: dict | None = None):
         """The robot's one pose estimate (:class:`benchmark.conditions.slam.SlamEstimate`) along its views,
-        when its ``pose_error`` stage is a SLAM that makes one and errs; else None."""
+        when its ``pose_error`` stage is a SLAM that makes one and errs; else None.
+
+        Where it shapes the robot's map, it is cached beside the map (``slam`` entries, keyed
+        like it: house, views, mapping and pose error), so every method of a condition shares
+        one solve; the stage is handed the estimate back, so that the views it moves agree."""
         stage = self.stage("pose_error")
         if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
             return None
-        return stage.estimate(self._route_grid(scene), views, hid, self._scan_spacing())
+        grid, spacing = self._route_grid(scene), self._scan_spacing()
+        if not self._slam_shapes_map():
+            return stage.estimate(grid, views, hid, spacing)
+        from benchmark.conditions.slam import SlamEstimate
+
+        def load(path: Path) -> SlamEstimate:
+            return slam_from_arrays(load_npz(path), len(views))
+
+        def compute() -> SlamEstimate:
+            t = time.perf_counter()
+            est = stage.estimate(grid, views, hid, spacing)
+            if timings is not None:
+                timings["t_slam"] = time.perf_counter() - t
+            return est
+
+        def save(path: Path, est: SlamEstimate) -> None:
+            atomic_save_npz(path, **slam_arrays(est))
+
+        path = self.entry("slam", hid)
+        est = stage.known(grid, views, hid, spacing)
+        if est is not None and path.exists():
+            return est
+        if est is not None:  # made here before its entry was written: stored, not timed again
+            timings = None
+        est = self._cached("map", path, load, compute, save)
+        stage.remember(grid, views, hid, spacing, est)
+        return est
 
     def _scan_spacing(self) -> float | None:
         """Metres driven between the robot's scans (its ``mapping`` stage's; None without one)."""

@@ -56,6 +56,7 @@ from benchmark.harness.pipeline import (
     SegmenterPipeline,
     StageError,
     expand_force,
+    scene_cache_limit,
 )
 from benchmark.harness.processes import available_cores, worker_cap
 from benchmark.harness.progress import house_progress, job_label, parallel_jobs
@@ -336,6 +337,10 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     plain = OmegaConf.to_container(body, resolve=True)
     check_config(plain)
     check_typed(plain)
+    try:
+        scene_cache_limit()
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
     check_writable(cfg.run.results_dir, "run.results_dir")
     check_writable(cfg.run.cache_dir, "run.cache_dir")
     choices = choices if choices is not None else _choices()

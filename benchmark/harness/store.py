@@ -27,6 +27,8 @@ the cache may live anywhere)::
     <cache_dir>/maps/<score key>/<entry>.npz        raw / post-processed label maps, poses
                                                     (segmenters: instances)
     <cache_dir>/robot_maps/<map key>/<entry>.npz    the map the robot built (mapping=scan): free cells
+    <cache_dir>/slam/<map key>/<entry>.npz          the one pose estimate a SLAM robot's map is built
+                                                    at (pose_error=odometry with a mapping)
     <cache_dir>/coverage/<render key>/<entry>.json  the share of the house the views saw
     <cache_dir>/models/<kind>/<key>.npz             fitted models (objects classifier)
 
@@ -97,12 +99,14 @@ class CacheStore:
     #: kind of entry -> (folder, suffix, the stage whose config key and content name it):
     #: render (a folder of views), classify, aggregate (raw label map), score (the row), failure
     #: (a house's last failure, kept as a log; not served as a result by default), maps (saved
-    #: label maps), robot_map (the map the robot built: its free cells), coverage (how much of a
-    #: house a render's views saw, keyed like the render).
+    #: label maps), robot_map (the map the robot built: its free cells), slam (the robot's one
+    #: pose estimate, keyed like the map it shapes: every method of a condition shares it),
+    #: coverage (how much of a house a render's views saw, keyed like the render).
     KINDS = {"render": ("render", "", "render"), "classify": ("classify", ".npz", "classify"),
              "aggregate": ("aggregate", ".npz", "aggregate"), "score": ("scores", ".json", "score"),
              "failure": ("failures", ".json", "score"), "maps": ("maps", ".npz", "score"),
-             "robot_map": ("robot_maps", ".npz", "map"), "coverage": ("coverage", ".json", "render")}
+             "robot_map": ("robot_maps", ".npz", "map"), "slam": ("slam", ".npz", "map"),
+             "coverage": ("coverage", ".json", "render")}
 
     def entry(self, kind: str, keys: Mapping[str, str], contents: Mapping[str, str], house_id: str) -> Path:
         """Where one house's entry of ``kind`` (:data:`KINDS`) lives for a configuration.

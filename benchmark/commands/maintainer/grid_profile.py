@@ -30,7 +30,7 @@ import pandas as pd
 from benchmark.commands import cli
 
 #: stages in pipeline order (others follow alphabetically)
-STAGES = ("t_scene", "t_map", "t_viewpoints", "t_coverage", "t_render", "t_render_load", "t_classify",
+STAGES = ("t_scene", "t_slam", "t_map", "t_viewpoints", "t_coverage", "t_render", "t_render_load", "t_classify",
           "t_aggregate", "t_postprocess", "t_segment", "t_score")
 
 
