@@ -68,8 +68,9 @@ T = TypeVar("T")
 #: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> (Scene, bytes).
 _SCENES: OrderedDict[tuple[str, str], tuple[Any, int]] = OrderedDict()
 #: the most memory (MiB) one process's scenes hold, the least recently used dropped first:
-#: ``$ROOMSEG_SCENE_CACHE_MB``, default 512 (a ProcTHOR house at 0.05 m/px holds about 1 MB, so a
-#: grid's workers keep the 350 houses of both datasets and rasterise each once per sweep).
+#: ``$ROOMSEG_SCENE_CACHE_MB``, default 512 (a shared ProcTHOR house at 0.05 m/px holds under
+#: 1 MB by :func:`scene_bytes`, so a grid's workers keep both datasets' houses and rasterise
+#: each once per sweep).
 SCENE_CACHE_MB = 512
 
 
