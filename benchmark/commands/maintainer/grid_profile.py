@@ -3,16 +3,16 @@ condition family and stage.
 
 Reads a finished sweep folder (``results/runs/robustness``): each job's ``summary.json``
 (its wall time), ``job.json`` (its condition and dataset) and ``timings.csv`` (per house, the
-seconds of each stage the pipeline timed: ``t_scene`` builds the house and the robot's map,
-``t_viewpoints``, ``t_render``, ``t_classify``, ``t_aggregate``, ``t_postprocess``,
-``t_score``). For each dataset and condition family (``scan``, ``slam``, ``explore``, ...) it
+seconds of each stage the pipeline timed: ``t_scene`` builds the house, ``t_slam`` solves the
+SLAM estimate a robot's map is built at, ``t_map`` builds that map, ``t_viewpoints``,
+``t_render``, ``t_classify``, ``t_aggregate``, ``t_postprocess``, ``t_score``). For each dataset and condition family (``scan``, ``slam``, ``explore``, ...) it
 prints one row:
 
 - jobs and house-runs (computed / read from the results cache);
 - job-seconds: the sum of the jobs' wall times, and its share of the sweep's total;
 - per stage, seconds summed over the houses computed;
-- ``in houses, untimed s``: time inside the houses computed that no stage timer covers (e.g.
-  a SLAM estimate's pose-graph solve), summed;
+- ``in houses, untimed s``: time inside the houses computed that no stage timer covers (the
+  pose-error and label-noise transforms, cache reads), summed;
 - ``outside houses s``: job wall time not spent inside a house (composing the job, loading the
   houses, writing and checking rows), summed over jobs.
 
@@ -55,7 +55,7 @@ def job_rows(sweep: Path) -> pd.DataFrame:
         stage_cols = [c for c in t.columns if c.startswith("t_")]
         for c in stage_cols:
             row[c] = float(fresh[c].sum())
-        # inside computed houses but in no timed stage (e.g. a SLAM estimate's pose-graph solve)
+        # inside computed houses but in no timed stage (view transforms, cache reads)
         row["untimed_s"] = (float(fresh["house_s"].sum()) - float(fresh[stage_cols].fillna(0).to_numpy().sum())
                             if len(fresh) else 0.0)
         rows.append(row)
