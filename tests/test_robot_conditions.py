@@ -180,6 +180,13 @@ def test_scenes_are_kept_per_process_up_to_a_memory_bound(monkeypatch):
     monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", "0")
     pipe.scene(ids[1])
     assert not pl._SCENES
+    monkeypatch.delenv("ROOMSEG_SCENE_CACHE_MB")
+    from benchmark.harness.sweep import SWEEP_ENV
+
+    monkeypatch.delenv(SWEEP_ENV, raising=False)
+    assert pl.scene_cache_limit() == 64 * 2**20  # a single run reads each house once
+    monkeypatch.setenv(SWEEP_ENV, "a-sweep")
+    assert pl.scene_cache_limit() == 512 * 2**20  # a sweep's jobs read the same houses again
     monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", "lots")
     with pytest.raises(ConfigError, match=r"^ROOMSEG_SCENE_CACHE_MB='lots': expected a number of MiB >= 0$"):
         run(cfg, Path("/nonexistent/never"), ch)

@@ -68,10 +68,12 @@ T = TypeVar("T")
 #: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> (Scene, bytes).
 _SCENES: OrderedDict[tuple[str, str], tuple[Any, int]] = OrderedDict()
 #: the most memory (MiB) one process's scenes hold, the least recently used dropped first:
-#: ``$ROOMSEG_SCENE_CACHE_MB``, default 512 (a shared ProcTHOR house at 0.05 m/px holds under
-#: 1 MB by :func:`scene_bytes`, so a grid's workers keep both datasets' houses and rasterise
-#: each once per sweep).
+#: ``$ROOMSEG_SCENE_CACHE_MB``, else 512 in a job of a multirun (a shared ProcTHOR house at
+#: 0.05 m/px holds under 1 MB by :func:`scene_bytes`, so a grid's workers keep both datasets'
+#: houses and rasterise each once per sweep) and 64 in a single run (which reads each house
+#: once: its memory stays flat in the number of houses).
 SCENE_CACHE_MB = 512
+SCENE_CACHE_MB_SINGLE = 64
 
 
 def scene_bytes(scene: Any) -> int:
@@ -97,9 +99,15 @@ def scene_bytes(scene: Any) -> int:
 
 
 def scene_cache_limit() -> int:
+    """Bytes the scenes of this process may hold (:data:`SCENE_CACHE_MB`).
+
+    Raises:
+        ValueError: ``ROOMSEG_SCENE_CACHE_MB`` is not a number >= 0 (one line)."""
+    from benchmark.harness.sweep import current_sweep
+
     raw = os.environ.get("ROOMSEG_SCENE_CACHE_MB", "")
     try:
-        mb = float(raw) if raw else SCENE_CACHE_MB
+        mb = float(raw) if raw else SCENE_CACHE_MB if current_sweep() else SCENE_CACHE_MB_SINGLE
     except ValueError:
         raise ValueError(f"ROOMSEG_SCENE_CACHE_MB={raw!r}: expected a number of MiB >= 0") from None
     if not mb >= 0:
@@ -642,4 +650,5 @@ def _one_line(e: BaseException) -> str:
     return " ".join(f"{type(e).__name__}: {e}".split())
 
 
-__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "STAGES", "expand_force", "house_content", "scene_bytes", "scene_cache_limit", "SCENE_CACHE_MB"]
+__all__ = ["Pipeline", "MethodPipeline", "SegmenterPipeline", "StageError", "STAGES", "expand_force", "house_content", "scene_bytes", "scene_cache_limit", "SCENE_CACHE_MB",
+           "SCENE_CACHE_MB_SINGLE"]
