@@ -190,3 +190,24 @@ def test_scenes_are_kept_per_process_up_to_a_memory_bound(monkeypatch):
     monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", "lots")
     with pytest.raises(ConfigError, match=r"^ROOMSEG_SCENE_CACHE_MB='lots': expected a number of MiB >= 0$"):
         run(cfg, Path("/nonexistent/never"), ch)
+
+
+def test_a_slam_entry_is_checked_when_read():
+    """The slam cache entry round-trips a hand-made estimate; a missing array, a view count
+    other than the views', an index past the trajectory or a float index is a BadEntry."""
+    from benchmark.conditions.slam import SlamEstimate
+    from benchmark.harness.entries import BadEntry, check_slam_entry, slam_arrays
+
+    true = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 90.0]])
+    est = SlamEstimate(true, true + 0.1, true + 0.2, np.array([0, 2]), np.array([0.0, 1.0, 2.0]),
+                       np.array([[0, 2]]), np.zeros((0, 2), np.int64), 1.5, 3, 0.0)
+    back = check_slam_entry(slam_arrays(est), 2)
+    assert (back.views == true[[0, 2]] + 0.1).all() and back.chi2 == 1.5 and back.dof == 3
+    assert back.closures.tolist() == [[0, 2]] and back.wrong.shape == (0, 2)
+    z = slam_arrays(est)
+    for bad, match in (({k: v for k, v in z.items() if k != "wrong"}, r"^no wrong$"),
+                       (z, r"one node per each of 3 views"),
+                       ({**z, "view_index": np.array([0, 3])}, r"one node per each of 2 views"),
+                       ({**z, "view_index": np.array([0.0, 2.0])}, r"^view_index hold float64, expected integer")):
+        with pytest.raises(BadEntry, match=match):
+            check_slam_entry(bad, 3 if bad is z else 2)

@@ -1,7 +1,7 @@
 """Cache entries of the harness, checked when read: a bad entry raises :class:`BadEntry` (the
 caller recomputes it, with one warning naming the file). One validator per kind of entry
-(raw label maps, classifications, renders, poses), and what the harness reads back from a
-render for its view-accuracy column."""
+(raw label maps, classifications, renders, poses, SLAM estimates), and what the harness reads
+back from a render for its view-accuracy column."""
 
 from __future__ import annotations
 
@@ -143,5 +143,47 @@ def seen_from_render(render_folder: str | Path, poses: np.ndarray) -> np.ndarray
     return true_labels(obs)
 
 
-__all__ = ["BadEntry", "check_labels_entry", "check_poses", "check_render", "check_seen", "check_classified",
+_SLAM_ARRAYS = ("true", "estimate", "odometry", "view_index", "travelled", "closures", "wrong")
+_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m")
+
+
+def slam_arrays(est) -> dict[str, np.ndarray]:
+    """A :class:`benchmark.conditions.slam.SlamEstimate` as named arrays (a cache entry)."""
+    out = {k: np.asarray(getattr(est, k)) for k in _SLAM_ARRAYS}
+    out.update({k: np.asarray(getattr(est, k)) for k in _SLAM_SCALARS})
+    return out
+
+
+def check_slam_entry(z: Mapping[str, np.ndarray], n_views: int):
+    """A cached SLAM estimate (:func:`slam_arrays`), checked: (M, 3) trajectories, one integer
+    node index per each of the ``n_views`` views it was made along, (K, 2) integer node pairs.
+
+    Returns:
+        The :class:`benchmark.conditions.slam.SlamEstimate`.
+
+    Raises:
+        BadEntry: a missing array, shapes that disagree or indices that are not integers."""
+    from benchmark.conditions.slam import SlamEstimate
+
+    missing = [k for k in (*_SLAM_ARRAYS, *_SLAM_SCALARS) if k not in z]
+    if missing:
+        raise BadEntry(f"no {', '.join(missing)}")
+    a = {k: np.asarray(z[k]) for k in (*_SLAM_ARRAYS, *_SLAM_SCALARS)}
+    ints = [k for k in ("view_index", "closures", "wrong") if not np.issubdtype(a[k].dtype, np.integer)]
+    if ints:
+        raise BadEntry(f"{', '.join(ints)} hold {a[ints[0]].dtype}, expected integer node indices")
+    m = len(a["true"])
+    shapes_ok = (a["true"].shape == a["estimate"].shape == a["odometry"].shape == (m, 3)
+                 and a["travelled"].shape == (m,) and a["view_index"].shape == (n_views,)
+                 and (n_views == 0 or 0 <= a["view_index"].min() <= a["view_index"].max() < m)
+                 and all(a[k].ndim == 2 and a[k].shape[1] == 2 for k in ("closures", "wrong")))
+    if not shapes_ok:
+        raise BadEntry(f"true {a['true'].shape}, estimate {a['estimate'].shape}, view_index {a['view_index'].shape}: "
+                       f"expected (M, 3) trajectories and one node per each of {n_views} views")
+    return SlamEstimate(a["true"], a["estimate"], a["odometry"], a["view_index"].astype(np.int64), a["travelled"],
+                        a["closures"].astype(np.int64), a["wrong"].astype(np.int64), float(a["chi2"]), int(a["dof"]),
+                        float(a["kidnapped_m"]))
+
+
+__all__ = ["BadEntry", "check_labels_entry", "check_slam_entry", "slam_arrays", "check_poses", "check_render", "check_seen", "check_classified",
            "seen_from_render"]

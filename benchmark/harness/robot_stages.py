@@ -11,52 +11,20 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from benchmark.harness.cache import atomic_save_npz, load_npz, read_entry, write_entry
-from benchmark.harness.entries import BadEntry
+from benchmark.harness.entries import BadEntry, check_slam_entry, slam_arrays
 from envs.render.observation import poses_array
+
+if TYPE_CHECKING:
+    from benchmark.conditions.slam import SlamEstimate
 
 #: the camera of the coverage columns when the renderer does not say (the floorplan
 #: renderer's defaults): field of view (degrees), range (metres), occluding height (metres).
 COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
-
-
-_SLAM_ARRAYS = ("true", "estimate", "odometry", "view_index", "travelled", "closures", "wrong")
-_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m")
-
-
-def slam_arrays(est) -> dict[str, np.ndarray]:
-    """A :class:`benchmark.conditions.slam.SlamEstimate` as named arrays (a cache entry)."""
-    out = {k: np.asarray(getattr(est, k)) for k in _SLAM_ARRAYS}
-    out.update({k: np.asarray(getattr(est, k)) for k in _SLAM_SCALARS})
-    return out
-
-
-def slam_from_arrays(arrays, n_views: int):
-    """The estimate :func:`slam_arrays` stored, checked against the ``n_views`` views it was made along.
-
-    Raises:
-        BadEntry: a missing array or shapes that disagree (one line naming them)."""
-    from benchmark.conditions.slam import SlamEstimate
-
-    missing = [k for k in (*_SLAM_ARRAYS, *_SLAM_SCALARS) if k not in arrays]
-    if missing:
-        raise BadEntry(f"no {', '.join(missing)}")
-    a = {k: np.asarray(arrays[k]) for k in (*_SLAM_ARRAYS, *_SLAM_SCALARS)}
-    m = len(a["true"])
-    shapes_ok = (a["true"].shape == a["estimate"].shape == a["odometry"].shape == (m, 3)
-                 and a["travelled"].shape == (m,) and a["view_index"].shape == (n_views,)
-                 and (n_views == 0 or 0 <= a["view_index"].min() <= a["view_index"].max() < m)
-                 and all(a[k].ndim == 2 and a[k].shape[1] == 2 for k in ("closures", "wrong")))
-    if not shapes_ok:
-        raise BadEntry(f"true {a['true'].shape}, estimate {a['estimate'].shape}, view_index {a['view_index'].shape}: "
-                       f"expected (M, 3) trajectories and one node per each of {n_views} views")
-    return SlamEstimate(a["true"], a["estimate"], a["odometry"], a["view_index"].astype(np.int64), a["travelled"],
-                        a["closures"].astype(np.int64), a["wrong"].astype(np.int64), float(a["chi2"]), int(a["dof"]),
-                        float(a["kidnapped_m"]))
 
 
 def rooms_mapped(instances: np.ndarray, free: np.ndarray) -> dict[str, int]:
@@ -166,10 +134,15 @@ class RobotStages:
         return GridMap(free, scene.grid.resolution, scene.grid.origin), info
 
     def _slam_shapes_map(self) -> bool:
-        """True when the robot's map is built at a SLAM estimate that errs (``pose_error=odometry``)."""
+        """True when the robot's map is built at a SLAM estimate that errs (``pose_error=odometry``):
+        the configs :func:`benchmark.config.shapes_map` names, the one test the cache keys of the
+        map and of its estimate follow (``runner.stage_keys``)."""
+        from benchmark.config import shapes_map
+
+        if self.inputs.get("mapping") is None or not shapes_map(self.inputs):
+            return False
         stage = self.stage("pose_error")
-        return (self.inputs.get("mapping") is not None and stage is not None and hasattr(stage, "estimate")
-                and not stage.is_clean)
+        return stage is not None and hasattr(stage, "estimate") and not stage.is_clean
 
     def _ground_truth(self, hid: str, scene) -> tuple[np.ndarray, np.ndarray]:
         """(instances (H, W), walkable (H, W)) of the ground truth in the frame of the robot's
@@ -189,10 +162,8 @@ class RobotStages:
         grid, spacing = self._route_grid(scene), self._scan_spacing()
         if not self._slam_shapes_map():
             return stage.estimate(grid, views, hid, spacing)
-        from benchmark.conditions.slam import SlamEstimate
-
         def load(path: Path) -> SlamEstimate:
-            return slam_from_arrays(load_npz(path), len(views))
+            return check_slam_entry(load_npz(path), len(views))
 
         def compute() -> SlamEstimate:
             t = time.perf_counter()
