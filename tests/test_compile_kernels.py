@@ -29,7 +29,7 @@ def test_kernels_lists_every_njit_function_of_the_algorithm_modules():
     for name in ("benchmark.aggregators.vision_cone._cone_votes", "benchmark.aggregators.graph_knn._knn_bfs",
                  "benchmark.aggregators.euclidean_knn._k_nearest", "benchmark.postprocess._fill_fronts",
                  "envs.render.floorplan._render_views", "envs.maps.scan._scan_kernel", "envs.maps.trajectory._dijkstra",
-                 "envs.maps.rays._mark_cones"):
+                 "envs.maps.slam_map._estimate_kernel"):
         assert name in ks
     assert all(hasattr(d, "py_func") and hasattr(d, "signatures") for d in ks.values())
 

@@ -142,24 +142,31 @@ def test_cone_reference_line_agrees_with_the_exact_definition():
     assert ties > 10  # the random lines include half-way ties
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_mark_visible_equals_the_union_of_reference_rays(seed):
-    """mark_visible skips a ray whose end cell repeats the ray before's (the same digital line);
-    its union equals every reference ray's cells, with dense cones where most rays repeat."""
-    from envs.maps.rays import mark_visible
+@pytest.mark.parametrize("seed", range(6))
+def test_cones_reach_equals_the_union_of_reference_rays(seed):
+    """benchmark.aggregators.vision_cone.cones_reach (coverage's walk: neighbouring rays share
+    their cells through the path tables) visits exactly the cells of every reference ray, at
+    the coverage's quarter-pixel spacing, with views off the map and on blocked cells, and
+    at ranges the path tables do not hold (walked whole)."""
+    from benchmark.aggregators.vision_cone import cones_reach
 
-    rng = np.random.default_rng(100 + seed)
-    h, w = int(rng.integers(30, 70)), int(rng.integers(30, 70))
-    blocked = rng.random((h, w)) < 0.08
-    n_views = 5
+    rng = np.random.default_rng(200 + seed)
+    h, w = int(rng.integers(30, 90)), int(rng.integers(30, 90))
+    blocked = rng.random((h, w)) < 0.06
+    n_views = 6
     rows, cols = rng.integers(0, h, n_views), rng.integers(0, w, n_views)
-    rows[0] = -3  # a view off the map sees nothing
-    max_range = float(rng.uniform(5, 40))
-    thetas = np.stack([cone_thetas(float(rng.uniform(0, 360)), 90.0, max_range, 4.0) for _ in range(n_views)])
+    rows[0] = -3  # off the map: sees nothing
+    blocked[rows[1], cols[1]] = True  # standing on a blocked cell: sees nothing
+    max_range = float(rng.uniform(5, 60)) if seed < 5 else float(math.ceil(math.hypot(h, w)) + 2)
+    fov = (90.0, 90.0, 45.0, 180.0, 360.0, 360.0)[seed]
+    yaws = rng.uniform(-180, 540, n_views)
+    offsets = cone_thetas(0.0, fov, max_range, 4.0)
     want = np.zeros((h, w), bool)
     for v in range(n_views):
         if 0 <= rows[v] < h and 0 <= cols[v] < w:
-            for th in thetas[v]:
+            for th in cone_thetas(float(yaws[v]), fov, max_range, 4.0):
                 for r, c in reference_ray(blocked, int(rows[v]), int(cols[v]), float(th), max_range)[0]:
                     want[r, c] = True
-    assert (mark_visible(blocked, rows, cols, thetas, max_range) == want).all() and want.any()
+    got = cones_reach(blocked, rows, cols, np.deg2rad(yaws), offsets, max_range)
+    assert want.any() and not want[rows[1], cols[1]]
+    assert (got == want).all()

@@ -406,11 +406,14 @@ def test_the_estimate_mapper_matches_a_pure_python_reference():
     rows, cols = rng.integers(4, 36, 12), rng.integers(4, 74, 12)
     xs, zs = grid.pixel_to_world(rows, cols)
     true = np.column_stack([xs, zs, rng.uniform(0, 360, 12)])
-    est = true + np.column_stack([rng.normal(0, 0.1, 12), rng.normal(0, 0.1, 12), rng.normal(0, 5.0, 12)])
-    for s in (ScanSettings(max_range=2.0, angular_step=4.0),
+    near = true + np.column_stack([rng.normal(0, 0.1, 12), rng.normal(0, 0.1, 12), rng.normal(0, 5.0, 12)])
+    # metres off: inserted lines cross the map's edge before, at and after their readings' ends
+    far = true + np.column_stack([rng.normal(0, 1.0, 12), rng.normal(0, 1.0, 12), rng.normal(0, 40.0, 12)])
+    for est, s in [(e, s) for e in (near, far) for s in (ScanSettings(max_range=2.0, angular_step=4.0),
               ScanSettings(max_range=1.5, angular_step=3.0, range_noise=0.1, dropout=0.2, seed=3),
               ScanSettings(max_range=2.0, angular_step=2.0, grazing_dropout=0.8, seed=1),
-              ScanSettings(max_range=2.0, angular_step=2.0, people=3, range_noise=0.05, seed=4)):
+              ScanSettings(max_range=2.0, angular_step=2.0, people=3, range_noise=0.05, seed=4),
+              ScanSettings(max_range=4.0, angular_step=3.0, range_noise=0.4, seed=5))]:
         got = scan_map_at_estimate(obstacles, grid, true, est, s).log_odds
         want = _reference_map_at_estimate(obstacles, grid, true, est, s)
         np.testing.assert_allclose(got, want, atol=1e-6)

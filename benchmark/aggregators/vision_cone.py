@@ -313,6 +313,42 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     return used
 
 
+def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: np.ndarray, offsets: np.ndarray,
+                max_range: float) -> np.ndarray:
+    """(H, W) bool: the cells some view's cone reaches (the union of the cones), walked as the
+    vision cone walks its rays: neighbouring rays share their cells (:func:`ray_paths`), and a
+    ray ending on the cell of the ray before is skipped (the same digital line). The cells are
+    those of every ray of heading ``yaws[v] + offsets[t]`` walked whole
+    (:func:`envs.maps.rays.trace_ray`: the digital line from the view's cell to its end,
+    stopping before the first blocked cell), at a fraction of the lookups.
+
+    Args:
+        blocked: (H, W) bool cells that stop a ray.
+        rows, cols: (N,) int the views' cells (a view off the map, or on a blocked cell, sees
+            nothing).
+        yaws: (N,) the views' headings, radians (map convention of :func:`envs.maps.rays.ray_end`).
+        offsets: (R,) ray headings around a view's heading, radians (:func:`envs.maps.rays.cone_thetas`
+            of heading 0).
+        max_range: ray length, pixels (>= 0).
+
+    Returns:
+        (H, W) bool.
+    """
+    if max_range < 0:
+        raise ValueError(f"max_range must be >= 0 pixels, got {max_range}")
+    blocked = np.ascontiguousarray(blocked, np.bool_)
+    rows, cols = np.asarray(rows, np.int64).ravel(), np.asarray(cols, np.int64).ravel()
+    h, w = blocked.shape
+    ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    state = cone_state(~blocked)  # a cell some view reached holds that view's index (>= 0)
+    n = int(ok.sum())
+    # every view votes class 0 into a one-class count the union does not read (it may wrap)
+    _cone_votes(blocked, state, rows[ok], cols[ok], np.asarray(yaws, np.float64).ravel()[ok],
+                np.ascontiguousarray(offsets, np.float64), float(max_range), 0.0, np.zeros(n, np.int64),
+                np.zeros((n, 1), np.float32), np.zeros((1, h, w), np.uint8), *ray_paths(float(max_range), PATH_CACHE_BYTES))
+    return state[1:-1, 1:-1] >= 0
+
+
 #: rows of the map the window mode works on at once (its float work arrays are this many rows)
 MODE_BAND_ROWS = 512
 

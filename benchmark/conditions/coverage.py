@@ -1,6 +1,7 @@
 """What the robot's views covered: shares of the ground truth inside at least one view's cone.
 
-A view sees the cells its cone's rays visit (:func:`envs.maps.rays.mark_visible`: rays
+A view sees the cells its cone's rays visit (:func:`benchmark.aggregators.vision_cone.cones_reach`,
+the vision cone's walk, where neighbouring rays share their cells: rays
 from the view's cell spanning ``fov`` degrees around its yaw, up to ``max_range`` metres,
 stopping before the first ``blocked`` cell; rays spaced at most a quarter pixel apart at
 the range: at half a pixel, as the vision-cone aggregator casts them, a fan of digital lines
@@ -23,7 +24,8 @@ import math
 
 import numpy as np
 
-from envs.maps.rays import cone_thetas, mark_visible
+from benchmark.aggregators.vision_cone import cones_reach
+from envs.maps.rays import cone_thetas
 from envs.maps.scene import Scene
 
 #: rays per pixel of arc at the range (see the module docstring).
@@ -54,8 +56,8 @@ def visible_cells(scene: Scene, poses: np.ndarray, fov: float, max_range: float,
         return np.zeros(grid.shape, bool)
     px = math.ceil(math.hypot(*grid.shape)) + 2 if math.isinf(max_range) else max_range / grid.resolution
     rows, cols = grid.world_to_cell(poses[:, 0], poses[:, 1])
-    thetas = np.stack([cone_thetas(y, fov, px, RAY_OVERSAMPLE) for y in poses[:, 2]])
-    return mark_visible(blocked, rows, cols, thetas, px)
+    # every cone has the same rays around its heading; neighbouring rays share their cells
+    return cones_reach(blocked, rows, cols, np.deg2rad(poses[:, 2]), cone_thetas(0.0, fov, px, RAY_OVERSAMPLE), px)
 
 
 def view_coverage(scene: Scene, poses: np.ndarray, fov: float, max_range: float, blocked: np.ndarray,

@@ -3,7 +3,7 @@ numba), on the world side beside the grid map, so that maps, render and the aggr
 
 Used by the floorplan renderer (what a camera sees), the vision-cone aggregator (which
 cells a view votes for), scan maps (:mod:`envs.maps.scan`: where laser beams end) and view
-coverage (:func:`mark_visible`: which cells some view's cone reaches). A ray starts at the
+coverage (which cells some view's cone reaches, walked the vision cone's way). A ray starts at the
 camera's cell and walks the Bresenham line (one step: :func:`line_step`) to the cell at
 ``max_range`` pixels along its heading; it stops *before* the first blocked cell (which it
 reports as its hit) or at the map edge (:func:`walk_beam` also walks a few cells past the
@@ -162,46 +162,3 @@ def cone_thetas(yaw_deg: float, fov_deg: float, max_range: float, oversample: fl
     fov = np.deg2rad(fov_deg)
     n = max(int(np.ceil(fov * max(max_range, 1.0) * oversample)) + 1, 2)
     return np.deg2rad(yaw_deg) + np.linspace(-fov / 2, fov / 2, n)
-
-
-@njit(cache=True, nogil=True)
-def _mark_cones(blocked, rows, cols, thetas, max_range, seen):
-    h, w = blocked.shape
-    cap = int(np.ceil(max_range)) + 2
-    buf_r = np.empty(cap, np.int32)
-    buf_c = np.empty(cap, np.int32)
-    for v in range(rows.shape[0]):
-        r0 = rows[v]
-        c0 = cols[v]
-        if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
-            continue
-        last_r = -(1 << 62)
-        last_c = -(1 << 62)
-        for t in range(thetas.shape[1]):
-            r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
-            if r1 == last_r and c1 == last_c:  # the same digital line as the ray before: the same cells
-                continue
-            last_r = r1
-            last_c = c1
-            n, _, _ = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
-            for j in range(n):
-                seen[buf_r[j], buf_c[j]] = True
-
-
-def mark_visible(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, thetas: np.ndarray,
-                 max_range: float) -> np.ndarray:
-    """(H, W) bool: the cells some ray of some view visits (the union of their cones).
-
-    Args:
-        blocked: (H, W) bool cells that stop a ray.
-        rows, cols: (N,) int cells of the views (views off the map see nothing).
-        thetas: (N, R) ray headings of each view, radians (e.g. :func:`cone_thetas`).
-        max_range: ray length, pixels.
-    """
-    if max_range < 0:
-        raise ValueError(f"max_range must be >= 0 pixels, got {max_range}")
-    seen = np.zeros(np.shape(blocked), np.bool_)
-    thetas = np.ascontiguousarray(thetas, np.float64).reshape(len(rows), -1)
-    _mark_cones(np.ascontiguousarray(blocked, np.bool_), np.asarray(rows, np.int64), np.asarray(cols, np.int64),
-                thetas, float(max_range), seen)
-    return seen

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from envs.maps.gridmap import GridMap
-from envs.maps.rays import ray_end, trace_ray, walk_beam
+from envs.maps.rays import line_start, line_step, ray_end, walk_beam
 from envs.maps.scan import (
     FREE,
     ScanMap,
@@ -55,7 +55,6 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
     lc = np.empty(cap, np.int32)
-    nothing = np.zeros((h, w), np.bool_)
     two_pi = 2.0 * np.pi
     done = 0
     for m in range(rows.shape[0]):
@@ -82,6 +81,7 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             if not returned:
                 continue  # a grazing beam returned nothing
             hit = k_hit >= 0
+            long_reading = False
             d_m = 0.0
             d_true = 0.0
             if hit:
@@ -90,22 +90,38 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             # insert from the estimated cell
             phi = theta + dyaw[m]
             r1, c1 = ray_end(e0, f0, phi, range_px)
-            n, _, _ = trace_ray(nothing, e0, f0, r1, c1, lr, lc)
             if hit and d_m > d_true:
                 # a long reading (as scan.py): its end must lie within max_range and on the map
+                long_reading = True
                 pr = e0 + 0.5 - np.cos(phi) * (d_m / res)
                 pc = f0 + 0.5 + np.sin(phi) * (d_m / res)
                 if not (d_m <= max_range_m and pr >= 0.0 and pr < h and pc >= 0.0 and pc < w):
                     hit = False
-            elif hit:
+            # the digital line to the end cell, within the map; a reading with a hit stops at the
+            # first cell farther than its range (distances along the line grow strictly, so the
+            # cells beyond play no part: the line only walks as far as the reading reaches)
+            dr, dc, sr, sc, err = line_start(e0, f0, r1, c1)
+            r = e0
+            c = f0
+            n = 0
+            beyond = False
+            # cell j lies at most j sqrt(2) px from the start: below ``sure`` it is within range
+            sure = int(d_m / res / 1.4142135623730951 * (1.0 - 1e-9)) - 1 if hit else 0
+            while r >= 0 and r < h and c >= 0 and c < w:
+                if hit and n > sure and np.hypot(r - e0, c - f0) * res > d_m:
+                    beyond = True
+                    break
+                lr[n] = r
+                lc[n] = c
+                n += 1
+                if r == r1 and c == c1:
+                    break
+                r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+            if hit and not beyond and not long_reading:
                 # the inserted line must reach the measured range before leaving the map
                 hit = np.hypot(lr[n - 1] - e0, lc[n - 1] - f0) * res >= d_m
-            n_free = n
-            if hit:
-                k = n - 1
-                while k > 0 and np.hypot(lr[k] - e0, lc[k] - f0) * res > d_m:
-                    k -= 1
-                n_free = k
+            # with a hit, its cell is the last one within the range (cell 0 is at distance 0)
+            n_free = n - 1 if hit else n
             for j in range(n_free):
                 nt = _mark(state, touched_r, touched_c, nt, lr[j], lc[j], s, 1)
             if hit:
