@@ -167,6 +167,33 @@ def test_ground_truth_comes_into_the_map_frame_by_the_alignment():
     np.testing.assert_array_equal(back[inside], scene.instances[inside])
 
 
+
+def test_map_frame_kernel_equals_the_grid_and_rigid_transform_composed():
+    """to_map_frame (one compiled pass) against the arithmetic it replaces, written with the
+    grid's own conversions: every cell's centre to the world, moved, and the world cell holding
+    it; random grids (sizes, resolutions, origins), turns and shifts, two label types, and
+    shifts of whole cells, where a centre lands on a cell border."""
+    from envs.maps.gridmap import GridMap
+
+    rng = np.random.default_rng(11)
+    for k in range(60):
+        h, w = (int(x) for x in rng.integers(1, 90, 2))
+        res = float(rng.choice([0.02, 0.05, 0.1, 0.037]))
+        grid = GridMap(np.ones((h, w), bool), res, (float(rng.uniform(-9, 9)), float(rng.uniform(-9, 9))))
+        labels = rng.integers(-1, 9, (h, w)).astype(np.int32 if k % 2 else np.int8)
+        theta = float((0.0, rng.normal(0, 0.05), rng.uniform(-np.pi, np.pi), np.pi / 2)[k % 4])
+        t = (rng.normal(0, 0.3, 2), np.array([res, -2 * res]), rng.normal(0, 4, 2))[k % 3]
+        rows, cols = np.mgrid[0:h, 0:w]
+        x, z = grid.pixel_to_world(rows.ravel(), cols.ravel())
+        world = apply_rigid(theta, t, np.column_stack([x, z]))
+        r, c = grid.world_to_cell(world[:, 0], world[:, 1])
+        ok = grid.in_bounds(r, c)
+        want = np.full(h * w, -1, labels.dtype)
+        want[ok] = labels[r[ok], c[ok]]
+        got = to_map_frame(labels, grid, theta, t, fill=-1)
+        assert got.dtype == labels.dtype
+        np.testing.assert_array_equal(got, want.reshape(h, w))
+
 # ----------------------------------------------------------------------------- the map
 def test_inserting_at_the_true_poses_is_the_scan_map_and_a_shift_shifts_it():
     scene = two_rooms_scene()

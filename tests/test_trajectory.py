@@ -127,3 +127,30 @@ def test_trajectory_bad_spacing():
     grid = _open_grid()
     with pytest.raises(ValueError, match="spacing"):
         trajectory(grid.walkable, grid, np.array([pose_at(grid, 5, 5, 0)]), 0.0)
+
+
+def test_routes_are_kept_by_their_inputs_content(monkeypatch):
+    """route() keeps a route per process by a digest of what it reads: the same inputs give
+    the kept route (equal to one computed afresh, read-only), a changed walkable mask, grid
+    placement or pose gives its own, and the kept bytes stay under the cap."""
+    from envs.maps import trajectory as tr
+
+    monkeypatch.setattr(tr, "_ROUTES", type(tr._ROUTES)())
+    grid = two_rooms_grid()
+    poses = np.array([pose_at(grid, 20, 10, 0.0), pose_at(grid, 20, 60, 0.0)])
+    a = route(grid.walkable, grid, poses)
+    assert route(grid.walkable.copy(), grid, poses.copy()) is a  # the same content: the kept route
+    fresh = tr._route(grid.walkable, grid, poses)
+    for name in ("points", "view_index", "driven", "travelled"):
+        assert np.array_equal(getattr(a, name), getattr(fresh, name))
+        assert not getattr(a, name).flags.writeable
+    shut = grid.walkable.copy()
+    shut[:, 38:42] = False  # the door closed: the second view is a jump, not a drive
+    b = route(shut, grid, poses)
+    assert b is not a and not b.driven[-1] and a.driven[-1]
+    moved = GridMap(grid.walkable, grid.resolution, (grid.origin[0] + grid.resolution, grid.origin[1]))
+    assert route(grid.walkable, moved, poses) is not a
+    assert route(grid.walkable, grid, poses + [0.0, 0.0, 90.0]) is not a  # yaw is part of the key
+    monkeypatch.setattr(tr, "ROUTE_MEMO_BYTES", tr._route_bytes(a))
+    route(grid.walkable, grid, poses + [grid.resolution, 0.0, 0.0])
+    assert sum(tr._route_bytes(r) for r in tr._ROUTES.values()) <= tr._route_bytes(a)

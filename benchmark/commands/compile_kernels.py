@@ -77,6 +77,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.aggregators.euclidean_knn import EuclideanKNN
     from benchmark.aggregators.graph_knn import GraphKNN
     from benchmark.aggregators.vision_cone import VisionCone
+    from benchmark.conditions.alignment import to_map_frame
     from benchmark.conditions.coverage import view_coverage
     from benchmark.conditions.exploration import Frontier, RandomWalk
     from benchmark.metrics import segments
@@ -108,6 +109,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
             ScanSettings(range_noise=0.02, dropout=0.1, seed=1))),
         ("exploration", lambda: (Frontier(budget=3.0).explore(scene), RandomWalk(budget=3.0).generate(scene))),
         ("route", lambda: route(grid.walkable, grid, poses[:4])),
+        ("map frame", lambda: to_map_frame(scene.instances, grid, 0.01, np.array([0.05, 0.0]))),
         ("coverage", lambda: view_coverage(scene, poses, 90.0, 6.0, occluders(scene, 1.2))),
         ("ray cast", lambda: cast_rays(~grid.walkable, *grid.world_to_cell(poses[0, 0], poses[0, 1]),
                                        np.array([0.0, 1.0]), 10.0)),

@@ -9,6 +9,7 @@ positions. :func:`ate_rmse` is the root mean square of the position error after 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
 def align_rigid(est: np.ndarray, true: np.ndarray) -> tuple[float, np.ndarray]:
@@ -51,6 +52,25 @@ def ate_rmse(est: np.ndarray, true: np.ndarray) -> float:
 
 
 
+@njit(cache=True, nogil=True)
+def _map_frame_source(h, w, o0, o1, res, cs, sn, t0, t1, out):
+    """Per map cell, the flat index of the world cell its centre shows (-1: off the raster):
+    the arithmetic of ``GridMap.pixel_to_world``, :func:`apply_rigid` and
+    ``GridMap.world_to_cell``, operation for operation."""
+    for r in range(h):
+        z = o1 - (r + 0.5) * res
+        for c in range(w):
+            x = o0 + (c + 0.5) * res
+            wx = (cs * x - sn * z) + t0
+            wz = (sn * x + cs * z) + t1
+            rr = np.floor((o1 - wz) / res)
+            cc = np.floor((wx - o0) / res)
+            if rr >= 0 and rr < h and cc >= 0 and cc < w:
+                out[r, c] = int(rr) * w + int(cc)
+            else:
+                out[r, c] = -1
+
+
 def to_map_frame(labels: np.ndarray, grid, theta: float, t: np.ndarray, fill: int = -1) -> np.ndarray:
     """A world-frame label raster brought into a robot map's frame (nearest cell).
 
@@ -68,14 +88,16 @@ def to_map_frame(labels: np.ndarray, grid, theta: float, t: np.ndarray, fill: in
     """
     labels = np.asarray(labels)
     h, w = labels.shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    x, z = grid.pixel_to_world(rows.ravel(), cols.ravel())
-    world = apply_rigid(theta, t, np.column_stack([x, z]))
-    r, c = grid.world_to_cell(world[:, 0], world[:, 1])
-    ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-    out = np.full(h * w, fill, labels.dtype)
-    out[ok] = labels[r[ok], c[ok]]
-    return out.reshape(h, w)
+    t = np.asarray(t, np.float64).reshape(2)
+    src = np.empty((h, w), np.int64)
+    # the same float operations as pixel_to_world -> apply_rigid -> world_to_cell (np.cos and
+    # np.sin of theta as apply_rigid takes them), one pass and no (H W, 2) temporaries
+    _map_frame_source(h, w, float(grid.origin[0]), float(grid.origin[1]), float(grid.resolution),
+                      float(np.cos(theta)), float(np.sin(theta)), float(t[0]), float(t[1]), src)
+    out = np.full((h, w), fill, labels.dtype)
+    ok = src >= 0
+    out[ok] = labels.ravel()[src[ok]]
+    return out
 
 
 __all__ = ["align_rigid", "apply_rigid", "ate_rmse", "to_map_frame"]

@@ -214,6 +214,7 @@ class Pipeline(RobotStages):
     _stages: dict[str, Any] = field(default_factory=dict, repr=False)
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
     _frames: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
+    _poses_read: dict[Path, np.ndarray] = field(default_factory=dict, repr=False)
 
     #: the stage groups whose input files feed each cached stage, in order.
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = ()

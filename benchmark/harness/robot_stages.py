@@ -221,10 +221,18 @@ class RobotStages:
 
     # ---- what the views covered
     def _render_poses(self, hid: str) -> np.ndarray:
-        """Every view's true pose in capture order (refused ones included): the robot's path."""
+        """Every view's true pose in capture order (refused ones included): the robot's path.
+        The house's map, its route and its coverage all ask: read once per render entry (the
+        last one read is kept, read-only)."""
         from envs.render import cache as render_cache
 
-        return render_cache.read_poses(self.entry("render", hid))[0]
+        path = self.entry("render", hid)
+        if path not in self._poses_read:
+            poses = render_cache.read_poses(path)[0]
+            poses.setflags(write=False)
+            self._poses_read.clear()
+            self._poses_read[path] = poses
+        return self._poses_read[path]
 
     def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
         """How much of the house the views saw (:func:`benchmark.conditions.coverage.view_coverage`) with

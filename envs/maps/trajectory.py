@@ -17,8 +17,10 @@ each view (what pose drift grows with).
 
 from __future__ import annotations
 
+import hashlib
 import heapq
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,14 +129,56 @@ class Route:
         return float(self.travelled[-1]) if len(self.travelled) else 0.0
 
 
+#: bytes of routes :func:`route` keeps per process (least recently used dropped first): the
+#: jobs of a sweep ask for the same house's route again (every method and severity of a pose
+#: error or a scan map drives the same views), and a route of a shared ProcTHOR house holds
+#: tens of kilobytes
+ROUTE_MEMO_BYTES = 32 * 2**20
+_ROUTES: OrderedDict[bytes, Route] = OrderedDict()
+
+
+def _route_key(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> bytes:
+    """A digest of everything :func:`route` reads: the walkable cells, the grid's cells, size
+    and placement, and the poses."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (walkable, np.asarray(grid.walkable, bool), poses):
+        h.update(repr((a.dtype.str, a.shape)).encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(repr((float(grid.resolution), tuple(float(o) for o in grid.origin))).encode())
+    return h.digest()
+
+
 def route(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> Route:
     """Join (N, 3) view poses (x, z metres, yaw degrees) in capture order (module docstring).
+
+    Kept per process by a digest of its inputs (:data:`ROUTE_MEMO_BYTES`); the arrays of a
+    route are read-only.
 
     Returns:
         :class:`Route`.
     """
     poses = np.asarray(poses, np.float64).reshape(-1, 3)
     walkable = np.asarray(walkable, bool)
+    key = _route_key(walkable, grid, poses)
+    if key in _ROUTES:
+        _ROUTES.move_to_end(key)
+        return _ROUTES[key]
+    out = _route(walkable, grid, poses)
+    for a in (out.points, out.view_index, out.driven, out.travelled):
+        a.setflags(write=False)
+    _ROUTES[key] = out
+    held = sum(_route_bytes(r) for r in _ROUTES.values())
+    while _ROUTES and held > ROUTE_MEMO_BYTES:
+        held -= _route_bytes(_ROUTES.popitem(last=False)[1])
+    return out
+
+
+def _route_bytes(r: Route) -> int:
+    return r.points.nbytes + r.view_index.nbytes + r.driven.nbytes + r.travelled.nbytes
+
+
+def _route(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> Route:
+    """:func:`route`, computed."""
     rows, cols = grid.world_to_cell(poses[:, 0], poses[:, 1])
     ok = grid.is_walkable(rows, cols)
     pts: list[np.ndarray] = []
