@@ -43,6 +43,8 @@ def test_longest_border_wins_and_ids_are_renumbered():
     assert np.array_equal(out, want) and out.dtype == np.int32
     # nothing under the limit: unchanged (renumbered to 0..K-1 in the old ids' order)
     assert np.array_equal(merge_small_rooms(inst * 2 + 7, walk, 4), inst)
+    # sparse ids (ranked by sorting, not counting) merge the same way
+    assert np.array_equal(merge_small_rooms(inst * 10**12 + 5, walk, 5), want)
     assert np.array_equal(merge_small_rooms(inst, walk, 0), inst)
 
 

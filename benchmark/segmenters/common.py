@@ -49,10 +49,12 @@ from envs.maps.gridmap import GridMap
 FOUR = ndimage.generate_binary_structure(2, 1)
 
 
-def grow_seeds(seeds: np.ndarray, walkable: np.ndarray) -> np.ndarray:
-    """Grow labelled seeds (0 = none) over ``walkable`` by a watershed on the distance map;
+def grow_seeds(seeds: np.ndarray, walkable: np.ndarray, dist: np.ndarray | None = None) -> np.ndarray:
+    """Grow labelled seeds (0 = none) over ``walkable`` by a watershed on the distance map
+    (``dist``: ``ndimage.distance_transform_edt(walkable)``, pixels, when the caller has it);
     walkable components without a seed become extra rooms. Returns ids 0..K-1, -1 elsewhere."""
-    dist = ndimage.distance_transform_edt(walkable)
+    if dist is None:
+        dist = ndimage.distance_transform_edt(walkable)
     lab = watershed(-dist, seeds, mask=walkable, connectivity=1)
     orphan, n = ndimage.label(walkable & (lab == 0), FOUR)
     if n:
@@ -108,10 +110,18 @@ def merge_small_rooms(instances: np.ndarray, walkable: np.ndarray, min_pixels: f
     m = inst >= 0
     if not m.any():
         return out
-    ids, dense = np.unique(inst[m], return_inverse=True)
+    # the ids present, in order, and each cell's rank among them: by counting where the ids are
+    # dense (a segmenter's 0..K-1), else by sorting (the same ranks)
+    vals = inst[m]
     lab = np.full(inst.shape, -1, np.int64)
-    lab[m] = dense.ravel()
-    n = len(ids)
+    if vals.max() < 2 * vals.size + 1024:
+        present = np.bincount(vals) > 0
+        lab[m] = (np.cumsum(present) - 1)[vals]
+        n = int(present.sum())
+    else:
+        ids, dense = np.unique(vals, return_inverse=True)
+        lab[m] = dense.ravel()
+        n = len(ids)
     size = np.bincount(lab[m], minlength=n).astype(np.int64)
     # borders: 4-adjacent pixel pairs of two different rooms, counted per unordered pair
     pairs = []
@@ -150,15 +160,18 @@ def merge_small_rooms(instances: np.ndarray, walkable: np.ndarray, min_pixels: f
     return out
 
 
-def finish_rooms(seeds: np.ndarray, grid: GridMap, min_room_area: float) -> np.ndarray:
+def finish_rooms(seeds: np.ndarray, grid: GridMap, min_room_area: float, dist: np.ndarray | None = None) -> np.ndarray:
     """Seeds -> rooms: :func:`grow_seeds` over the walkable cells, then
     :func:`merge_small_rooms` with ``min_room_area`` (square metres) at the grid's
     resolution. The last step of every geometric segmenter.
 
+    Args:
+        dist: the walkable cells' distance transform in pixels, when the segmenter made it.
+
     Returns:
         (H, W) int32 room ids 0..K-1 on walkable cells, -1 elsewhere.
     """
-    rooms = grow_seeds(seeds, grid.walkable)
+    rooms = grow_seeds(seeds, grid.walkable, dist)
     return merge_small_rooms(rooms, grid.walkable, check_room_area(min_room_area) / grid.resolution ** 2)
 
 

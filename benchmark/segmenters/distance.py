@@ -36,7 +36,8 @@ class DistanceTransform(Segmenter):
     def __call__(self, grid: GridMap) -> np.ndarray:
         """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
         lo, _ = check_area_limits(grid, self.min_seed_area, self.max_area)
-        dist = ndimage.distance_transform_edt(grid.walkable) * grid.resolution
+        edt = ndimage.distance_transform_edt(grid.walkable)  # pixels: the watershed's too
+        dist = edt * grid.resolution
         best, best_seeds = -1, None
         for t in np.arange(0.0, dist.max(), max(self.step, grid.resolution)):
             lab, n = ndimage.label(dist > t, FOUR)
@@ -44,8 +45,7 @@ class DistanceTransform(Segmenter):
             keep = np.nonzero(sizes[1:] >= lo)[0] + 1
             if len(keep) > best:
                 best = len(keep)
-                seeds = np.zeros(grid.shape, np.int32)
-                for j, i in enumerate(keep):
-                    seeds[lab == i] = j + 1
-                best_seeds = seeds
-        return finish_rooms(best_seeds, grid, self.min_room_area)
+                number = np.zeros(n + 1, np.int32)  # the kept parts numbered 1.. in label order
+                number[keep] = np.arange(1, len(keep) + 1)
+                best_seeds = number[lab]
+        return finish_rooms(best_seeds, grid, self.min_room_area, edt)

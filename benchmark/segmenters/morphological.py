@@ -39,9 +39,10 @@ class Morphological(Segmenter):
         k = 0
         while work.any():
             lab, n = ndimage.label(work, FOUR)
-            ids, first = np.unique(lab.ravel(), return_index=True)
+            # each part lies inside one part of the step before (the free space only shrinks):
+            # any of its cells names that parent (the background's entry is never read)
             parent = np.zeros(n + 1, np.int64)
-            parent[ids] = prev.ravel()[first]
+            parent[lab.ravel()] = prev.ravel()
             sizes = np.bincount(lab.ravel(), minlength=n + 1)
             # a real split: at least two parts of room size (>= min_seed_area) from one parent
             big = np.nonzero(sizes[1:] >= lo)[0] + 1
