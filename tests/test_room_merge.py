@@ -138,3 +138,27 @@ def test_every_geometric_segmenter_merges_the_fragments_of_clutter():
     rooms = Voronoi()(grid)
     assert rooms.max() + 1 == 2 and len(np.unique(rooms[64:78, 10:26])) == 1
     assert rooms[70, 18] == rooms[30, 30] != rooms[30, 100]
+
+
+def test_parts_per_threshold_equals_labelling_each_threshold():
+    """The distance segmenter's one-sweep count (union-find from the highest threshold down)
+    against the map labelled at every threshold (scipy's label, 4-connected), on random free
+    space, with distances that equal thresholds exactly and seed sizes of 1 cell and more."""
+    from scipy import ndimage
+
+    from benchmark.segmenters.common import FOUR
+    from benchmark.segmenters.distance import parts_per_threshold
+
+    rng = np.random.default_rng(3)
+    for k in range(40):
+        h, w = (int(x) for x in rng.integers(1, 60, 2))
+        free = rng.random((h, w)) < rng.uniform(0.3, 0.95)
+        if k % 2:
+            dist = ndimage.distance_transform_edt(free) * 0.05
+            thresholds = np.arange(0.0, max(dist.max(), 0.05), 0.05)
+        else:  # whole numbers: many distances equal a threshold
+            dist = np.where(free, rng.integers(0, 6, (h, w)), 0).astype(float)
+            thresholds = np.arange(0.0, 6.0, 1.0)
+        lo = float(rng.choice([0.5, 1.0, 3.0, 7.5]))
+        want = [int((np.bincount(ndimage.label(dist > t, FOUR)[0].ravel())[1:] >= lo).sum()) for t in thresholds]
+        assert parts_per_threshold(dist, thresholds, lo).tolist() == want

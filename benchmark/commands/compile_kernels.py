@@ -82,6 +82,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.conditions.exploration import Frontier, RandomWalk
     from benchmark.metrics import segments
     from benchmark.postprocess import PostProcess
+    from benchmark.segmenters.distance import DistanceTransform
     from benchmark.viewpoints import Autotrace
     from envs.maps.rays import cast_rays
     from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map, scan_obstacles
@@ -101,6 +102,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
         ("vision_cone", lambda: (VisionCone()(grid, poses, proba), VisionCone(vote="probability")(grid, poses, proba))),
         ("euclidean_knn", lambda: EuclideanKNN()(grid, poses, proba)),
         ("postprocess", lambda: PostProcess()(labels, grid)),
+        ("distance segmenter", lambda: DistanceTransform()(grid)),
         ("segments", lambda: [segments(labels.astype(t), c) for t in (np.int16, np.int32, np.int64) for c in (4, 8)]),
         ("scan map", lambda: robot_scan_map(scene, poses[:4], ScanSettings(range_noise=0.02, dropout=0.1, seed=1),
                                             house_wall_height(house))),
