@@ -169,7 +169,7 @@ def test_scenes_are_kept_per_process_up_to_a_memory_bound(monkeypatch):
     ids = pipe.env.house_ids()
     one = pl.scene_bytes(pipe.env.scene(ids[0]))
     assert one > pipe.env.scene(ids[0]).instances.nbytes
-    monkeypatch.setattr(pl, "_SCENES", pl.OrderedDict())
+    monkeypatch.setattr(pl, "_SCENES", pl.ByteLRU())
     monkeypatch.setenv("ROOMSEG_SCENE_CACHE_MB", str(2.5 * one / 2**20))  # room for two such scenes
     first = [pipe.scene(h) for h in ids]
     assert [k[1] for k in pl._SCENES] == ids[-2:]

@@ -25,7 +25,6 @@ import math
 import os
 import time
 import traceback
-from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,14 +58,15 @@ from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
 from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy
 from envs.datasets.base import Environment
+from envs.memo import ByteLRU
 from envs.render.base import Renderer
 from envs.render.observation import poses_array
 
 log = logging.getLogger("roomseg-bench")
 T = TypeVar("T")
 
-#: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> (Scene, bytes).
-_SCENES: OrderedDict[tuple[str, str], tuple[Any, int]] = OrderedDict()
+#: scenes kept per process (see :meth:`Pipeline.scene`): (env key, house id) -> Scene.
+_SCENES = ByteLRU()
 #: the most memory (MiB) one process's scenes hold, the least recently used dropped first:
 #: ``$ROOMSEG_SCENE_CACHE_MB``, else 512 in a job of a multirun (a shared ProcTHOR house at
 #: 0.05 m/px holds under 1 MB by :func:`scene_bytes`, so a grid's workers keep both datasets'
@@ -301,15 +301,10 @@ class Pipeline(RobotStages):
         if self.env_key is None:
             return self.env.scene(hid)
         key = (self.env_key, hid)
-        if key in _SCENES:
-            _SCENES.move_to_end(key)
-            return _SCENES[key][0]
-        scene = self.env.scene(hid)
-        limit = scene_cache_limit()
-        _SCENES[key] = (scene, scene_bytes(scene))
-        held = sum(b for _, b in _SCENES.values())
-        while _SCENES and held > limit:
-            held -= _SCENES.popitem(last=False)[1][1]
+        scene = _SCENES.get(key)
+        if scene is None:
+            scene = self.env.scene(hid)
+            _SCENES.put(key, scene, scene_bytes(scene), scene_cache_limit())
         return scene
 
     @property

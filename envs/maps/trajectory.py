@@ -20,7 +20,6 @@ from __future__ import annotations
 import hashlib
 import heapq
 import math
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +27,7 @@ from numba import njit
 
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import trace_ray
+from envs.memo import ByteLRU
 
 SQRT2 = math.sqrt(2.0)
 #: 8-neighbour offsets (d_row, d_col) and step costs (cells), in the order paths are relaxed.
@@ -134,7 +134,7 @@ class Route:
 #: error or a scan map drives the same views), and a route of a shared ProcTHOR house holds
 #: tens of kilobytes
 ROUTE_MEMO_BYTES = 32 * 2**20
-_ROUTES: OrderedDict[bytes, Route] = OrderedDict()
+_ROUTES = ByteLRU()
 
 
 def _route_key(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> bytes:
@@ -160,16 +160,12 @@ def route(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> Route:
     poses = np.asarray(poses, np.float64).reshape(-1, 3)
     walkable = np.asarray(walkable, bool)
     key = _route_key(walkable, grid, poses)
-    if key in _ROUTES:
-        _ROUTES.move_to_end(key)
-        return _ROUTES[key]
-    out = _route(walkable, grid, poses)
-    for a in (out.points, out.view_index, out.driven, out.travelled):
-        a.setflags(write=False)
-    _ROUTES[key] = out
-    held = sum(_route_bytes(r) for r in _ROUTES.values())
-    while _ROUTES and held > ROUTE_MEMO_BYTES:
-        held -= _route_bytes(_ROUTES.popitem(last=False)[1])
+    out = _ROUTES.get(key)
+    if out is None:
+        out = _route(walkable, grid, poses)
+        for a in (out.points, out.view_index, out.driven, out.travelled):
+            a.setflags(write=False)
+        _ROUTES.put(key, out, _route_bytes(out), ROUTE_MEMO_BYTES)
     return out
 
 
