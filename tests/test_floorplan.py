@@ -91,7 +91,7 @@ def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
         o = scene.objects[k]
         for t in (o.object_type, *o.children):
             objects[t] = max(objects.get(t, 0.0), n / len(thetas))
-    return counts / max(counts.sum(), 1), objects
+    return counts / max(counts.sum(), 1), objects, len(cells)
 
 
 def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
@@ -107,10 +107,24 @@ def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
     obs = FloorplanRenderer(fov=90, max_range=4.0, occluder_height=1.2).render(house, scene, poses)
     majority = []
     for p, o in zip(poses, obs):
-        vis, objects = _reference_observation(scene, p, 90, 4.0, 1.2)
+        vis, objects, n_cells = _reference_observation(scene, p, 90, 4.0, 1.2)
         assert np.allclose(o.visible_classes, vis)
+        assert o.meta["n_visible_cells"] == n_cells
         assert dict(o.objects) == pytest.approx(objects)
         majority.append(int(np.argmax(vis)))
     assert sum(len(o.objects) > 0 for o in obs) >= len(obs) // 2  # the house has furniture in view
     # the oracle at accuracy 1.0 gives the class covering most of the visible floor
     assert OracleClassifier(accuracy=1.0).predict_proba(obs).argmax(1).tolist() == majority
+
+    # cameras standing on a tall object (every ray touches it and stops), in a wall, off the map
+    g = scene.grid
+    tall = np.array([o.top >= 1.2 for o in scene.objects] + [False])[scene.object_map]
+    odd = [np.argwhere(tall)[0], np.argwhere(tall)[-1], np.argwhere(scene.walls)[len(np.argwhere(scene.walls)) // 2]]
+    odd_poses = [pose_at(g, int(r), int(c), 30.0 * i) for i, (r, c) in enumerate(odd)]
+    odd_poses.append((g.origin[0] - 1.0, g.origin[1] + 1.0, 0.0))
+    for p, o in zip(odd_poses, FloorplanRenderer(fov=90, max_range=4.0, occluder_height=1.2).render(house, scene, odd_poses)):
+        vis, objects, n_cells = _reference_observation(scene, p, 90, 4.0, 1.2)
+        assert np.allclose(o.visible_classes, vis) and o.meta["n_visible_cells"] == n_cells == 0
+        assert dict(o.objects) == pytest.approx(objects)
+    assert len(objects) == 0 and all(len(o.objects) for o in
+                                     FloorplanRenderer(fov=90, max_range=4.0).render(house, scene, odd_poses[:2]))

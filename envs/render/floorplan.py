@@ -17,7 +17,7 @@ from typing import Annotated
 import numpy as np
 from numba import njit
 
-from envs.maps.rays import cast_rays, cone_thetas, ray_end, trace_ray
+from envs.maps.rays import cast_rays, cone_thetas, line_start, line_step, ray_end
 from envs.maps.scene import Scene
 from envs.ranges import CAMERA_FOV, NonNegative, Positive
 from envs.render.base import Renderer
@@ -71,19 +71,31 @@ def view_from(scene: Scene, blocked: np.ndarray, pose: Sequence[float], fov: flo
     return View(lin // grid.shape[1], lin % grid.shape[1], object_rays, len(thetas))
 
 
-@njit(cache=True)
-def _render_views(blocked, rooms, room_cls, object_map, rows, cols, thetas, max_range, n_cls, n_obj):
-    """Per view: visible floor cells per class (each cell once) and rays touching each object."""
+#: values of the renderer's per-cell state besides view ids (>= 0: the last view that saw the cell)
+_FREE, _BLOCKED, _OUTSIDE = -1, -2, -3
+
+
+@njit(cache=True, nogil=True)
+def _render_views(blocked, rooms, room_cls, object_map, rows, cols, yaws, offsets, max_range, n_cls, n_obj):
+    """Per view: visible floor cells per class (each cell once) and rays touching each object.
+
+    Ray ``t`` of view ``v`` has heading ``yaws[v] + offsets[t]`` and walks the digital line of
+    :func:`envs.maps.rays.trace_ray` (stopping before the first blocked cell, which it touches,
+    or at the map's edge), inline over one (H + 2, W + 2) int32 cell state: ``_FREE``,
+    ``_BLOCKED``, ``_OUTSIDE`` on a one-cell border (a ray meets it before leaving the map), or
+    the last view that saw the cell; one load per cell tells blocked, off the map and seen."""
     h, w = blocked.shape
-    n_views, n_rays = thetas.shape
+    n_views = rows.shape[0]
+    n_rays = offsets.shape[0]
     vis = np.zeros((n_views, n_cls), np.int64)
     obj_rays = np.zeros((n_views, max(n_obj, 1)), np.int64)
     n_cells = np.zeros(n_views, np.int64)
-    stamp = np.full((h, w), -1, np.int64)
+    state = np.full((h + 2, w + 2), _OUTSIDE, np.int32)
+    for r in range(h):
+        for c in range(w):
+            state[r + 1, c + 1] = _BLOCKED if blocked[r, c] else _FREE
     ostamp = np.full(max(n_obj, 1), -1, np.int64)
     cap = int(np.ceil(max_range)) + 2
-    buf_r = np.empty(cap, np.int32)
-    buf_c = np.empty(cap, np.int32)
     last_objs = np.empty(cap + 1, np.int64)  # the objects the ray before touched (each once)
     ray_id = 0
     for v in range(n_views):
@@ -95,7 +107,7 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, thetas, max_
         last_c = -(1 << 62)
         n_last = 0
         for t in range(n_rays):
-            r1, c1 = ray_end(r0, c0, thetas[v, t], max_range)
+            r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
             if r1 == last_r and c1 == last_c:
                 # the same digital line as the ray before: the same cells (already counted for this
                 # view) and the same objects, each touched by one more ray
@@ -106,29 +118,35 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, thetas, max_
             last_r = r1
             last_c = c1
             n_last = 0
-            n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
-            for j in range(n):
-                rr = buf_r[j]
-                cc = buf_c[j]
-                if stamp[rr, cc] != v:
-                    stamp[rr, cc] = v
+            dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
+            r = r0
+            c = c0
+            while True:
+                x = state[r + 1, c + 1]
+                if x < _FREE:  # blocked (the ray touches it) or off the map (nothing there)
+                    if x == _BLOCKED:
+                        o = object_map[r, c]
+                        if o >= 0 and ostamp[o] != ray_id:
+                            ostamp[o] = ray_id
+                            obj_rays[v, o] += 1
+                            last_objs[n_last] = o
+                            n_last += 1
+                    break
+                if x != v:
+                    state[r + 1, c + 1] = v
                     n_cells[v] += 1
-                    k = rooms[rr, cc]
+                    k = rooms[r, c]
                     if k >= 0 and room_cls[k] >= 0:
                         vis[v, room_cls[k]] += 1
-                o = object_map[rr, cc]
+                o = object_map[r, c]
                 if o >= 0 and ostamp[o] != ray_id:
                     ostamp[o] = ray_id
                     obj_rays[v, o] += 1
                     last_objs[n_last] = o
                     n_last += 1
-            if hr >= 0:
-                o = object_map[hr, hc]
-                if o >= 0 and ostamp[o] != ray_id:
-                    ostamp[o] = ray_id
-                    obj_rays[v, o] += 1
-                    last_objs[n_last] = o
-                    n_last += 1
+                if r == r1 and c == c1:
+                    break
+                r, c, err = line_step(r, c, err, dr, dc, sr, sc)
             ray_id += 1
     return vis, obj_rays, n_cells
 
@@ -157,12 +175,14 @@ class FloorplanRenderer(Renderer):
         n_cls = len(scene.classes)
         max_px = self.max_range / scene.grid.resolution
         r, c = scene.grid.world_to_cell(poses[:, 0], poses[:, 1])
-        thetas = np.stack([cone_thetas(y, self.fov, max_px) for y in poses[:, 2]]) if len(poses) else np.zeros((0, 2))
+        # every view's rays: the same offsets around its heading (cone_thetas centred on 0)
+        offsets = cone_thetas(0.0, self.fov, max_px)
         omap = scene.object_map if scene.object_map is not None else np.full(scene.grid.shape, -1, np.int32)
         vis, obj_rays, n_cells = _render_views(
             np.ascontiguousarray(blocked), scene.rooms, np.asarray(scene.instance_classes, np.int64), omap,
-            r.astype(np.int64), c.astype(np.int64), thetas, float(max_px), n_cls, len(scene.objects))
-        n_rays = thetas.shape[1]
+            r.astype(np.int64), c.astype(np.int64), np.deg2rad(poses[:, 2]), offsets, float(max_px), n_cls,
+            len(scene.objects))
+        n_rays = len(offsets)
         out = []
         for i, p in enumerate(poses):
             objects: dict[str, float] = {}
