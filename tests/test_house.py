@@ -179,3 +179,66 @@ def test_rooms_layer_is_the_full_rasterisation_cut_down():
 @pytest.mark.shared_data
 def test_rooms_layer_on_the_shared_houses(shared_houses):
     _check_rooms_layer(shared_houses[:40])
+
+
+def _in_closed_polygon(px: float, pz: float, poly) -> bool:
+    """Exact (rational arithmetic) test: point inside the polygon or on one of its edges."""
+    from fractions import Fraction as F
+
+    x, z = F(px), F(pz)
+    pts = [(F(a), F(b)) for a, b in poly]
+    inside = False
+    for (x0, z0), (x1, z1) in zip(pts, pts[1:] + pts[:1]):
+        if (x1 - x0) * (z - z0) == (z1 - z0) * (x - x0) and min(x0, x1) <= x <= max(x0, x1) \
+                and min(z0, z1) <= z <= max(z0, z1):
+            return True  # on this edge
+        if (z0 > z) != (z1 > z) and x < x0 + (z - z0) * (x1 - x0) / (z1 - z0):
+            inside = not inside  # the ray towards +x crosses this edge
+    return inside
+
+
+def _reference_rooms(scene, house):
+    """The room raster from its definition: each pixel centre takes the first room whose floor
+    polygon holds it (inside or on an edge), -1 for none."""
+    from envs.maps.scene import floor_polygon
+
+    h, w = scene.grid.shape
+    xs, _ = scene.grid.pixel_to_world(np.zeros(w), np.arange(w))
+    _, zs = scene.grid.pixel_to_world(np.arange(h), np.zeros(h))
+    out = np.full((h, w), -1, np.int32)
+    for i, room in enumerate(house.data["rooms"]):
+        poly = floor_polygon(room, house.id)
+        (x0, z0), (x1, z1) = np.min(poly, 0), np.max(poly, 0)
+        for r in np.nonzero((zs >= z0) & (zs <= z1))[0]:
+            for c in np.nonzero((xs >= x0) & (xs <= x1))[0]:
+                if out[r, c] < 0 and _in_closed_polygon(float(xs[c]), float(zs[r]), poly):
+                    out[r, c] = i
+    return out
+
+
+def test_room_raster_equals_exact_point_in_polygon():
+    """Pixel centres on edges and corners (binary fractions: the polygons' corners and a point
+    of the slanted edge sit exactly on pixel centres), a concave room, a room sharing edges
+    with another (the first room wins)."""
+    def room(rid, pts):
+        return {"id": rid, "roomType": "Kitchen", "floorPolygon": [{"x": x, "y": 0, "z": z} for x, z in pts]}
+
+    data = {"rooms": [room("room|L", [(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)]),
+                      room("room|2", [(1, 1), (2, 1), (2, 2), (1, 2)]),
+                      room("room|3", [(2, 0), (3, 0.5), (2, 2)])],
+            "walls": [], "doors": [], "objects": []}
+    house = House("edges", data)
+    scene = rasterise_house(house, resolution=0.25, wall_thickness=0.0, margin=0.125)
+    ref = _reference_rooms(scene, house)
+    assert np.array_equal(scene.rooms, ref)
+    at = lambda x, z: scene.rooms[tuple(int(v) for v in scene.grid.world_to_cell(x, z))]  # noqa: E731
+    # the L's inner corner and the edge it shares with room 2 go to the L (first room); room
+    # 3's slanted edge holds the centre (2.5, 0.25); the centre (2.75, 0.25) lies outside it
+    assert (at(1.0, 1.0), at(1.5, 1.0), at(1.75, 1.5), at(2.5, 0.25), at(2.75, 0.25), at(0.0, 0.0)) == (0, 0, 1, 2, -1, 0)
+
+
+@pytest.mark.shared_data
+def test_room_raster_equals_exact_point_in_polygon_on_shared_houses(shared_houses):
+    for house in shared_houses[:3]:
+        scene = rasterise_house(house, resolution=0.2)
+        assert np.array_equal(scene.rooms, _reference_rooms(scene, house))

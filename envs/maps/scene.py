@@ -144,7 +144,8 @@ def _wall_segment(wall: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _pixel_window(grid: GridMap, xmin: float, xmax: float, zmin: float, zmax: float):
-    """Pixel index window covering a world box, and its pixel-centre coordinates."""
+    """Pixel index window covering a world box, and its pixel-centre coordinates: x (1, w) per
+    column and z (h, 1) per row, which broadcast to the window's (h, w)."""
     h, w = grid.shape
     r0, c0 = grid.world_to_cell(xmin, zmax)
     r1, c1 = grid.world_to_cell(xmax, zmin)
@@ -152,8 +153,7 @@ def _pixel_window(grid: GridMap, xmin: float, xmax: float, zmin: float, zmax: fl
     r1, c1 = min(int(r1) + 2, h), min(int(c1) + 2, w)
     if r0 >= r1 or c0 >= c1:
         return None
-    rr, cc = np.mgrid[r0:r1, c0:c1]
-    x, z = grid.pixel_to_world(rr, cc)
+    x, z = grid.pixel_to_world(np.arange(r0, r1)[:, None], np.arange(c0, c1)[None, :])
     return (slice(r0, r1), slice(c0, c1)), x, z
 
 
@@ -241,7 +241,7 @@ def rasterise_house(
     w, h = int(wf), int(hf)
     grid0 = GridMap(np.zeros((h, w), bool), resolution, (float(xmin), float(zmax)))
 
-    # rooms: pixel centre inside the floor polygon, first room wins
+    # rooms: pixel centre inside the floor polygon or on its edge, first room wins
     rooms = np.full((h, w), -1, dtype=np.int32)
     for i, poly in enumerate(polys):
         arr = np.array(poly)
@@ -249,8 +249,9 @@ def rasterise_house(
         if win is None:
             continue
         sl, x, z = win
-        inside = shapely.contains_xy(shapely.Polygon(arr), x, z) | shapely.intersects_xy(
-            shapely.Polygon(arr).boundary, x, z)
+        shape = shapely.Polygon(arr)
+        shapely.prepare(shape)  # (GEOS's indexed point-in-area test: the same answers, faster)
+        inside = shapely.intersects_xy(shape, x, z)
         sub = rooms[sl]
         sub[inside & (sub < 0)] = i
     floor = rooms >= 0
