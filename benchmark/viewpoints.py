@@ -29,10 +29,17 @@ from envs.maps.scene import Scene
 from envs.ranges import HEADING_SPREAD, Integer, NonNegative, OneOf, Positive
 
 
-def trace_path(walkable: np.ndarray, offset_px: float) -> list[np.ndarray]:
+def clearance_px(walkable: np.ndarray) -> np.ndarray:
+    """(H, W) float: each cell's distance in pixels to the nearest non-walkable cell, the map's
+    edge counting as one (0 on non-walkable cells)."""
+    return ndimage.distance_transform_edt(np.pad(walkable, 1))[1:-1, 1:-1]
+
+
+def trace_path(walkable: np.ndarray, offset_px: float, dist: np.ndarray | None = None) -> list[np.ndarray]:
     """Closed contours (each (L, 2) int (row, col), in order) of the walkable cells whose
-    distance to the nearest obstacle is more than ``offset_px`` pixels."""
-    dist = ndimage.distance_transform_edt(np.pad(walkable, 1))[1:-1, 1:-1]
+    distance to the nearest obstacle is more than ``offset_px`` pixels (``dist``: the
+    :func:`clearance_px` of ``walkable`` when the caller has it)."""
+    dist = clearance_px(walkable) if dist is None else dist
     inner = (dist > offset_px).astype(np.uint8)
     contours, _ = cv2.findContours(inner, cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
     return [c[:, 0, ::-1].astype(np.int64) for c in contours]
@@ -73,20 +80,21 @@ class Autotrace(Viewpoints):
         self.offset, self.spacing, self.n_headings = offset, spacing, n_headings
         self.heading_spread, self.min_contour = heading_spread, min_contour
 
-    def path(self, grid: GridMap) -> list[np.ndarray]:
-        """The traced contours (pixel (row, col) arrays) long enough to be kept."""
+    def path(self, grid: GridMap, dist: np.ndarray | None = None) -> list[np.ndarray]:
+        """The traced contours (pixel (row, col) arrays) long enough to be kept (``dist``: the
+        grid's :func:`clearance_px`, when the caller has it)."""
         res = grid.resolution
-        cs = trace_path(grid.walkable, self.offset / res)
+        cs = trace_path(grid.walkable, self.offset / res, dist)
         return [c for c in cs if len(c) * res >= self.min_contour]
 
     def generate(self, scene: Scene | GridMap) -> np.ndarray:
         """(N, 3) poses (x, z, yaw degrees) on the traced path."""
         grid = scene.grid if isinstance(scene, Scene) else scene
         res = grid.resolution
-        dist = ndimage.distance_transform_edt(np.pad(grid.walkable, 1))[1:-1, 1:-1]
+        dist = clearance_px(grid.walkable)
         gr, gc = np.gradient(ndimage.gaussian_filter(dist, 1.0))
         pts = []
-        for c in self.path(grid):
+        for c in self.path(grid, dist):
             idx = sample_along(c, self.spacing / res)
             pts.append(c[idx])
         if not pts:
