@@ -75,8 +75,8 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
                 x, z, yaw = (float(v) for v in o.pose)
                 lines.append(f"{i},{x!r},{z!r},{yaw!r},{int(bool(o.meta.get('refused', False)))},{image}")
                 vis = None if o.visible_classes is None else [float(v) for v in np.asarray(o.visible_classes)]
-                f.write(json.dumps({"objects": [[str(t), float(a)] for t, a in o.objects], "visible_classes": vis,
-                                    "meta": o.meta}, default=_plain) + "\n")
+                f.write(_ENCODER.encode({"objects": [[str(t), float(a)] for t, a in o.objects],
+                                         "visible_classes": vis, "meta": o.meta}) + "\n")
         (tmp / "poses.csv").write_text("\n".join(lines) + "\n")
         files = sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_file())
         (tmp / MARKER).write_text(f"{len(observations)}\n" + "".join(f"{_digest(tmp / f)} {f}\n" for f in files))
@@ -98,6 +98,10 @@ def _plain(o):
     if isinstance(o, np.ndarray):
         return o.tolist()
     raise TypeError(f"observation meta value of type {type(o).__name__} is not JSON serialisable")
+
+
+#: ``json.dumps(obj, default=_plain)``'s encoder, made once (``dumps`` makes one per call)
+_ENCODER = json.JSONEncoder(default=_plain)
 
 
 def _digest(path: Path) -> str:

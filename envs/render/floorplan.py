@@ -183,18 +183,24 @@ class FloorplanRenderer(Renderer):
             r.astype(np.int64), c.astype(np.int64), np.deg2rad(poses[:, 2]), offsets, float(max_px), n_cls,
             len(scene.objects))
         n_rays = len(offsets)
+        total = vis.sum(axis=1)
+        shares = np.zeros(vis.shape)
+        seen = total > 0
+        shares[seen] = vis[seen] / total[seen, None]
+        # each object's share of a view's rays, counted for its type and (include_children) the
+        # types resting on it; a type seen through several objects keeps its largest share
+        types = [(o.object_type, *o.children) if self.include_children else (o.object_type,) for o in scene.objects]
+        view_of, obj_of = np.nonzero(obj_rays) if scene.objects else (np.zeros(0, np.int64),) * 2
+        share_of = (obj_rays[view_of, obj_of] / n_rays).tolist()
+        first = np.searchsorted(view_of, np.arange(len(poses) + 1)).tolist()
+        obj_of = obj_of.tolist()
         out = []
-        for i, p in enumerate(poses):
+        for i, p in enumerate(poses.tolist()):
             objects: dict[str, float] = {}
-            for k in np.nonzero(obj_rays[i])[0] if scene.objects else []:
-                o = scene.objects[k]
-                share = obj_rays[i, k] / n_rays
-                types = (o.object_type, *o.children) if self.include_children else (o.object_type,)
-                for t in types:
-                    objects[t] = max(objects.get(t, 0.0), float(share))
-            total = vis[i].sum()
-            out.append(Observation(pose=(float(p[0]), float(p[1]), float(p[2])),
-                                   objects=sorted(objects.items()),
-                                   visible_classes=vis[i] / total if total > 0 else vis[i].astype(np.float64),
-                                   meta={"n_visible_cells": int(n_cells[i])}))
+            for j in range(first[i], first[i + 1]):
+                share = share_of[j]
+                for t in types[obj_of[j]]:
+                    objects[t] = max(objects.get(t, 0.0), share)
+            out.append(Observation(pose=(p[0], p[1], p[2]), objects=sorted(objects.items()),
+                                   visible_classes=shares[i], meta={"n_visible_cells": int(n_cells[i])}))
         return out
