@@ -112,3 +112,19 @@ def test_env_and_bad_parameters():
         generate_house(1, open_plan_share=2.0)
     with pytest.raises(ValueError, match="length"):
         generate_house(1, length=(3.0, 4.0))
+
+
+def test_env_keeps_its_recent_houses_equal_to_fresh_ones():
+    """A run asks for a house's content, then its scene: the house is generated once, and a
+    kept house is the house generate_house makes."""
+    from envs.datasets.synthetic import RECENT_HOUSES, SyntheticEnv, generate_house, seed_from_house_id
+
+    env = SyntheticEnv(n_houses=RECENT_HOUSES + 2)
+    ids = env.house_ids()
+    first = env.house(ids[0])
+    assert env.house(ids[0]) is first
+    assert first.data == generate_house(seed_from_house_id(ids[0])).data
+    for h in ids[1:]:
+        env.house(h)
+    again = env.house(ids[0])  # dropped (least recently used), generated again: equal, not the same
+    assert again is not first and again.data == first.data

@@ -39,6 +39,7 @@ from envs.datasets.base import Environment
 from envs.maps.reachable import RULES as REACHABLE_RULES
 from envs.maps.reachable import check_rule, restrict_scene, start_points
 from envs.maps.scene import Scene, rasterise_house
+from envs.memo import ByteLRU
 from envs.ranges import Integer, LowHigh, NonNegative, OneOf, Positive, Share
 from envs.world.assets import AssetInfo, assets_by_type
 from envs.world.classes import PAPER_CLASSES
@@ -381,6 +382,10 @@ def generate_house(seed: int, length: tuple[float, float] = (9.0, 14.0), depth: 
     return House(house["id"], house)
 
 
+#: generated houses a :class:`SyntheticEnv` keeps (a few hundred kB each)
+RECENT_HOUSES = 4
+
+
 class SyntheticEnv(Environment):
     """``n_houses`` generated houses with seeds ``seed_start``, ``seed_start + 1``, ...
 
@@ -409,12 +414,20 @@ class SyntheticEnv(Environment):
         self.raster = dict(resolution=resolution, wall_thickness=wall_thickness, clearance=clearance,
                            max_object_base=max_object_base, classes=tuple(classes))
         self.seeds = list(range(seed_start, seed_start + n_houses))
+        self._recent = ByteLRU()
 
     def house_ids(self) -> list[str]:
         return [house_id_for(s) for s in self.seeds]
 
     def house(self, house_id: str) -> House:
-        return generate_house(seed_from_house_id(house_id), **self.gen)
+        """The generated house; the last :data:`RECENT_HOUSES` are kept, so a run that asks for a
+        house's content and then its scene generates it once. ``data`` is shared by the calls
+        (as a ProcTHOR environment shares the dict it read): read-only to every stage."""
+        house = self._recent.get(house_id)
+        if house is None:
+            house = generate_house(seed_from_house_id(house_id), **self.gen)
+            self._recent.put(house_id, house, 1, RECENT_HOUSES)  # (counted, one "byte" a house)
+        return house
 
     def scene(self, house_id: str) -> Scene:
         house = self.house(house_id)
