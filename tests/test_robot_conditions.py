@@ -211,3 +211,36 @@ def test_a_slam_entry_is_checked_when_read():
                        ({**z, "view_index": np.array([0.0, 2.0])}, r"^view_index hold float64, expected integer")):
         with pytest.raises(BadEntry, match=match):
             check_slam_entry(bad, 3 if bad is z else 2)
+
+
+@pytest.mark.slow
+def test_a_process_reads_each_robot_map_once_and_a_rewritten_map_again(tmp_path, monkeypatch):
+    """The jobs of a sweep share a condition's maps and SLAM estimates: a process keeps each as
+    read (read-only), so a second segmenter neither reads them nor makes the views again, and
+    scores what a run from empty caches scores; a map entry written anew is read anew."""
+    from benchmark.harness import robot_stages as rs
+    from benchmark.harness.cache import atomic_save_npz
+
+    monkeypatch.setattr(rs, "_ROBOT_MEMO", rs.ByteLRU())
+    one = ["corruption=slam_3", "run.workers=1"]
+    first = _run(tmp_path, "dist", *one, "segmenter=distance")
+    assert (first["status"] == "ok").all()
+    assert sorted(k[0] for k in rs._ROBOT_MEMO) == ["grid", "grid", "slam", "slam"]
+    grid, info, frames = next(v for k, v in zip(rs._ROBOT_MEMO, rs._ROBOT_MEMO.values()) if k[0] == "grid")
+    assert not grid.walkable.flags.writeable and not any(a.flags.writeable for a in frames)
+    second = _run(tmp_path, "morph", *one, "segmenter=morphological")
+    assert "t_viewpoints" not in pd.read_csv(Path(second.attrs["job_dir"]) / "timings.csv")
+    # a map written anew (another file) is not served from what the process kept
+    cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", *one, "segmenter=morphological"])
+    hid = str(second["house_id"].iloc[0])
+    path = build_pipeline(cfg, ch).entry("robot_map", hid)
+    free = load_npz(path)["free"]
+    atomic_save_npz(path, free=np.ones_like(free))
+    third = _run(tmp_path, "morph3", *one, "segmenter=morphological", "run.force=[score]")
+    row = third.set_index("house_id").loc[hid]
+    assert row["map_free_iou"] < second.set_index("house_id").loc[hid, "map_free_iou"]
+    assert row["map_missed_share"] == 0.0
+    # the rows read through what the process kept are those of a run from empty caches
+    monkeypatch.setattr(rs, "_ROBOT_MEMO", rs.ByteLRU())
+    alone = _run(tmp_path, "morph", *one, "segmenter=morphological", results="fresh")
+    assert _metrics_bytes(second) == _metrics_bytes(alone)

@@ -100,13 +100,18 @@ class SlamEstimate:
 
     def stats(self) -> dict[str, float]:
         """Row columns: ATE RMSE after rigid alignment of the whole trajectory (metres), the same
-        for dead reckoning, route length, closures found and wrong, chi2 per degree of freedom."""
-        return {"ate_rmse_m": ate_rmse(self.estimate[:, :2], self.true[:, :2]),
-                "odometry_ate_rmse_m": ate_rmse(self.odometry[:, :2], self.true[:, :2]),
-                "route_m": float(self.travelled[-1]) if len(self.travelled) else 0.0,
-                "loop_closures": int(len(self.closures)), "wrong_closures": int(len(self.wrong)),
-                "kidnapped_m": self.kidnapped_m,
-                "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0}
+        for dead reckoning, route length, closures found and wrong, chi2 per degree of freedom.
+        Computed once per estimate (an estimate is not changed once made)."""
+        got = self.__dict__.get("_stats")
+        if got is None:
+            got = {"ate_rmse_m": ate_rmse(self.estimate[:, :2], self.true[:, :2]),
+                   "odometry_ate_rmse_m": ate_rmse(self.odometry[:, :2], self.true[:, :2]),
+                   "route_m": float(self.travelled[-1]) if len(self.travelled) else 0.0,
+                   "loop_closures": int(len(self.closures)), "wrong_closures": int(len(self.wrong)),
+                   "kidnapped_m": self.kidnapped_m,
+                   "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0}
+            self.__dict__["_stats"] = got
+        return dict(got)
 
 
 def _number(key: str, value, *, integer: bool = False, positive: bool = False) -> None:

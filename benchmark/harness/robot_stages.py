@@ -9,6 +9,7 @@ error, label noise) are the :class:`benchmark.method.Method`'s.
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -17,6 +18,7 @@ import numpy as np
 
 from benchmark.harness.cache import atomic_save_npz, load_npz, read_entry, write_entry
 from benchmark.harness.entries import BadEntry, check_slam_entry, slam_arrays
+from envs.memo import ByteLRU
 from envs.render.observation import poses_array
 
 if TYPE_CHECKING:
@@ -25,6 +27,34 @@ if TYPE_CHECKING:
 #: the camera of the coverage columns when the renderer does not say (the floorplan
 #: renderer's defaults): field of view (degrees), range (metres), occluding height (metres).
 COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
+
+
+#: bytes of SLAM estimates and finished robot maps a process keeps (:data:`_ROBOT_MEMO`): a
+#: condition's maps and estimates are the same for every method and segmenter of a sweep, so
+#: a worker reads and aligns each once (a ProcTHOR house's map with its ground truth in the
+#: map's frame: about 0.35 MB at 0.05 m/px)
+ROBOT_MEMO_BYTES = 128 * 2**20
+#: kept per process, read-only: ("slam", entry path, file identity) -> the loaded estimate;
+#: ("grid", map entry path, identities of the map's and the estimate's entries) -> what
+#: :meth:`RobotStages._robot_grid` returns and the ground truth in the map's frame. A rewritten
+#: entry (atomic renames: another file) has another identity, so it is read again.
+_ROBOT_MEMO = ByteLRU()
+
+
+def _file_identity(path: Path) -> tuple[int, int, int] | None:
+    """(inode, modification time ns, size) of a cache entry's file, None when there is none."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns, st.st_size
+
+
+def _read_only(*arrays: np.ndarray) -> int:
+    """Mark ``arrays`` read-only (they are shared by the jobs of a process); their bytes."""
+    for a in arrays:
+        a.setflags(write=False)
+    return sum(a.nbytes for a in arrays)
 
 
 def rooms_mapped(instances: np.ndarray, free: np.ndarray) -> dict[str, int]:
@@ -68,6 +98,13 @@ class RobotStages:
             return scene.grid, {"map_free_iou": 1.0, "map_missed_share": 0.0}
         from envs.maps.gridmap import GridMap
 
+        path = self.entry("robot_map", hid)
+        memo_key = self._robot_memo_key(hid, path)
+        if memo_key is not None and (kept := _ROBOT_MEMO.get(memo_key)) is not None:
+            grid, info, frames = kept
+            if frames is not None:
+                self._frames[hid] = frames
+            return grid, dict(info)
         made: dict[str, np.ndarray] = {}
 
         def views() -> np.ndarray:  # the true views in capture order, made once when needed
@@ -109,7 +146,7 @@ class RobotStages:
         def save(path: Path, free: np.ndarray) -> None:
             atomic_save_npz(path, free=free)
 
-        free = self._cached("map", self.entry("robot_map", hid), load, compute, save)
+        free = self._cached("map", path, load, compute, save)
         walk = scene.grid.walkable
         info: dict[str, Any] = {}
         est = self._slam_estimate(hid, scene, views(), timings) if self._slam_shapes_map() else None
@@ -131,7 +168,22 @@ class RobotStages:
         info.update({"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
                      "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))})
         info.update(rooms_mapped(self._ground_truth(hid, scene)[0], free))
-        return GridMap(free, scene.grid.resolution, scene.grid.origin), info
+        grid = GridMap(free, scene.grid.resolution, scene.grid.origin)
+        memo_key = self._robot_memo_key(hid, path)
+        if memo_key is not None:
+            frames = self._frames.get(hid) if est is not None else None
+            nbytes = _read_only(free, *(frames or ()))
+            _ROBOT_MEMO.put(memo_key, (grid, dict(info), frames), nbytes + 4096, ROBOT_MEMO_BYTES)
+        return grid, info
+
+    def _robot_memo_key(self, hid: str, path: Path) -> tuple | None:
+        """The key of house ``hid``'s finished robot map in :data:`_ROBOT_MEMO`: its map entry and
+        the estimate's it was built at, as files (None while one is missing, or with
+        ``run.force`` of the map)."""
+        if "map" in self.force:
+            return None
+        ids = (_file_identity(path), _file_identity(self.entry("slam", hid)) if self._slam_shapes_map() else 0)
+        return None if None in ids else ("grid", str(path), ids)
 
     def _slam_shapes_map(self) -> bool:
         """True when the robot's map is built at a SLAM estimate that errs (``pose_error=odometry``):
@@ -181,7 +233,16 @@ class RobotStages:
             return est
         if est is not None:  # made here before its entry was written: stored, not timed again
             timings = None
-        est = self._cached("map", path, load, compute, save)
+        ident = None if "map" in self.force else _file_identity(path)
+        kept = _ROBOT_MEMO.get(("slam", str(path), ident)) if ident is not None else None
+        if kept is not None and len(kept.view_index) == len(views):
+            est = kept
+        else:
+            est = self._cached("map", path, load, compute, save)
+            ident = None if "map" in self.force else _file_identity(path)
+            if ident is not None:
+                arrays = [v for v in vars(est).values() if isinstance(v, np.ndarray)]
+                _ROBOT_MEMO.put(("slam", str(path), ident), est, _read_only(*arrays) + 4096, ROBOT_MEMO_BYTES)
         stage.remember(grid, views, hid, spacing, est)
         return est
 
