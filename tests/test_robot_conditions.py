@@ -226,10 +226,13 @@ def test_a_process_reads_each_robot_map_once_and_a_rewritten_map_again(tmp_path,
     first = _run(tmp_path, "dist", *one, "segmenter=distance")
     assert (first["status"] == "ok").all()
     assert sorted(k[0] for k in rs._ROBOT_MEMO) == ["grid", "grid", "slam", "slam"]
-    grid, info, frames = next(v for k, v in zip(rs._ROBOT_MEMO, rs._ROBOT_MEMO.values()) if k[0] == "grid")
-    assert not grid.walkable.flags.writeable and not any(a.flags.writeable for a in frames)
+    free, info, frames = next(v for k, v in zip(rs._ROBOT_MEMO, rs._ROBOT_MEMO.values()) if k[0] == "grid")
+    assert not free.flags.writeable and not any(a.flags.writeable for a in frames)
     second = _run(tmp_path, "morph", *one, "segmenter=morphological")
     assert "t_viewpoints" not in pd.read_csv(Path(second.attrs["job_dir"]) / "timings.csv")
+    # each job gets its own map to work on (the voronoi segmenter's skeleton needs a writable one)
+    vor = _run(tmp_path, "vor", *one, "segmenter=voronoi")
+    assert (vor["status"] == "ok").all()
     # a map written anew (another file) is not served from what the process kept
     cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", *one, "segmenter=morphological"])
     hid = str(second["house_id"].iloc[0])

@@ -35,9 +35,10 @@ COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 #: map's frame: about 0.35 MB at 0.05 m/px)
 ROBOT_MEMO_BYTES = 128 * 2**20
 #: kept per process, read-only: ("slam", entry path, file identity) -> the loaded estimate;
-#: ("grid", map entry path, identities of the map's and the estimate's entries) -> what
-#: :meth:`RobotStages._robot_grid` returns and the ground truth in the map's frame. A rewritten
-#: entry (atomic renames: another file) has another identity, so it is read again.
+#: ("grid", map entry path, identities of the map's and the estimate's entries) -> the map's
+#: free cells (each job gets its own copy), the row columns of
+#: :meth:`RobotStages._robot_grid` and the ground truth in the map's frame. A rewritten entry
+#: (atomic renames: another file) has another identity, so it is read again.
 _ROBOT_MEMO = ByteLRU()
 
 
@@ -101,10 +102,11 @@ class RobotStages:
         path = self.entry("robot_map", hid)
         memo_key = self._robot_memo_key(hid, path)
         if memo_key is not None and (kept := _ROBOT_MEMO.get(memo_key)) is not None:
-            grid, info, frames = kept
+            free, info, frames = kept
             if frames is not None:
                 self._frames[hid] = frames
-            return grid, dict(info)
+            # the stages get their own map (a segmenter may write to it, or need a writable buffer)
+            return GridMap(free.copy(), scene.grid.resolution, scene.grid.origin), dict(info)
         made: dict[str, np.ndarray] = {}
 
         def views() -> np.ndarray:  # the true views in capture order, made once when needed
@@ -168,13 +170,13 @@ class RobotStages:
         info.update({"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
                      "map_missed_share": float((walk & ~free).sum() / max(int(walk.sum()), 1))})
         info.update(rooms_mapped(self._ground_truth(hid, scene)[0], free))
-        grid = GridMap(free, scene.grid.resolution, scene.grid.origin)
         memo_key = self._robot_memo_key(hid, path)
         if memo_key is not None:
             frames = self._frames.get(hid) if est is not None else None
-            nbytes = _read_only(free, *(frames or ()))
-            _ROBOT_MEMO.put(memo_key, (grid, dict(info), frames), nbytes + 4096, ROBOT_MEMO_BYTES)
-        return grid, info
+            kept = free.copy()
+            nbytes = _read_only(kept, *(frames or ()))
+            _ROBOT_MEMO.put(memo_key, (kept, dict(info), frames), nbytes + 4096, ROBOT_MEMO_BYTES)
+        return GridMap(free, scene.grid.resolution, scene.grid.origin), info
 
     def _robot_memo_key(self, hid: str, path: Path) -> tuple | None:
         """The key of house ``hid``'s finished robot map in :data:`_ROBOT_MEMO`: its map entry and

@@ -1,7 +1,8 @@
 """The floorplan renderer: what a camera at a pose would see, from the house's floor plan.
 
 For each pose, rays spanning the camera's horizontal field of view are cast over the map
-with the shared routine (:mod:`envs.maps.rays`). Rays stop at walls, at the edge of the
+along the shared digital lines (:mod:`envs.maps.rays`: the cells of
+:func:`~envs.maps.rays.trace_ray`, walked inline). Rays stop at walls, at the edge of the
 floor, and at objects whose top is at least ``occluder_height`` metres (tall furniture);
 lower objects are seen and the rays pass over them. The observation lists every object
 type seen with the share of rays that touched it (objects resting on a seen object count
