@@ -247,3 +247,25 @@ def test_results_are_flushed_to_disk_cache_entries_are_not(tmp_path, monkeypatch
     assert len(calls) == 1
     assert read_entry(tmp_path / "e.json") == {"iou": 0.5}
     assert load_npz(tmp_path / "m.npz")["raw"].tolist() == [0, 1, 2, 3]
+
+
+def test_a_classification_that_disagrees_with_its_render_is_recomputed(tmp_path, caplog):
+    """A well-formed classification entry (valid checksum) whose poses or view count disagree
+    with the house's render is refused by name and recomputed, to the same rows."""
+    cfg, ch = _cfg(tmp_path, "run.workers=1")
+    good = run(cfg, tmp_path / "job", ch)
+    pipe = build_pipeline(cfg, ch)
+    h0, h1 = good["house_id"][:2]
+    for h in (h0, h1):
+        pipe.entry("score", h).unlink()
+        pipe.entry("aggregate", h).unlink()
+    c = load_npz(pipe.entry("classify", h0))
+    save_npz(pipe.entry("classify", h0), poses=c["poses"] + [0.5, 0.0, 0.0], proba=c["proba"], n_refused=c["n_refused"])
+    c = load_npz(pipe.entry("classify", h1))
+    save_npz(pipe.entry("classify", h1), poses=c["poses"][1:], proba=c["proba"][1:], n_refused=c["n_refused"])
+    with caplog.at_level(logging.WARNING, logger="roomseg-bench"):
+        again = run(cfg, tmp_path / "job", ch)
+    pd.testing.assert_frame_equal(again[METRICS], good[METRICS])
+    warned = "\n".join(r.getMessage() for r in caplog.records if r.levelno == logging.WARNING)
+    assert f"{pipe.entry('classify', h0)}: bad cache entry, recomputing it (BadEntry: poses differ from the render's)" in warned
+    assert "refused views, but the render has" in warned and str(pipe.entry("classify", h1)) in warned

@@ -214,7 +214,7 @@ class Pipeline(RobotStages):
     _stages: dict[str, Any] = field(default_factory=dict, repr=False)
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
     _frames: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
-    _poses_read: dict[Path, np.ndarray] = field(default_factory=dict, repr=False)
+    _poses_read: dict[Path, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
 
     #: the stage groups whose input files feed each cached stage, in order.
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = ()
@@ -573,7 +573,7 @@ class _HouseCache:
         def load(path: Path) -> method.Classified:
             z = load_npz(path)
             render = pipe.entry("render", hid)
-            views = render_cache.read_poses(render) if render_cache.is_complete(render) else None
+            views = pipe._render_table(hid) if render_cache.is_complete(render) else None
             poses, proba, n_refused = check_classified(z, len(pipe.classes) if pipe.classes is not None else None,
                                                        views)
             check_poses(poses, self.scene)

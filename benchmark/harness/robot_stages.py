@@ -284,17 +284,22 @@ class RobotStages:
 
     # ---- what the views covered
     def _render_poses(self, hid: str) -> np.ndarray:
-        """Every view's true pose in capture order (refused ones included): the robot's path.
-        The house's map, its route and its coverage all ask: read once per render entry (the
-        last one read is kept, read-only)."""
+        """Every view's true pose in capture order (refused ones included): the robot's path."""
+        return self._render_table(hid)[0]
+
+    def _render_table(self, hid: str) -> tuple[np.ndarray, np.ndarray]:
+        """The render's poses table (:func:`envs.render.cache.read_poses`: (N, 3) poses, (N,)
+        refused). The house's map, its route, its coverage and the check of its classification
+        all ask: read once per render entry (the last one read is kept, read-only)."""
         from envs.render import cache as render_cache
 
         path = self.entry("render", hid)
         if path not in self._poses_read:
-            poses = render_cache.read_poses(path)[0]
-            poses.setflags(write=False)
+            table = render_cache.read_poses(path)
+            for a in table:
+                a.setflags(write=False)
             self._poses_read.clear()
-            self._poses_read[path] = poses
+            self._poses_read[path] = table
         return self._poses_read[path]
 
     def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
