@@ -124,28 +124,21 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, yaws, offset
             c = c0
             while True:
                 x = state[r + 1, c + 1]
-                if x < _FREE:  # blocked (the ray touches it) or off the map (nothing there)
-                    if x == _BLOCKED:
-                        o = object_map[r, c]
-                        if o >= 0 and ostamp[o] != ray_id:
-                            ostamp[o] = ray_id
-                            obj_rays[v, o] += 1
-                            last_objs[n_last] = o
-                            n_last += 1
+                if x == _OUTSIDE:  # off the map: nothing there
                     break
-                if x != v:
+                if x != _BLOCKED and x != v:  # a free cell this view had not seen
                     state[r + 1, c + 1] = v
                     n_cells[v] += 1
                     k = rooms[r, c]
                     if k >= 0 and room_cls[k] >= 0:
                         vis[v, room_cls[k]] += 1
-                o = object_map[r, c]
+                o = object_map[r, c]  # a blocked cell's object is touched too (the ray stops on it)
                 if o >= 0 and ostamp[o] != ray_id:
                     ostamp[o] = ray_id
                     obj_rays[v, o] += 1
                     last_objs[n_last] = o
                     n_last += 1
-                if r == r1 and c == c1:
+                if x == _BLOCKED or (r == r1 and c == c1):
                     break
                 r, c, err = line_step(r, c, err, dr, dc, sr, sc)
             ray_id += 1
