@@ -117,7 +117,12 @@ def test_env_and_bad_parameters():
 def test_env_keeps_its_recent_houses_equal_to_fresh_ones():
     """A run asks for a house's content, then its scene: the house is generated once, and a
     kept house is the house generate_house makes."""
-    from envs.datasets.synthetic import RECENT_HOUSES, SyntheticEnv, generate_house, seed_from_house_id
+    from envs.datasets.synthetic import (
+        RECENT_HOUSES,
+        SyntheticEnv,
+        generate_house,
+        seed_from_house_id,
+    )
 
     env = SyntheticEnv(n_houses=RECENT_HOUSES + 2)
     ids = env.house_ids()

@@ -32,22 +32,16 @@ from numba import njit
 from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
-from envs.maps.rays import cone_thetas, line_start, line_step, ray_end, trace_ray
+from envs.maps.rays import (
+    FREE,
+    cone_thetas,
+    line_start,
+    line_step,
+    ray_end,
+    ray_state,
+    trace_ray,
+)
 from envs.ranges import Angle, NonNegative, Odd, OneOf, Positive
-
-#: values of the per-cell state array besides view ids (>= 0: the last view that voted there)
-FREE, BLOCKED, OUTSIDE = -1, -2, -3
-
-
-def cone_state(walkable: np.ndarray) -> np.ndarray:
-    """(H + 2, W + 2) int32: ``FREE`` on walkable cells, ``BLOCKED`` on the others, ``OUTSIDE`` on a
-    one-cell border (a ray walks one cell per step, so it meets the border before leaving the
-    map: no bounds checks in the walk). Cell (r, c) of the map is (r + 1, c + 1) here."""
-    st = np.full((walkable.shape[0] + 2, walkable.shape[1] + 2), OUTSIDE, np.int32)
-    inner = st[1:-1, 1:-1]
-    inner[...] = BLOCKED
-    np.copyto(inner, FREE, where=walkable)  # in place: no map-sized 64-bit temporary
-    return st
 
 
 def reach_px(max_range: float) -> int:
@@ -340,7 +334,7 @@ def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: n
     rows, cols = np.asarray(rows, np.int64).ravel(), np.asarray(cols, np.int64).ravel()
     h, w = blocked.shape
     ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    state = cone_state(~blocked)  # a cell some view reached holds that view's index (>= 0)
+    state = ray_state(~blocked)  # a cell some view reached holds that view's index (>= 0)
     n = int(ok.sum())
     # every view votes class 0 into a one-class count the union does not read (it may wrap)
     _cone_votes(blocked, state, rows[ok], cols[ok], np.asarray(yaws, np.float64).ravel()[ok],
@@ -449,7 +443,7 @@ class VisionCone(Aggregator):
         most = min(len(p), max_votes_per_cell(grid.shape, r, c, reach_px(max_px)))
         whole = np.uint8 if most < 2**8 else np.uint16 if most < 2**16 else np.uint32
         counts = np.zeros((n_cls, *grid.shape), whole if self.vote == "label" else np.float32)
-        self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), cone_state(grid.walkable),
+        self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), ray_state(grid.walkable),
                                      r.astype(np.int64), c.astype(np.int64), np.deg2rad(yaw), offsets, float(max_px),
                                      float(self.blocked_ray_m / grid.resolution), labels, p.astype(np.float32), counts,
                                      *ray_paths(float(max_px), PATH_CACHE_BYTES))

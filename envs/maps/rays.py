@@ -16,6 +16,26 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+#: values of a bordered cell state (:func:`ray_state`) besides the ids of the views that saw a
+#: cell (>= 0): a walk's one load per cell tells free, blocked or off the map, and seen
+FREE, BLOCKED, OUTSIDE = -1, -2, -3
+
+
+def ray_state(passable: np.ndarray) -> np.ndarray:
+    """(H + 2, W + 2) int32: ``FREE`` on passable cells, ``BLOCKED`` on the others, ``OUTSIDE`` on a
+    one-cell border (a ray walks one cell per step, so it meets the border before leaving the
+    map: no bounds checks in the walk). Cell (r, c) of the map is (r + 1, c + 1) here; a walk
+    stamps the cells it sees with its view's id.
+
+    Args:
+        passable: (H, W) bool cells a ray walks through.
+    """
+    st = np.full((passable.shape[0] + 2, passable.shape[1] + 2), OUTSIDE, np.int32)
+    inner = st[1:-1, 1:-1]
+    inner[...] = BLOCKED
+    np.copyto(inner, FREE, where=passable)  # in place: no map-sized 64-bit temporary
+    return st
+
 
 @njit(cache=True, nogil=True, inline="always")
 def line_start(r0, c0, r1, c1):

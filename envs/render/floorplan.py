@@ -18,7 +18,16 @@ from typing import Annotated
 import numpy as np
 from numba import njit
 
-from envs.maps.rays import cast_rays, cone_thetas, line_start, line_step, ray_end
+from envs.maps.rays import (
+    BLOCKED,
+    OUTSIDE,
+    cast_rays,
+    cone_thetas,
+    line_start,
+    line_step,
+    ray_end,
+    ray_state,
+)
 from envs.maps.scene import Scene
 from envs.ranges import CAMERA_FOV, NonNegative, Positive
 from envs.render.base import Renderer
@@ -72,29 +81,21 @@ def view_from(scene: Scene, blocked: np.ndarray, pose: Sequence[float], fov: flo
     return View(lin // grid.shape[1], lin % grid.shape[1], object_rays, len(thetas))
 
 
-#: values of the renderer's per-cell state besides view ids (>= 0: the last view that saw the cell)
-_FREE, _BLOCKED, _OUTSIDE = -1, -2, -3
-
-
 @njit(cache=True, nogil=True)
-def _render_views(blocked, rooms, room_cls, object_map, rows, cols, yaws, offsets, max_range, n_cls, n_obj):
+def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets, max_range, n_cls, n_obj):
     """Per view: visible floor cells per class (each cell once) and rays touching each object.
 
     Ray ``t`` of view ``v`` has heading ``yaws[v] + offsets[t]`` and walks the digital line of
     :func:`envs.maps.rays.trace_ray` (stopping before the first blocked cell, which it touches,
-    or at the map's edge), inline over one (H + 2, W + 2) int32 cell state: ``_FREE``,
-    ``_BLOCKED``, ``_OUTSIDE`` on a one-cell border (a ray meets it before leaving the map), or
-    the last view that saw the cell; one load per cell tells blocked, off the map and seen."""
-    h, w = blocked.shape
+    or at the map's edge), inline over the cell state of :func:`envs.maps.rays.ray_state`
+    (free, blocked, off the map, or the last view that saw the cell: one load per cell)."""
+    h = state.shape[0] - 2
+    w = state.shape[1] - 2
     n_views = rows.shape[0]
     n_rays = offsets.shape[0]
     vis = np.zeros((n_views, n_cls), np.int64)
     obj_rays = np.zeros((n_views, max(n_obj, 1)), np.int64)
     n_cells = np.zeros(n_views, np.int64)
-    state = np.full((h + 2, w + 2), _OUTSIDE, np.int32)
-    for r in range(h):
-        for c in range(w):
-            state[r + 1, c + 1] = _BLOCKED if blocked[r, c] else _FREE
     ostamp = np.full(max(n_obj, 1), -1, np.int64)
     cap = int(np.ceil(max_range)) + 2
     last_objs = np.empty(cap + 1, np.int64)  # the objects the ray before touched (each once)
@@ -124,9 +125,9 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, yaws, offset
             c = c0
             while True:
                 x = state[r + 1, c + 1]
-                if x == _OUTSIDE:  # off the map: nothing there
+                if x == OUTSIDE:  # off the map: nothing there
                     break
-                if x != _BLOCKED and x != v:  # a free cell this view had not seen
+                if x != BLOCKED and x != v:  # a free cell this view had not seen
                     state[r + 1, c + 1] = v
                     n_cells[v] += 1
                     k = rooms[r, c]
@@ -138,7 +139,7 @@ def _render_views(blocked, rooms, room_cls, object_map, rows, cols, yaws, offset
                     obj_rays[v, o] += 1
                     last_objs[n_last] = o
                     n_last += 1
-                if x == _BLOCKED or (r == r1 and c == c1):
+                if x == BLOCKED or (r == r1 and c == c1):
                     break
                 r, c, err = line_step(r, c, err, dr, dc, sr, sc)
             ray_id += 1
@@ -173,7 +174,7 @@ class FloorplanRenderer(Renderer):
         offsets = cone_thetas(0.0, self.fov, max_px)
         omap = scene.object_map if scene.object_map is not None else np.full(scene.grid.shape, -1, np.int32)
         vis, obj_rays, n_cells = _render_views(
-            np.ascontiguousarray(blocked), scene.rooms, np.asarray(scene.instance_classes, np.int64), omap,
+            ray_state(~blocked), scene.rooms, np.asarray(scene.instance_classes, np.int64), omap,
             r.astype(np.int64), c.astype(np.int64), np.deg2rad(poses[:, 2]), offsets, float(max_px), n_cls,
             len(scene.objects))
         n_rays = len(offsets)
