@@ -20,6 +20,18 @@ from pathlib import Path
 _TRIES = 100
 
 
+def file_identity(path: str | Path) -> tuple[int, int, int] | None:
+    """(inode, modification time ns, size) of the file at ``path``, None when there is none: what
+    changes when the file is replaced (an atomic write renames another file into place) or
+    written over in place. Readers that keep what they read key it by this.
+    """
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns, st.st_size
+
+
 def ordinary_temp_file(folder: str | Path, prefix: str, suffix: str = "") -> tuple[int, Path]:
     """Create a new empty file ``<folder>/<prefix><random><suffix>`` for writing, with the
     mode of an ordinary new file (0o666 less the umask).

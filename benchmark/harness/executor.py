@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from benchmark.harness.processes import worker_init
+from envs.atomic import file_identity
 
 log = logging.getLogger("roomseg-bench")
 
@@ -124,10 +125,10 @@ class Executor(Protocol):
 # ---------------------------------------------------------------- the unit of work
 def _stamp(path_of: Callable[[str], Path], hid: str) -> tuple[int, int, int] | None:
     try:
-        st = path_of(hid).stat()
-    except Exception:  # noqa: BLE001 - absent entry, or an unreadable house (no path)
+        path = path_of(hid)
+    except Exception:  # noqa: BLE001 - an unreadable house (no path)
         return None
-    return st.st_ino, st.st_mtime_ns, st.st_size
+    return file_identity(path)
 
 
 def run_house(pipe: Any, hid: str) -> HouseResult:

@@ -9,7 +9,6 @@ error, label noise) are the :class:`benchmark.method.Method`'s.
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -18,6 +17,7 @@ import numpy as np
 
 from benchmark.harness.cache import atomic_save_npz, load_npz, read_entry, write_entry
 from benchmark.harness.entries import BadEntry, check_slam_entry, slam_arrays
+from envs.atomic import file_identity
 from envs.memo import ByteLRU
 from envs.render.observation import poses_array
 
@@ -40,15 +40,6 @@ ROBOT_MEMO_BYTES = 128 * 2**20
 #: :meth:`RobotStages._robot_grid` and the ground truth in the map's frame. A rewritten entry
 #: (atomic renames: another file) has another identity, so it is read again.
 _ROBOT_MEMO = ByteLRU()
-
-
-def _file_identity(path: Path) -> tuple[int, int, int] | None:
-    """(inode, modification time ns, size) of a cache entry's file, None when there is none."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    return st.st_ino, st.st_mtime_ns, st.st_size
 
 
 def _read_only(*arrays: np.ndarray) -> int:
@@ -184,7 +175,7 @@ class RobotStages:
         ``run.force`` of the map)."""
         if "map" in self.force:
             return None
-        ids = (_file_identity(path), _file_identity(self.entry("slam", hid)) if self._slam_shapes_map() else 0)
+        ids = (file_identity(path), file_identity(self.entry("slam", hid)) if self._slam_shapes_map() else 0)
         return None if None in ids else ("grid", str(path), ids)
 
     def _slam_shapes_map(self) -> bool:
@@ -235,13 +226,13 @@ class RobotStages:
             return est
         if est is not None:  # made here before its entry was written: stored, not timed again
             timings = None
-        ident = None if "map" in self.force else _file_identity(path)
+        ident = None if "map" in self.force else file_identity(path)
         kept = _ROBOT_MEMO.get(("slam", str(path), ident)) if ident is not None else None
         if kept is not None and len(kept.view_index) == len(views):
             est = kept
         else:
             est = self._cached("map", path, load, compute, save)
-            ident = None if "map" in self.force else _file_identity(path)
+            ident = None if "map" in self.force else file_identity(path)
             if ident is not None:
                 arrays = [v for v in vars(est).values() if isinstance(v, np.ndarray)]
                 _ROBOT_MEMO.put(("slam", str(path), ident), est, _read_only(*arrays) + 4096, ROBOT_MEMO_BYTES)
