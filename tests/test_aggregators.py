@@ -84,7 +84,7 @@ def test_vision_cone_equals_per_ray_loop_beyond_neighbouring_ends(seed, fov, den
 def test_ray_paths_are_the_digital_lines_to_their_ends():
     """Every kept path, put back at a camera, is the cell list of trace_ray to that end; and
     each difference list names exactly the indices where two neighbouring paths differ."""
-    from benchmark.aggregators.vision_cone import ray_paths
+    from envs.maps.ray_paths import ray_paths
     from envs.maps.rays import trace_ray
 
     k, slot, pm, geo, plen, dstart, dj = ray_paths(9.5)

@@ -94,20 +94,28 @@ def _reference_observation(scene, pose, fov, max_range_m, occluder_height):
     return counts / max(counts.sum(), 1), objects, len(cells)
 
 
-def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
+@pytest.mark.parametrize("fov, max_range, paths", [(90.0, 4.0, True), (360.0, 3.0, True), (120.0, 4.0, False)])
+def test_render_equals_slow_reference_on_a_shared_house(procthor_file, fov, max_range, paths, monkeypatch):
+    """The renderer's shared-path walk (a whole turn too, whose last ray ends beside its first)
+    and its walk of every ray whole (no path tables: over the budget) see the reference's
+    cells and objects."""
+    import envs.render.floorplan as floorplan
     from benchmark.classifiers.oracle import OracleClassifier
     from benchmark.viewpoints import Autotrace
     from envs.datasets.house_files import load_houses
     from envs.maps.scene import rasterise_house
 
+    if not paths:
+        monkeypatch.setattr(floorplan, "PATH_CACHE_BYTES", 0)
     house = load_houses(procthor_file, 80, 81)[0]
     scene = rasterise_house(house, resolution=0.1)
     poses = Autotrace(offset=0.4, spacing=1.0, n_headings=3).generate(scene)[::9][:12]
     assert len(poses) >= 8
-    obs = FloorplanRenderer(fov=90, max_range=4.0, occluder_height=1.2).render(house, scene, poses)
+    assert (floorplan.ray_paths(max_range / scene.grid.resolution, floorplan.PATH_CACHE_BYTES)[0] > 0) == paths
+    obs = FloorplanRenderer(fov=fov, max_range=max_range, occluder_height=1.2).render(house, scene, poses)
     majority = []
     for p, o in zip(poses, obs):
-        vis, objects, n_cells = _reference_observation(scene, p, 90, 4.0, 1.2)
+        vis, objects, n_cells = _reference_observation(scene, p, fov, max_range, 1.2)
         assert np.allclose(o.visible_classes, vis)
         assert o.meta["n_visible_cells"] == n_cells
         assert dict(o.objects) == pytest.approx(objects)
@@ -122,9 +130,9 @@ def test_render_equals_slow_reference_on_a_shared_house(procthor_file):
     odd = [np.argwhere(tall)[0], np.argwhere(tall)[-1], np.argwhere(scene.walls)[len(np.argwhere(scene.walls)) // 2]]
     odd_poses = [pose_at(g, int(r), int(c), 30.0 * i) for i, (r, c) in enumerate(odd)]
     odd_poses.append((g.origin[0] - 1.0, g.origin[1] + 1.0, 0.0))
-    for p, o in zip(odd_poses, FloorplanRenderer(fov=90, max_range=4.0, occluder_height=1.2).render(house, scene, odd_poses)):
-        vis, objects, n_cells = _reference_observation(scene, p, 90, 4.0, 1.2)
+    for p, o in zip(odd_poses, FloorplanRenderer(fov=fov, max_range=max_range, occluder_height=1.2).render(house, scene, odd_poses)):
+        vis, objects, n_cells = _reference_observation(scene, p, fov, max_range, 1.2)
         assert np.allclose(o.visible_classes, vis) and o.meta["n_visible_cells"] == n_cells == 0
         assert dict(o.objects) == pytest.approx(objects)
     assert len(objects) == 0 and all(len(o.objects) for o in
-                                     FloorplanRenderer(fov=90, max_range=4.0).render(house, scene, odd_poses[:2]))
+                                     FloorplanRenderer(fov=fov, max_range=max_range).render(house, scene, odd_poses[:2]))

@@ -13,7 +13,7 @@ views within the cone's reach of it, uint16 below 65,536, else uint32; probabili
 float32), an (H + 2, W + 2) int32 cell state (free, blocked or
 off the map, and the last view that voted there) and an (H, W) bool obstacle copy, linear in
 the map size, and nothing per ray or view: every cone shares one array of ray offsets around
-its view's heading, and every ray of a given range one table of paths (:func:`ray_paths`,
+its view's heading, and every ray of a given range one table of paths (:func:`envs.maps.ray_paths.ray_paths`,
 about 2 MB at 200 px, kept per range). Neighbouring rays of a view end on neighbouring cells
 and share most of their cells; a ray looks up only the cells where its path differs from the
 previous ray's (a precomputed list per pair of neighbouring ends) below where that ray
@@ -22,7 +22,6 @@ stopped, and walks on only beyond it, so the lookups number about the cells seen
 
 from __future__ import annotations
 
-import functools
 from typing import Annotated
 
 import cv2
@@ -32,6 +31,7 @@ from numba import njit
 from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
+from envs.maps.ray_paths import PATH_CACHE_BYTES, ray_paths
 from envs.maps.rays import (
     FREE,
     cone_thetas,
@@ -73,125 +73,11 @@ def max_votes_per_cell(shape: tuple[int, int], rows: np.ndarray, cols: np.ndarra
     return int(near.max()) if len(flat) else 0
 
 
-#: the most bytes :func:`ray_paths` keeps for one range; beyond it (ranges of several thousand
-#: pixels) the kernel walks every ray whole
-PATH_CACHE_BYTES = 64 * 2**20
-
-
-@njit(cache=True, nogil=True)
-def _fill_paths(ends_r, ends_c, pr, pc, plen):
-    """Cells of the digital line from (0, 0) to each end (``line_start``/``line_step``)."""
-    for s in range(ends_r.shape[0]):
-        er = ends_r[s]
-        ec = ends_c[s]
-        dr, dc, sr, sc, err = line_start(0, 0, er, ec)
-        r = 0
-        c = 0
-        j = 0
-        while True:
-            pr[s, j] = r
-            pc[s, j] = c
-            j += 1
-            if r == er and c == ec:
-                break
-            r, c, err = line_step(r, c, err, dr, dc, sr, sc)
-        plen[s] = j
-
-
-@njit(cache=True, nogil=True)
-def _fill_diffs(ends_r, ends_c, slot, k, pr, pc, plen, dstart, dj, count_only):
-    """For each path and each of the 3 x 3 end cells around its own: the indices j (below both
-    lengths) where the two paths' cells differ, with this path's minor coordinate there;
-    returns their number (``count_only``: only that)."""
-    n = 0
-    for s in range(ends_r.shape[0]):
-        rmaj = abs(ends_r[s]) > abs(ends_c[s])
-        for q in range(9):
-            x = -1
-            rr = ends_r[s] + q // 3 - 1 + k
-            cc = ends_c[s] + q % 3 - 1 + k
-            if q != 4 and 0 <= rr < slot.shape[0] and 0 <= cc < slot.shape[1]:
-                x = slot[rr, cc]
-            if not count_only:
-                dstart[s, q] = n
-            if x >= 0:
-                for j in range(min(plen[s], plen[x])):
-                    if pr[s, j] != pr[x, j] or pc[s, j] != pc[x, j]:
-                        if not count_only:
-                            dj[2 * n] = j
-                            dj[2 * n + 1] = pc[s, j] if rmaj else pr[s, j]
-                        n += 1
-            if not count_only:
-                dstart[s, q + 1] = n
-    return n
-
-
-def _no_paths():
-    out = (-1, np.zeros((0, 0), np.int32), np.zeros((0, 0), np.int16), np.zeros((0, 4), np.int64),
-           np.zeros(0, np.int32), np.zeros((0, 10), np.int32), np.zeros(0, np.int16))
-    for a in out[1:]:
-        a.setflags(write=False)  # the same kernel signature as with paths
-    return out
-
-
-@functools.lru_cache(maxsize=4)
-def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
-    """The cells of every ray of ``max_range`` pixels, relative to its camera, kept per range.
-
-    A ray from (r0, c0) ends at :func:`envs.maps.rays.ray_end`'s cell, at most 0.71 px (plus
-    rounding) from the circle of radius ``max_range`` around the camera; its digital line
-    depends only on the end's offset (er, ec) from the camera. Every offset within 1 px of that
-    circle gets a path (in order of angle), its cells as a minor coordinate per index (the
-    major one is the index, with the end's sign), and, for each of the 3 x 3 offsets around
-    it, the indices where the two paths differ (neighbouring rays of a cone end on
-    neighbouring cells).
-
-    Returns:
-        ``(k, slot, pm, geo, plen, dstart, dj)``: ``slot`` (2k + 1, 2k + 1) int32 path of
-        offset (er, ec) at [er + k, ec + k] (-1: none); ``pm`` (S, k + 1) int16 minor
-        coordinates; ``geo`` (S, 4) int64 (row step, column step per index, row and column
-        factor of the minor coordinate); ``plen`` (S,) int32 cells per path; ``dstart`` (S, 10)
-        int32 where each neighbour's differences start in ``dj`` (neighbour q = 3 (da + 1) +
-        db + 1, ending at ``dstart[s, q + 1]``); ``dj`` int16 pairs (index, minor coordinate).
-        About 20 bytes per path cell (2 MB at 200 px, 12 MB at 500 px, when built); over
-        ``budget_bytes`` (or ranges beyond int16) no paths (``k = -1``): every ray is walked.
-    """
-    k = int(np.ceil(max_range)) + 1
-    g = np.arange(-k, k + 1)
-    d2 = g[:, None] ** 2 + g[None, :] ** 2
-    ring = (d2 >= max(max_range - 1.0, 0.0) ** 2) & (d2 <= (max_range + 1.0) ** 2)
-    er, ec = np.nonzero(ring)
-    er, ec = (er - k).astype(np.int64), (ec - k).astype(np.int64)
-    if k > 30000 or len(er) * (k + 1) * 20 > budget_bytes:
-        return _no_paths()
-    o = np.argsort(np.arctan2(ec, -er), kind="stable")  # neighbouring rays read neighbouring rows
-    er, ec = er[o], ec[o]
-    slot = np.full((2 * k + 1, 2 * k + 1), -1, np.int32)
-    slot[er + k, ec + k] = np.arange(len(er), dtype=np.int32)
-    pr = np.zeros((len(er), k + 1), np.int16)
-    pc = np.zeros((len(er), k + 1), np.int16)
-    plen = np.zeros(len(er), np.int32)
-    _fill_paths(er, ec, pr, pc, plen)
-    dstart = np.zeros((len(er), 10), np.int32)
-    n = _fill_diffs(er, ec, slot, k, pr, pc, plen, dstart, np.zeros(0, np.int16), True)
-    dj = np.zeros(2 * n, np.int16)
-    _fill_diffs(er, ec, slot, k, pr, pc, plen, dstart, dj, False)
-    rmaj = np.abs(er) > np.abs(ec)  # the major axis is the rows: cell j is (sign(er) j, minor)
-    pm = np.ascontiguousarray(np.where(rmaj[:, None], pc, pr))
-    sgn = np.where(rmaj, np.sign(er), np.sign(ec))
-    geo = np.stack([np.where(rmaj, sgn, 0), np.where(rmaj, 0, sgn), np.where(rmaj, 0, 1),
-                    np.where(rmaj, 1, 0)], 1).astype(np.int64)
-    out = (k, slot, pm, geo, plen, dstart, dj)
-    for a in out[1:]:
-        a.setflags(write=False)
-    return out
-
-
 @njit(cache=True, nogil=True)
 def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, labels, votes, counts,
                  k, slot, pm, geo, plen, dstart, dj):
     """Per view: the short forward ray, then the cone's rays in order of heading, each a path of
-    :func:`ray_paths` (the digital line of :func:`envs.maps.rays.trace_ray` from the camera to
+    :func:`envs.maps.ray_paths.ray_paths` (the digital line of :func:`envs.maps.rays.trace_ray` from the camera to
     the ray's end cell, moved to the camera; it stops before the first blocked cell or off the
     map). A ray whose end cell neighbours the previous ray's shares that ray's cells except at
     the indices the two paths' difference list names: those are looked up, and the rest of
@@ -310,7 +196,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
 def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: np.ndarray, offsets: np.ndarray,
                 max_range: float) -> np.ndarray:
     """(H, W) bool: the cells some view's cone reaches (the union of the cones), walked as the
-    vision cone walks its rays: neighbouring rays share their cells (:func:`ray_paths`), and a
+    vision cone walks its rays: neighbouring rays share their cells (:func:`envs.maps.ray_paths.ray_paths`), and a
     ray ending on the cell of the ray before is skipped (the same digital line). The cells are
     those of every ray of heading ``yaws[v] + offsets[t]`` walked whole
     (:func:`envs.maps.rays.trace_ray`: the digital line from the view's cell to its end,

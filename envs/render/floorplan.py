@@ -2,7 +2,8 @@
 
 For each pose, rays spanning the camera's horizontal field of view are cast over the map
 along the shared digital lines (:mod:`envs.maps.rays`: the cells of
-:func:`~envs.maps.rays.trace_ray`, walked inline). Rays stop at walls, at the edge of the
+:func:`~envs.maps.rays.trace_ray`, from the path tables of :mod:`envs.maps.ray_paths`, where a ray
+looks up only the cells in which it differs from its neighbour). Rays stop at walls, at the edge of the
 floor, and at objects whose top is at least ``occluder_height`` metres (tall furniture);
 lower objects are seen and the rays pass over them. The observation lists every object
 type seen with the share of rays that touched it (objects resting on a seen object count
@@ -18,8 +19,10 @@ from typing import Annotated
 import numpy as np
 from numba import njit
 
+from envs.maps.ray_paths import PATH_CACHE_BYTES, ray_paths
 from envs.maps.rays import (
     BLOCKED,
+    FREE,
     OUTSIDE,
     cast_rays,
     cone_thetas,
@@ -81,68 +84,183 @@ def view_from(scene: Scene, blocked: np.ndarray, pose: Sequence[float], fov: flo
     return View(lin // grid.shape[1], lin % grid.shape[1], object_rays, len(thetas))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _touch(o, d, cnt, active, where, n_act):
+    """Add ``d`` (+1 or -1) to the cells of the current ray on object ``o`` (-1: none); ``active``
+    [:n_act] lists the objects with cells on it (``where``: each one's place there). Returns n_act."""
+    if o < 0:
+        return n_act
+    cnt[o] += d
+    if d > 0 and cnt[o] == 1:
+        active[n_act] = o
+        where[o] = n_act
+        n_act += 1
+    elif d < 0 and cnt[o] == 0:
+        n_act -= 1
+        last = active[n_act]
+        active[where[o]] = last
+        where[last] = where[o]
+    return n_act
+
+
 @njit(cache=True, nogil=True)
-def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets, max_range, n_cls, n_obj):
+def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets, max_range, n_cls, n_obj,
+                  k, slot, pm, geo, plen, dstart, dj):
     """Per view: visible floor cells per class (each cell once) and rays touching each object.
 
-    Ray ``t`` of view ``v`` has heading ``yaws[v] + offsets[t]`` and walks the digital line of
-    :func:`envs.maps.rays.trace_ray` (stopping before the first blocked cell, which it touches,
-    or at the map's edge), inline over the cell state of :func:`envs.maps.rays.ray_state`
-    (free, blocked, off the map, or the last view that saw the cell: one load per cell)."""
+    Ray ``t`` of view ``v`` has heading ``yaws[v] + offsets[t]`` and sees the cells of the digital
+    line of :func:`envs.maps.rays.trace_ray` up to the first blocked cell (which it touches) or
+    the map's edge, over the cell state of :func:`envs.maps.rays.ray_state` (free, blocked, off
+    the map, or the last view that saw the cell: one load per cell). The lines are the paths of
+    :func:`envs.maps.ray_paths.ray_paths`, walked as the vision cone walks them: a ray whose end
+    neighbours the ray before's looks up only the indices where the two paths differ below
+    where that ray stopped, and walks on only beyond it (other rays are walked whole). The
+    objects a ray touches are kept as the object at each index of its path (``pobj``, up to
+    where it stopped) and a count per object, changed where the path changes."""
     h = state.shape[0] - 2
     w = state.shape[1] - 2
     n_views = rows.shape[0]
     n_rays = offsets.shape[0]
+    nob = max(n_obj, 1)
     vis = np.zeros((n_views, n_cls), np.int64)
-    obj_rays = np.zeros((n_views, max(n_obj, 1)), np.int64)
+    obj_rays = np.zeros((n_views, nob), np.int64)
     n_cells = np.zeros(n_views, np.int64)
-    ostamp = np.full(max(n_obj, 1), -1, np.int64)
-    cap = int(np.ceil(max_range)) + 2
-    last_objs = np.empty(cap + 1, np.int64)  # the objects the ray before touched (each once)
-    ray_id = 0
+    cap = int(np.ceil(max_range)) + 3
+    pobj = np.full(cap, -1, np.int64)  # the object at each index of the current ray's path
+    cnt = np.zeros(nob, np.int64)  # the current ray's cells on each object
+    active = np.zeros(nob, np.int64)
+    where = np.zeros(nob, np.int64)
+    n_act = 0
     for v in range(n_views):
         r0 = rows[v]
         c0 = cols[v]
         if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
             continue
+        prev = -1  # path of the ray before (-1: none, or walked whole)
+        pstop = 0  # where it stopped (its length when it did not)
+        pend = -1  # the last index of pobj it holds
+        per = 0
+        pec = 0
         last_r = -(1 << 62)
         last_c = -(1 << 62)
-        n_last = 0
         for t in range(n_rays):
             r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
             if r1 == last_r and c1 == last_c:
-                # the same digital line as the ray before: the same cells (already counted for this
-                # view) and the same objects, each touched by one more ray
-                for j in range(n_last):
-                    obj_rays[v, last_objs[j]] += 1
-                ray_id += 1
+                # the same digital line as the ray before: the same cells (already counted for
+                # this view) and the same objects, each touched by one more ray
+                for i in range(n_act):
+                    obj_rays[v, active[i]] += 1
                 continue
             last_r = r1
             last_c = c1
-            n_last = 0
-            dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
-            r = r0
-            c = c0
-            while True:
-                x = state[r + 1, c + 1]
-                if x == OUTSIDE:  # off the map: nothing there
-                    break
-                if x != BLOCKED and x != v:  # a free cell this view had not seen
-                    state[r + 1, c + 1] = v
-                    n_cells[v] += 1
-                    k = rooms[r, c]
-                    if k >= 0 and room_cls[k] >= 0:
-                        vis[v, room_cls[k]] += 1
-                o = object_map[r, c]  # a blocked cell's object is touched too (the ray stops on it)
-                if o >= 0 and ostamp[o] != ray_id:
-                    ostamp[o] = ray_id
-                    obj_rays[v, o] += 1
-                    last_objs[n_last] = o
-                    n_last += 1
-                if x == BLOCKED or (r == r1 and c == c1):
-                    break
-                r, c, err = line_step(r, c, err, dr, dc, sr, sc)
-            ray_id += 1
+            er = r1 - r0
+            ec = c1 - c0
+            s = -1
+            if -k <= er <= k and -k <= ec <= k:
+                s = slot[er + k, ec + k]
+            a = er - per
+            b = ec - pec
+            if s < 0 or prev < 0 or a < -1 or a > 1 or b < -1 or b > 1:
+                for i in range(n_act):  # a ray of its own: its objects start afresh
+                    cnt[active[i]] = 0
+                n_act = 0
+                pend = -1  # (pobj beyond pend is never read)
+            if s < 0:  # not a precomputed end: walk the line itself
+                dr, dc, sr, sc, err = line_start(r0, c0, r1, c1)
+                r = r0
+                c = c0
+                while True:
+                    x = state[r + 1, c + 1]
+                    if x == OUTSIDE:
+                        break
+                    if x != BLOCKED and x != v:
+                        state[r + 1, c + 1] = v
+                        n_cells[v] += 1
+                        q = rooms[r, c]
+                        if q >= 0 and room_cls[q] >= 0:
+                            vis[v, room_cls[q]] += 1
+                    n_act = _touch(object_map[r, c], 1, cnt, active, where, n_act)
+                    if x == BLOCKED or (r == r1 and c == c1):
+                        break
+                    r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+                for i in range(n_act):
+                    obj_rays[v, active[i]] += 1
+                prev = -1
+                continue
+            gr = geo[s, 0]
+            gc = geo[s, 1]
+            mr = geo[s, 2]
+            mc = geo[s, 3]
+            walk_from = 0
+            stop = -1
+            if pend >= 0:  # the ray before was a neighbouring path: its cells except where they differ
+                nq = (1 - a) * 3 + (1 - b)
+                m = min(plen[s], plen[prev])
+                lim = min(pstop, m)
+                i = dstart[s, nq]
+                e = dstart[s, nq + 1]
+                while i < e and dj[2 * i] < lim:
+                    j = dj[2 * i]
+                    r = r0 + gr * j + mr * dj[2 * i + 1]
+                    c = c0 + gc * j + mc * dj[2 * i + 1]
+                    x = state[r + 1, c + 1]
+                    o = -1 if x == OUTSIDE else object_map[r, c]
+                    if o != pobj[j]:
+                        n_act = _touch(pobj[j], -1, cnt, active, where, n_act)
+                        n_act = _touch(o, 1, cnt, active, where, n_act)
+                        pobj[j] = o
+                    if x < FREE:
+                        stop = j
+                        break
+                    if x != v:
+                        state[r + 1, c + 1] = v
+                        n_cells[v] += 1
+                        q = rooms[r, c]
+                        if q >= 0 and room_cls[q] >= 0:
+                            vis[v, room_cls[q]] += 1
+                    i += 1
+                if stop < 0:
+                    if pstop < m:  # the ray before stopped at pstop: here too unless that cell differs
+                        if i < e and dj[2 * i] == pstop:
+                            walk_from = pstop
+                        else:
+                            stop = pstop
+                    else:
+                        walk_from = m
+            if stop < 0:
+                for j in range(walk_from, pend + 1):  # what the walk rewrites, or lies beyond this path
+                    n_act = _touch(pobj[j], -1, cnt, active, where, n_act)
+                    pobj[j] = -1
+                if walk_from <= pend:
+                    pend = walk_from - 1
+                stop = plen[s]
+                for j in range(walk_from, plen[s]):
+                    r = r0 + gr * j + mr * pm[s, j]
+                    c = c0 + gc * j + mc * pm[s, j]
+                    x = state[r + 1, c + 1]
+                    o = -1 if x == OUTSIDE else object_map[r, c]
+                    pobj[j] = o
+                    n_act = _touch(o, 1, cnt, active, where, n_act)
+                    if x < FREE:
+                        stop = j
+                        break
+                    if x != v:
+                        state[r + 1, c + 1] = v
+                        n_cells[v] += 1
+                        q = rooms[r, c]
+                        if q >= 0 and room_cls[q] >= 0:
+                            vis[v, room_cls[q]] += 1
+            end = min(stop, plen[s] - 1)
+            for j in range(end + 1, pend + 1):  # beyond where this ray stopped
+                n_act = _touch(pobj[j], -1, cnt, active, where, n_act)
+                pobj[j] = -1
+            pend = end
+            for i in range(n_act):
+                obj_rays[v, active[i]] += 1
+            prev = s
+            pstop = stop
+            per = er
+            pec = ec
     return vis, obj_rays, n_cells
 
 
@@ -176,7 +294,7 @@ class FloorplanRenderer(Renderer):
         vis, obj_rays, n_cells = _render_views(
             ray_state(~blocked), scene.rooms, np.asarray(scene.instance_classes, np.int64), omap,
             r.astype(np.int64), c.astype(np.int64), np.deg2rad(poses[:, 2]), offsets, float(max_px), n_cls,
-            len(scene.objects))
+            len(scene.objects), *ray_paths(float(max_px), PATH_CACHE_BYTES))
         n_rays = len(offsets)
         total = vis.sum(axis=1)
         shares = np.zeros(vis.shape)

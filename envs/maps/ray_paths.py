@@ -1,0 +1,134 @@
+"""The cells of every ray of one range, relative to its camera, shared by the walks that cast
+many rays of that range (the vision cone, view coverage, the floorplan renderer).
+
+A ray from a camera to the end cell of :func:`envs.maps.rays.ray_end` walks the digital line of
+:func:`envs.maps.rays.trace_ray`; that line depends only on the end's offset from the camera.
+:func:`ray_paths` lists those lines once per range, and for each pair of neighbouring ends the
+indices where their lines differ: neighbouring rays of a cone end on neighbouring cells, so a
+walk looks up only those indices (below where the ray before stopped) instead of every cell.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from numba import njit
+
+from envs.maps.rays import line_start, line_step
+
+#: the most bytes :func:`ray_paths` keeps for one range; beyond it (ranges of several thousand
+#: pixels) the walks walk every ray whole
+PATH_CACHE_BYTES = 64 * 2**20
+
+
+@njit(cache=True, nogil=True)
+def _fill_paths(ends_r, ends_c, pr, pc, plen):
+    """Cells of the digital line from (0, 0) to each end (``line_start``/``line_step``)."""
+    for s in range(ends_r.shape[0]):
+        er = ends_r[s]
+        ec = ends_c[s]
+        dr, dc, sr, sc, err = line_start(0, 0, er, ec)
+        r = 0
+        c = 0
+        j = 0
+        while True:
+            pr[s, j] = r
+            pc[s, j] = c
+            j += 1
+            if r == er and c == ec:
+                break
+            r, c, err = line_step(r, c, err, dr, dc, sr, sc)
+        plen[s] = j
+
+
+@njit(cache=True, nogil=True)
+def _fill_diffs(ends_r, ends_c, slot, k, pr, pc, plen, dstart, dj, count_only):
+    """For each path and each of the 3 x 3 end cells around its own: the indices j (below both
+    lengths) where the two paths' cells differ, with this path's minor coordinate there;
+    returns their number (``count_only``: only that)."""
+    n = 0
+    for s in range(ends_r.shape[0]):
+        rmaj = abs(ends_r[s]) > abs(ends_c[s])
+        for q in range(9):
+            x = -1
+            rr = ends_r[s] + q // 3 - 1 + k
+            cc = ends_c[s] + q % 3 - 1 + k
+            if q != 4 and 0 <= rr < slot.shape[0] and 0 <= cc < slot.shape[1]:
+                x = slot[rr, cc]
+            if not count_only:
+                dstart[s, q] = n
+            if x >= 0:
+                for j in range(min(plen[s], plen[x])):
+                    if pr[s, j] != pr[x, j] or pc[s, j] != pc[x, j]:
+                        if not count_only:
+                            dj[2 * n] = j
+                            dj[2 * n + 1] = pc[s, j] if rmaj else pr[s, j]
+                        n += 1
+            if not count_only:
+                dstart[s, q + 1] = n
+    return n
+
+
+def _no_paths():
+    out = (-1, np.zeros((0, 0), np.int32), np.zeros((0, 0), np.int16), np.zeros((0, 4), np.int64),
+           np.zeros(0, np.int32), np.zeros((0, 10), np.int32), np.zeros(0, np.int16))
+    for a in out[1:]:
+        a.setflags(write=False)  # the same kernel signature as with paths
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
+    """The cells of every ray of ``max_range`` pixels, relative to its camera, kept per range.
+
+    A ray from (r0, c0) ends at :func:`envs.maps.rays.ray_end`'s cell, at most 0.71 px (plus
+    rounding) from the circle of radius ``max_range`` around the camera; its digital line
+    depends only on the end's offset (er, ec) from the camera. Every offset within 1 px of that
+    circle gets a path (in order of angle), its cells as a minor coordinate per index (the
+    major one is the index, with the end's sign), and, for each of the 3 x 3 offsets around
+    it, the indices where the two paths differ (neighbouring rays of a cone end on
+    neighbouring cells).
+
+    Returns:
+        ``(k, slot, pm, geo, plen, dstart, dj)``: ``slot`` (2k + 1, 2k + 1) int32 path of
+        offset (er, ec) at [er + k, ec + k] (-1: none); ``pm`` (S, k + 1) int16 minor
+        coordinates; ``geo`` (S, 4) int64 (row step, column step per index, row and column
+        factor of the minor coordinate); ``plen`` (S,) int32 cells per path; ``dstart`` (S, 10)
+        int32 where each neighbour's differences start in ``dj`` (neighbour q = 3 (da + 1) +
+        db + 1, ending at ``dstart[s, q + 1]``); ``dj`` int16 pairs (index, minor coordinate).
+        About 20 bytes per path cell (2 MB at 200 px, 12 MB at 500 px, when built); over
+        ``budget_bytes`` (or ranges beyond int16) no paths (``k = -1``): every ray is walked.
+    """
+    k = int(np.ceil(max_range)) + 1
+    g = np.arange(-k, k + 1)
+    d2 = g[:, None] ** 2 + g[None, :] ** 2
+    ring = (d2 >= max(max_range - 1.0, 0.0) ** 2) & (d2 <= (max_range + 1.0) ** 2)
+    er, ec = np.nonzero(ring)
+    er, ec = (er - k).astype(np.int64), (ec - k).astype(np.int64)
+    if k > 30000 or len(er) * (k + 1) * 20 > budget_bytes:
+        return _no_paths()
+    o = np.argsort(np.arctan2(ec, -er), kind="stable")  # neighbouring rays read neighbouring rows
+    er, ec = er[o], ec[o]
+    slot = np.full((2 * k + 1, 2 * k + 1), -1, np.int32)
+    slot[er + k, ec + k] = np.arange(len(er), dtype=np.int32)
+    pr = np.zeros((len(er), k + 1), np.int16)
+    pc = np.zeros((len(er), k + 1), np.int16)
+    plen = np.zeros(len(er), np.int32)
+    _fill_paths(er, ec, pr, pc, plen)
+    dstart = np.zeros((len(er), 10), np.int32)
+    n = _fill_diffs(er, ec, slot, k, pr, pc, plen, dstart, np.zeros(0, np.int16), True)
+    dj = np.zeros(2 * n, np.int16)
+    _fill_diffs(er, ec, slot, k, pr, pc, plen, dstart, dj, False)
+    rmaj = np.abs(er) > np.abs(ec)  # the major axis is the rows: cell j is (sign(er) j, minor)
+    pm = np.ascontiguousarray(np.where(rmaj[:, None], pc, pr))
+    sgn = np.where(rmaj, np.sign(er), np.sign(ec))
+    geo = np.stack([np.where(rmaj, sgn, 0), np.where(rmaj, 0, sgn), np.where(rmaj, 0, 1),
+                    np.where(rmaj, 1, 0)], 1).astype(np.int64)
+    out = (k, slot, pm, geo, plen, dstart, dj)
+    for a in out[1:]:
+        a.setflags(write=False)
+    return out
+
+
+__all__ = ["PATH_CACHE_BYTES", "ray_paths"]
