@@ -18,6 +18,7 @@ from benchmark.classifiers.noise import (
     PerRoom,
     load_confusion,
     view_confusion,
+    view_rng,
     view_rooms,
 )
 from benchmark.classifiers.oracle import OracleClassifier
@@ -72,6 +73,26 @@ SCENE = block_scene("house-a")
 OBS, ROOMS = room_views(SCENE)
 TRUTH = SCENE.instance_classes[ROOMS]
 N_ROOMS = len(np.unique(ROOMS))
+
+
+@pytest.mark.parametrize("seed", [0, 7, 2**32 + 5, 2**63 + 11])
+@pytest.mark.parametrize("salt", [None, 1, 2**40])
+def test_view_uniforms_are_each_views_first_draw(seed, salt):
+    """The vectorised first draw equals numpy's own generator of each view, bit for bit: on
+    random poses (rounded to the millimetre as the key is), and on keys of one 32-bit word
+    (a pose key below 2**32, as likely as 1 in 4 billion, so given directly)."""
+    from benchmark.classifiers.noise import _first_uniforms, _words, view_uniforms
+
+    rng = np.random.default_rng(3)
+    poses = np.column_stack([rng.uniform(-50, 50, (300, 2)), rng.uniform(-720, 720, 300)])
+    poses[:20] = np.round(poses[:20], 1)  # ties of the rounding
+    want = [view_rng(seed, p, salt).random() for p in poses]
+    assert view_uniforms(seed, poses, salt).tolist() == want
+    for key in (0, 1, 2**32 - 1, 2**32, 2**64 - 1):
+        words = _words(seed) + _words(key) + ([] if salt is None else _words(salt))
+        assert _first_uniforms(np.array([words], np.uint32)).tolist() == [
+            np.random.default_rng([seed, key] + ([] if salt is None else [salt])).random()]
+    assert view_uniforms(seed, np.zeros((0, 3)), salt).shape == (0,)
 
 
 def test_block_fixture_has_the_expected_views():

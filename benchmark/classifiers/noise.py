@@ -46,14 +46,19 @@ from benchmark.view_accuracy import true_labels
 _FOLLOW, _ROOM, _HOUSE, _BIAS = 1, 2, 3, 4
 
 
-def pose_key(pose: Sequence[float]) -> int:
-    """64-bit key of a pose (x, z in metres, yaw in degrees), rounded to 1/1000.
+def pose_keys(poses: np.ndarray) -> list[int]:
+    """64-bit keys of poses (rows of x, z in metres, yaw in degrees), each rounded to 1/1000.
 
     Returns:
-        The key as a non-negative int (the same for equal rounded poses in any process).
+        One non-negative int per row (the same for equal rounded poses in any process).
     """
-    key = np.round(np.asarray(pose, dtype=float) * 1000).astype(np.int64).tobytes()
-    return int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little")
+    rounded = np.round(np.asarray(poses, dtype=float) * 1000).astype(np.int64)
+    return [int.from_bytes(hashlib.blake2b(r.tobytes(), digest_size=8).digest(), "little") for r in rounded]
+
+
+def pose_key(pose: Sequence[float]) -> int:
+    """:func:`pose_keys` of one pose."""
+    return pose_keys(np.asarray(pose, dtype=float)[None])[0]
 
 
 def text_key(*parts: object) -> int:
@@ -74,6 +79,91 @@ def view_rng(seed: int, pose: Sequence[float], salt: int | None = None) -> np.ra
     """
     parts = [int(seed), pose_key(pose)] + ([] if salt is None else [int(salt)])
     return np.random.default_rng(parts)
+
+
+#: numpy's ``SeedSequence`` (O'Neill's seed_seq_fe, pool of 4 words) and ``PCG64`` (XSL RR 128/64)
+#: constants, for :func:`view_uniforms`
+_INIT_A, _MULT_A, _INIT_B, _MULT_B = 0x43B0D7E5, 0x931E8875, 0x8B51F9DD, 0x58F38DED
+_MIX_L, _MIX_R, _M32 = 0xCA01F9DD, 0x4973F715, 0xFFFFFFFF
+_PCG_MULT, _M64, _M128 = 0x2360ED051FC65DA44385DF649FCCF645, (1 << 64) - 1, (1 << 128) - 1
+
+
+def _words(n: int) -> list[int]:
+    """The 32-bit words of a non-negative int, least significant first (at least one)."""
+    out = [n & _M32]
+    n >>= 32
+    while n:
+        out.append(n & _M32)
+        n >>= 32
+    return out
+
+
+def _first_uniforms(entropy: np.ndarray) -> np.ndarray:
+    """(N,) float64: the first ``random()`` of ``np.random.default_rng(words)`` for each row of
+    ``entropy`` ((N, L) uint32 words of the seed parts): the seed sequence's entropy mixing and
+    its 4 state words for all rows at once (uint32 arithmetic wraps), then PCG64's seeding, one
+    step and its first 64-bit output as exact integers."""
+    n, length = entropy.shape
+    hc = _INIT_A
+
+    def hashmix(v: np.ndarray) -> np.ndarray:
+        nonlocal hc
+        v = v ^ np.uint32(hc)
+        hc = (hc * _MULT_A) & _M32
+        v = v * np.uint32(hc)
+        return v ^ (v >> np.uint32(16))
+
+    def mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        r = np.uint32(_MIX_L) * x - np.uint32(_MIX_R) * y
+        return r ^ (r >> np.uint32(16))
+
+    zero = np.zeros(n, np.uint32)
+    pool = [hashmix(entropy[:, i] if i < length else zero) for i in range(4)]
+    for src in range(4):
+        for dst in range(4):
+            if src != dst:
+                pool[dst] = mix(pool[dst], hashmix(pool[src]))
+    for src in range(4, length):
+        for dst in range(4):
+            pool[dst] = mix(pool[dst], hashmix(entropy[:, src]))
+    hb, state = _INIT_B, []
+    for i in range(8):  # 4 uint64 words, from the pool's words in turn
+        v = pool[i % 4] ^ np.uint32(hb)
+        hb = (hb * _MULT_B) & _M32
+        v = v * np.uint32(hb)
+        state.append((v ^ (v >> np.uint32(16))).astype(np.uint64))
+    w = [(state[2 * i] | (state[2 * i + 1] << np.uint64(32))).tolist() for i in range(4)]
+    out = np.empty(n)
+    for j in range(n):
+        inc = (((w[2][j] << 64 | w[3][j]) << 1) | 1) & _M128
+        x = (((inc + (w[0][j] << 64 | w[1][j])) & _M128) * _PCG_MULT + inc) & _M128  # seeded
+        x = (x * _PCG_MULT + inc) & _M128  # the first step
+        hi = x >> 64
+        y, rot = hi ^ (x & _M64), hi >> 58
+        out[j] = (((y >> rot) | (y << (-rot & 63))) & _M64) >> 11
+    return out * (1.0 / 9007199254740992.0)
+
+
+def view_uniforms(seed: int, poses: np.ndarray, salt: int | None = None) -> np.ndarray:
+    """(N,) float64 in [0, 1): ``view_rng(seed, pose, salt).random()`` of each pose, bit for bit,
+    without making a generator per view (about 20 us each).
+
+    Args:
+        seed: the run's seed (>= 0).
+        poses: (N, 3) x, z (metres), yaw (degrees).
+        salt: as in :func:`view_rng`.
+    """
+    keys = pose_keys(poses)
+    if not keys:
+        return np.zeros(0)
+    tail = [] if salt is None else _words(int(salt))
+    rows = [_words(int(seed)) + _words(k) + tail for k in keys]  # a key below 2**32 is one word
+    lengths = np.array([len(r) for r in rows])
+    out = np.empty(len(rows))
+    for n in np.unique(lengths):
+        idx = np.flatnonzero(lengths == n)
+        out[idx] = _first_uniforms(np.array([rows[i] for i in idx], np.uint32))
+    return out
 
 
 def uniform_confusion(n_classes: int) -> np.ndarray:
@@ -258,10 +348,13 @@ class Independent(NoiseModel):
     name = "independent"
 
     def labels(self, truth, poses, accuracy, wrong, seed, scene=None):
+        truth = np.asarray(truth)
         out = np.full(len(truth), -1, dtype=np.int64)
-        for i, t in enumerate(np.asarray(truth)):
-            if t >= 0:
-                out[i] = _independent_label(int(t), poses[i], accuracy, wrong, seed)
+        idx = np.flatnonzero(truth >= 0)
+        right = view_uniforms(seed, np.asarray(poses, float)[idx]) < accuracy  # each view's first draw
+        out[idx[right]] = truth[idx[right]]
+        for i in idx[~right]:  # a wrong view draws its class from the same stream
+            out[i] = _independent_label(int(truth[i]), poses[i], accuracy, wrong, seed)
         return out
 
 
@@ -301,12 +394,12 @@ class PerRoom(NoiseModel):
         rooms = view_rooms(scene, poses, truth)
         out = np.full(len(truth), -1, dtype=np.int64)
         memo: dict[tuple[int, int], int] = {}
+        follows = view_uniforms(seed, poses, _FOLLOW) < self.correlation
         for i, t in enumerate(truth):
             if t < 0:
                 continue
             t = int(t)
-            follow = view_rng(seed, poses[i], _FOLLOW).random() < self.correlation
-            if not follow:
+            if not follows[i]:
                 out[i] = _independent_label(t, poses[i], accuracy, wrong, seed)
                 continue
             k = int(rooms[i])
@@ -433,4 +526,4 @@ def classifier_confusion(env, viewpoints, renderer, method, house_ids: Sequence[
 
 
 __all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows",
-           "view_rooms", "view_confusion", "classifier_confusion", "pose_key", "text_key", "view_rng", "uniform_confusion"]
+           "view_rooms", "view_confusion", "classifier_confusion", "pose_key", "pose_keys", "text_key", "view_rng", "view_uniforms", "uniform_confusion"]
