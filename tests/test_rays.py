@@ -170,3 +170,46 @@ def test_cones_reach_equals_the_union_of_reference_rays(seed):
     got = cones_reach(blocked, rows, cols, np.deg2rad(yaws), offsets, max_range)
     assert want.any() and not want[rows[1], cols[1]]
     assert (got == want).all()
+
+
+def test_cone_end_is_ray_end_on_every_heading():
+    """The angle-sum end cell equals ray_end's: on random views and ranges, and on headings
+    whose end lies within rounding of a cell boundary (cos or sin times the range a half
+    integer: there the formula's last bit and the cosine's differ, and only the fallback to
+    ray_end gives the same cell), on huge and non-finite headings."""
+    from numba import njit
+
+    from envs.maps.rays import cone_end
+
+    @njit
+    def both(r0, c0, yaw, offs, rng):
+        out = np.empty((offs.shape[0], 4), np.int64)
+        cy, sy = np.cos(yaw), np.sin(yaw)
+        for t in range(offs.shape[0]):
+            out[t, 0], out[t, 1] = cone_end(r0, c0, yaw, cy, sy, offs[t], np.cos(offs[t]), np.sin(offs[t]), rng)
+            out[t, 2], out[t, 3] = ray_end(r0, c0, yaw + offs[t], rng)
+        return out
+
+    gen = np.random.default_rng(0)
+    n = 0
+    for _ in range(300):
+        rng = float(gen.choice([gen.uniform(0.5, 400), float(gen.integers(1, 300)), gen.integers(1, 300) + 0.5]))
+        offs = cone_thetas(0.0, float(gen.uniform(1, 360)), rng, float(gen.choice([0.5, 2.0, 4.0])))
+        got = both(int(gen.integers(-5, 500)), int(gen.integers(-5, 500)), float(gen.uniform(-13, 13)), offs, rng)
+        assert np.array_equal(got[:, :2], got[:, 2:])
+        n += len(offs)
+    near = 0
+    for target in (np.pi / 3, 2 * np.pi / 3, np.pi / 6, 5 * np.pi / 6, -np.pi / 3, np.arccos(1.5 / 7.0)):
+        for rng in (1.0, 3.0, 7.0, 121.0):
+            offs = np.linspace(-1.2, 1.2, 4001)
+            yaws = target - offs  # yaw + offset lands on (or one bit off) the target heading
+            for yaw in yaws[::40]:
+                got = both(10, 10, float(yaw), target - yaw + np.array([0.0, 1e-16, -1e-16]), rng)
+                assert np.array_equal(got[:, :2], got[:, 2:])
+                fr = 10.5 - np.cos(yaw + (target - yaw)) * rng
+                near += abs(fr - np.round(fr)) < 1e-9
+    assert near > 100  # the boundary cases were met
+    for yaw in (2e3, -5e6, 1e12, 3e15, np.inf, np.nan):  # beyond the bound: ray_end itself
+        got = both(50, 50, yaw, cone_thetas(0.0, 90.0, 400.0), 400.0)
+        assert np.array_equal(got[:, :2], got[:, 2:])
+    assert n > 50_000

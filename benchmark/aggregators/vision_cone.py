@@ -34,6 +34,7 @@ from envs.maps.gridmap import GridMap
 from envs.maps.ray_paths import PATH_CACHE_BYTES, ray_paths
 from envs.maps.rays import (
     FREE,
+    cone_end,
     cone_thetas,
     line_start,
     line_step,
@@ -90,10 +91,15 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     buf_c = np.empty(cap, np.int32)
     used = 0
     n_cls = votes.shape[1]
+    cos_off = np.cos(offsets)
+    sin_off = np.sin(offsets)
     for v in range(rows.shape[0]):
         r0 = rows[v]
         c0 = cols[v]
-        r1, c1 = ray_end(r0, c0, yaws[v], short_px)
+        yaw = yaws[v]
+        cy = np.cos(yaw)
+        sy = np.sin(yaw)
+        r1, c1 = ray_end(r0, c0, yaw, short_px)
         n, hr, hc = trace_ray(blocked, r0, c0, r1, c1, buf_r, buf_c)
         if hr >= 0:
             continue
@@ -104,7 +110,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
         per = 0
         pec = 0
         for t in range(offsets.shape[0]):
-            r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
+            r1, c1 = cone_end(r0, c0, yaw, cy, sy, offsets[t], cos_off[t], sin_off[t], max_range)
             er = r1 - r0
             ec = c1 - c0
             s = -1

@@ -25,10 +25,10 @@ from envs.maps.rays import (
     FREE,
     OUTSIDE,
     cast_rays,
+    cone_end,
     cone_thetas,
     line_start,
     line_step,
-    ray_end,
     ray_state,
 )
 from envs.maps.scene import Scene
@@ -131,11 +131,16 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     active = np.zeros(nob, np.int64)
     where = np.zeros(nob, np.int64)
     n_act = 0
+    cos_off = np.cos(offsets)
+    sin_off = np.sin(offsets)
     for v in range(n_views):
         r0 = rows[v]
         c0 = cols[v]
         if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
             continue
+        yaw = yaws[v]
+        cy = np.cos(yaw)
+        sy = np.sin(yaw)
         prev = -1  # path of the ray before (-1: none, or walked whole)
         pstop = 0  # where it stopped (its length when it did not)
         pend = -1  # the last index of pobj it holds
@@ -144,7 +149,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
         last_r = -(1 << 62)
         last_c = -(1 << 62)
         for t in range(n_rays):
-            r1, c1 = ray_end(r0, c0, yaws[v] + offsets[t], max_range)
+            r1, c1 = cone_end(r0, c0, yaw, cy, sy, offsets[t], cos_off[t], sin_off[t], max_range)
             if r1 == last_r and c1 == last_c:
                 # the same digital line as the ray before: the same cells (already counted for
                 # this view) and the same objects, each touched by one more ray
