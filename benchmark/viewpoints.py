@@ -23,6 +23,7 @@ import numpy as np
 from scipy import ndimage
 
 from benchmark.interfaces import Viewpoints
+from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
 from envs.maps.pose_files import FRAME_COLUMNS, read_poses
 from envs.maps.scene import Scene
@@ -32,7 +33,7 @@ from envs.ranges import HEADING_SPREAD, Integer, NonNegative, OneOf, Positive
 def clearance_px(walkable: np.ndarray) -> np.ndarray:
     """(H, W) float: each cell's distance in pixels to the nearest non-walkable cell, the map's
     edge counting as one (0 on non-walkable cells)."""
-    return ndimage.distance_transform_edt(np.pad(walkable, 1))[1:-1, 1:-1]
+    return distance_px(np.pad(walkable, 1))[1:-1, 1:-1]
 
 
 def trace_path(walkable: np.ndarray, offset_px: float, dist: np.ndarray | None = None) -> list[np.ndarray]:
@@ -155,7 +156,7 @@ def room_coverage(scene: Scene, poses: np.ndarray) -> tuple[int, int, list[tuple
     grid = scene.grid
     r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
     visited = set(scene.instances[r, c].tolist()) if len(poses) else set()
-    dist = ndimage.distance_transform_edt(np.pad(grid.walkable, 1))[1:-1, 1:-1] * grid.resolution
+    dist = clearance_px(grid.walkable) * grid.resolution
     rooms = [k for k in range(len(scene.instance_classes)) if (scene.instances == k).any()]
     missed = [(k, float(dist[scene.instances == k].max())) for k in rooms if k not in visited]
     return len(rooms) - len(missed), len(rooms), missed

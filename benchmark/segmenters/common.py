@@ -44,6 +44,7 @@ import numpy as np
 from scipy import ndimage
 from skimage.segmentation import watershed
 
+from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 
 FOUR = ndimage.generate_binary_structure(2, 1)
@@ -51,10 +52,10 @@ FOUR = ndimage.generate_binary_structure(2, 1)
 
 def grow_seeds(seeds: np.ndarray, walkable: np.ndarray, dist: np.ndarray | None = None) -> np.ndarray:
     """Grow labelled seeds (0 = none) over ``walkable`` by a watershed on the distance map
-    (``dist``: ``ndimage.distance_transform_edt(walkable)``, pixels, when the caller has it);
+    (``dist``: :func:`envs.maps.distance.distance_px` of ``walkable``, when the caller has it);
     walkable components without a seed become extra rooms. Returns ids 0..K-1, -1 elsewhere."""
     if dist is None:
-        dist = ndimage.distance_transform_edt(walkable)
+        dist = distance_px(walkable)
     lab = watershed(-dist, seeds, mask=walkable, connectivity=1)
     orphan, n = ndimage.label(walkable & (lab == 0), FOUR)
     if n:

@@ -29,6 +29,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from envs.maps.distance import distance_px
+
 FREE, UNKNOWN, OCCUPIED = 0, -1, 100
 EIGHT = np.ones((3, 3), bool)
 
@@ -59,7 +61,7 @@ def wall_thickness(occ: np.ndarray, resolution: float) -> float:
     wall = np.asarray(occ) == OCCUPIED
     if not wall.any():
         return math.nan
-    dist = ndimage.distance_transform_edt(np.pad(wall, 1))[1:-1, 1:-1]
+    dist = distance_px(np.pad(wall, 1))[1:-1, 1:-1]
     skel = _skeleton(wall)
     return float(np.mean(2.0 * dist[skel] - 1.0) * resolution)
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
-from scipy import ndimage
 
+from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 from envs.world.assets import asset_info
 from envs.world.classes import PAPER_CLASSES, ROOM_TYPE_TO_CLASS, room_type_to_class_index
@@ -306,7 +306,7 @@ def rasterise_house(
 
     walkable = floor & ~walls & ~furniture
     if clearance > 0:
-        dist = ndimage.distance_transform_edt(walkable) * resolution
+        dist = distance_px(walkable) * resolution
         walkable &= dist > clearance
     instances = np.where(walkable, rooms, -1).astype(np.int32)
     grid = GridMap(walkable, resolution, grid0.origin)
