@@ -36,7 +36,7 @@ def app(cfg):
     hc = HydraConfig.get()
     time.sleep(float(os.environ.get("JOB_SLEEP", "0")))
     out = {"a": OmegaConf.to_container(cfg.a), "b": cfg.get("b"), "n": cfg.n, "pid": os.getpid(), "num": hc.job.num,
-           "overrides": sorted(hc.overrides.task)}
+           "overrides": sorted(hc.overrides.task), "slot": os.environ.get("ROOMSEG_JOB_SLOT")}
     (Path(hc.runtime.output_dir) / "job.json").write_text(json.dumps(out))
     return cfg.n
 
@@ -127,10 +127,13 @@ grids:
     assert jobs["b=v,n=1"]["b"] == "v" and jobs["b=v,n=1"]["a"] == {"v": 1}
     assert sorted(j["num"] for j in jobs.values()) == list(range(8))
     pids = {j["pid"] for j in jobs.values()}
+    slots = {(j["pid"], j["slot"]) for j in jobs.values()}
     if launcher.endswith("n_jobs=1"):
-        assert len(pids) == 1
+        assert len(pids) == 1 and {s for _, s in slots} == {None}
     else:
         assert 1 <= len(pids) <= 2 and "on 2" in r.stderr + r.stdout
+        # each worker has its own place among the two (its jobs start on their own houses)
+        assert len({s for _, s in slots}) == len(slots) == len(pids) and {s for _, s in slots} <= {"0/2", "1/2"}
 
 
 def test_a_job_that_does_not_compose_fails_alone(tmp_path):

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from benchmark.harness.processes import worker_init
+from benchmark.harness.processes import staggered, worker_init
 from envs.atomic import file_identity
 
 log = logging.getLogger("roomseg-bench")
@@ -186,8 +186,16 @@ class SerialExecutor:
 
     def map(self, spec: JobSpec, house_ids: Sequence[str], progress: Progress | None = None,
             where: str = "") -> list[HouseResult]:
-        it = progress(house_ids, total=len(house_ids)) if progress else house_ids
-        return [run_house(self.pipe, h) for h in it]
+        """The results in the order of ``house_ids``; the houses are run in the order of
+        :func:`benchmark.harness.processes.staggered` (a job running beside others of a sweep
+        starts at its own share of the houses)."""
+        order = staggered(len(house_ids))
+        ids = [house_ids[i] for i in order]
+        it = progress(ids, total=len(ids)) if progress else ids
+        out: list[HouseResult | None] = [None] * len(ids)
+        for i, h in zip(order, it):
+            out[i] = run_house(self.pipe, h)
+        return out  # type: ignore[return-value]
 
 
 # ---------------------------------------------------------------- local processes

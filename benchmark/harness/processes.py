@@ -135,6 +135,34 @@ def die_with_parent(parent_pid: int, *, use_prctl: bool = True, poll_s: float = 
     return how
 
 
+#: set in each worker of a sweep's launcher to ``"<slot>/<workers>"``: which of the jobs that run
+#: at once this process runs (:func:`job_slot`).
+JOB_SLOT_ENV = "ROOMSEG_JOB_SLOT"
+
+
+def job_slot() -> tuple[int, int]:
+    """(slot, workers): this launcher worker's place among the sweep's jobs that run side by side
+    (``$ROOMSEG_JOB_SLOT``), (0, 1) outside such a worker or when the variable is malformed."""
+    try:
+        slot, n = (int(v) for v in os.environ.get(JOB_SLOT_ENV, "").split("/"))
+    except ValueError:
+        return 0, 1
+    return (slot, n) if 0 <= slot < n else (0, 1)
+
+
+def staggered(n_items: int) -> list[int]:
+    """The order in which this process takes ``n_items`` houses of a job: from its share's start
+    (slot / workers of the way through, :func:`job_slot`) round to the one before, so that
+    jobs running side by side (other methods under the same robot condition) start on different
+    houses: the stages they share for a house (its robot map, its SLAM estimate, its render) are
+    computed by one of them while the others compute other houses, and found in the cache when
+    they get there, instead of one job waiting on the other's lock house after house. Outside a
+    sweep's side-by-side jobs: 0, 1, 2, ..."""
+    slot, n = job_slot()
+    start = slot * n_items // n
+    return [(start + i) % n_items for i in range(n_items)] if n_items else []
+
+
 def worker_init(parent_pid: int) -> None:
     """A pool initializer: die with the parent, and leave Ctrl-C to the parent, which stops
     the workers itself (SIGINT goes to the whole foreground process group)."""
@@ -142,4 +170,5 @@ def worker_init(parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-__all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "PR_SET_PDEATHSIG"]
+__all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "PR_SET_PDEATHSIG",
+           "JOB_SLOT_ENV", "job_slot", "staggered"]

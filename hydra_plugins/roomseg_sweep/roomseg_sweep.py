@@ -65,7 +65,7 @@ from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
-from benchmark.harness.processes import available_cores, worker_init
+from benchmark.harness.processes import JOB_SLOT_ENV, available_cores, worker_init
 from benchmark.harness.sweep_progress import SweepProgress
 from benchmark.harness.write_errors import naming_the_file
 
@@ -181,9 +181,14 @@ def check_options(batch: Sequence[Sequence[str]], loader: Any) -> None:
 _SWEEP: tuple[HydraContext, DictConfig, TaskFunction, dict[Any, Any]] | None = None
 
 
-def _init_worker(sweep: tuple | bytes, parent_pid: int) -> None:
+def _init_worker(sweep: tuple | bytes, parent_pid: int, slots: Any = None, n: int = 1) -> None:
     global _SWEEP
     worker_init(parent_pid)  # dies with the launching process; Ctrl-C is the launching process's: it stops us
+    if slots is not None:  # this worker's place among the n: its jobs take their houses from there
+        with slots.get_lock():
+            slot = slots.value % n
+            slots.value += 1
+        os.environ[JOB_SLOT_ENV] = f"{slot}/{n}"
     if isinstance(sweep, bytes):  # spawned: the state comes cloudpickled (the task function is
         import cloudpickle  # the app's undecorated main, which pickle cannot name; as in joblib)
 
@@ -340,7 +345,9 @@ class LocalLauncher(Launcher):
             import cloudpickle
 
             state = cloudpickle.dumps(_SWEEP)
-        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker, initargs=(state, os.getpid()))
+        slots = ctx.Value("i", 0)
+        pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker,
+                                   initargs=(state, os.getpid(), slots, n))
         try:
             futures = [pool.submit(mod._run, i, o, n) for i, o in jobs]
             for f in as_completed(futures):  # the progress line advances as jobs finish, in any order
