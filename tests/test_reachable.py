@@ -82,6 +82,55 @@ def test_seeds_snap_to_the_nearest_free_cell_within_a_metre():
         seed_cells(grid, np.zeros((2, 2, 2)))
 
 
+def _snap_reference(walk, rows, cols, resolution, snap_m):
+    """seed_cells' rule over the whole map: SciPy's feature transform of the non-walkable cells."""
+    from scipy import ndimage
+
+    dist, (nr, nc) = ndimage.distance_transform_edt(~walk, return_indices=True)
+    on = walk[rows, cols]
+    keep = on | (dist[rows, cols] * resolution <= snap_m + 1e-9)
+    return np.stack([np.where(on, rows, nr[rows, cols])[keep], np.where(on, cols, nc[rows, cols])[keep]], 1)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_snapping_in_a_window_equals_the_whole_maps_transform(seed, monkeypatch):
+    """Points off the walkable cells snap to the cell SciPy's whole-map transform names: found
+    in a window of the snap distance when one cell is nearest, and by that transform itself
+    when two are (a point between two equally near cells, which the window cannot decide)."""
+    import envs.maps.reachable as reachable
+
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(20, 90, 2))
+    walk = rng.random((h, w)) < rng.uniform(0.02, 0.6)
+    grid = GridMap(walk, 0.1, (0.0, h * 0.1))
+    rows, cols = rng.integers(0, h, 60), rng.integers(0, w, 60)
+    x, z = grid.pixel_to_world(rows, cols)
+    calls = []
+    real = reachable.ndimage.distance_transform_edt
+    monkeypatch.setattr(reachable.ndimage, "distance_transform_edt", lambda *a, **k: calls.append(1) or real(*a, **k))
+    for snap in (0.05, 0.35, 1.0, 3.0):
+        want = _snap_reference(walk, rows, cols, 0.1, snap)
+        for i in range(len(rows)):  # one point at a time: most have one nearest cell
+            got = seed_cells(grid, np.c_[x[i:i + 1], z[i:i + 1]], snap_m=snap)
+            ref = _snap_reference(walk, rows[i:i + 1], cols[i:i + 1], 0.1, snap)
+            assert got.tolist() == ref.tolist()
+        assert seed_cells(grid, np.c_[x, z], snap_m=snap).tolist() == want.tolist()
+    # a point with two equally near walkable cells goes to the whole map's transform
+    tie = np.zeros((9, 9), bool)
+    tie[4, 2] = tie[4, 6] = True
+    g = GridMap(tie, 0.1, (0.0, 0.9))
+    calls.clear()
+    px, pz = g.pixel_to_world(np.array([4]), np.array([4]))
+    assert seed_cells(g, np.c_[px, pz]).tolist() == _snap_reference(tie, np.array([4]), np.array([4]), 0.1, 1.0).tolist()
+    assert calls, "a tie must be settled by the whole map's transform"
+    calls.clear()
+    tie[4, 6] = False
+    assert seed_cells(g, np.c_[px, pz]).tolist() == [[4, 2]] and not calls
+    # exactly at the snap distance (0.2 m) it snaps; a hair nearer a limit, it is dropped
+    assert seed_cells(g, np.c_[px, pz], snap_m=0.2).tolist() == [[4, 2]]
+    assert seed_cells(g, np.c_[px, pz], snap_m=0.19).tolist() == [] and not calls
+
+
 @pytest.mark.parametrize("seed", range(10))
 def test_random_maps_agree_with_a_flood_fill(seed):
     rng = np.random.default_rng(seed)

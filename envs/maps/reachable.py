@@ -12,8 +12,9 @@ the unreachable cells.
 cells (4-connectivity, as the graph KNN aggregator's default and the metrics' segments)
 that hold a *seed*: the house's start pose, or the robot's views. A seed that is not on a
 walkable cell (a start pose on a rug-covered coffee table, a view pose rounded into a wall)
-moves to the nearest walkable cell (Euclidean, in pixels) when that cell is at most
-:data:`SNAP_M` metres away, and is dropped otherwise. With no seed left, or none given,
+moves to the nearest walkable cell (Euclidean, in pixels; of two equally near, the one
+SciPy's distance transform of the map names) when that cell is at most :data:`SNAP_M` metres
+away, and is dropped otherwise. With no seed left, or none given,
 the rule is the largest component (ties: the one whose first cell comes first in raster
 order).
 
@@ -80,12 +81,47 @@ def seed_cells(grid: GridMap, points_xz: np.ndarray | Sequence, snap_m: float = 
     on = walk[r, c]
     if on.all():
         return np.stack([r, c], axis=1)
-    dist, (nr, nc) = ndimage.distance_transform_edt(~walk, return_indices=True)
-    near = dist[r, c] * grid.resolution <= snap_m + 1e-9
-    keep = on | near
-    rr = np.where(on, r, nr[r, c])[keep]
-    cc = np.where(on, c, nc[r, c])[keep]
-    return np.stack([rr, cc], axis=1).astype(np.int64)
+    snapped = _snap_in_windows(walk, r[~on], c[~on], grid.resolution, snap_m)
+    if snapped is None:  # two walkable cells equally near a point: the whole map's feature transform decides
+        dist, (nr, nc) = ndimage.distance_transform_edt(~walk, return_indices=True)
+        near = dist[r, c] * grid.resolution <= snap_m + 1e-9
+        keep = on | near
+        rr = np.where(on, r, nr[r, c])[keep]
+        cc = np.where(on, c, nc[r, c])[keep]
+        return np.stack([rr, cc], axis=1).astype(np.int64)
+    rr, cc, keep = r.copy(), c.copy(), on.copy()
+    rr[~on], cc[~on], keep[~on] = snapped[:, 0], snapped[:, 1], snapped[:, 0] >= 0
+    return np.stack([rr[keep], cc[keep]], axis=1).astype(np.int64)
+
+
+def _snap_in_windows(walk: np.ndarray, rows: np.ndarray, cols: np.ndarray, resolution: float,
+                     snap_m: float) -> np.ndarray | None:
+    """The nearest walkable cell of each point off the walkable cells, searched in a window of
+    the snap distance around it (a nearer cell cannot lie outside it), with the test of the
+    whole map's distance transform (distance x resolution <= ``snap_m`` + 1e-9).
+
+    Returns:
+        (K, 2) int64 cells, (-1, -1) for a point with none near enough (dropped); None when
+        some point has two or more nearest cells (which one the whole map's transform picks
+        is its own rule: the caller asks it).
+    """
+    reach = (snap_m + 1e-9) / resolution
+    k = int(np.floor(reach)) + 1 if np.isfinite(reach) else max(walk.shape)
+    h, w = walk.shape
+    out = np.full((len(rows), 2), -1, np.int64)
+    for i, (pr, pc) in enumerate(zip(rows.tolist(), cols.tolist())):
+        r0, c0 = max(pr - k, 0), max(pc - k, 0)
+        wr, wc = np.nonzero(walk[r0:min(pr + k + 1, h), c0:min(pc + k + 1, w)])
+        if not len(wr):
+            continue
+        d2 = (wr + (r0 - pr)) ** 2 + (wc + (c0 - pc)) ** 2
+        j = int(np.argmin(d2))
+        if not np.sqrt(float(d2[j])) * resolution <= snap_m + 1e-9:
+            continue
+        if np.count_nonzero(d2 == d2[j]) > 1:
+            return None
+        out[i] = (wr[j] + r0, wc[j] + c0)
+    return out
 
 
 def reachable_mask(walkable: np.ndarray, seeds: np.ndarray | None = None) -> np.ndarray:
