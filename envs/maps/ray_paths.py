@@ -131,4 +131,44 @@ def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
     return out
 
 
-__all__ = ["PATH_CACHE_BYTES", "ray_paths"]
+@njit(cache=True, nogil=True, inline="always")
+def path_of(er, ec, k, slot):
+    """The path (row of :func:`ray_paths`' tables) of a ray ending (er, ec) from its camera, -1
+    when that end has none."""
+    if -k <= er <= k and -k <= ec <= k:
+        return slot[er + k, ec + k]
+    return -1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def path_cell(r0, c0, gr, gc, mr, mc, j, minor):
+    """Cell ``j`` of a path (its ``geo`` row: ``gr, gc, mr, mc``) with minor coordinate ``minor``,
+    put at the camera's cell (r0, c0)."""
+    return r0 + gr * j + mr * minor, c0 + gc * j + mc * minor
+
+
+@njit(cache=True, nogil=True, inline="always")
+def differences(s, prev, a, b, plen, pstop, dstart):
+    """Where path ``s`` differs from ``prev``, the path of the ray before (its end (a, b) cells
+    from s's, each within one), that stopped at index ``pstop``: ``(m, lim, i, e)``: the
+    shorter length ``m``, the limit ``lim`` below which the differences matter (the ray before
+    saw its cells up to there), and the pairs ``dj[2 i:2 e]`` to look up (index, minor)."""
+    nq = (1 - a) * 3 + (1 - b)
+    m = min(plen[s], plen[prev])
+    return m, min(pstop, m), dstart[s, nq], dstart[s, nq + 1]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def after_differences(i, e, dj, pstop, m):
+    """How a ray goes on when none of its differences below ``lim`` was blocked (``i``: the first
+    pair not looked up): ``(walk_from, stop)``. The ray before stopped at ``pstop`` < ``m``: this
+    one stops there too (``stop = pstop``) unless that cell is one of its differences, then it
+    walks on from there; the ray before went at least ``m`` cells: this one walks on from ``m``."""
+    if pstop < m:
+        if i < e and dj[2 * i] == pstop:
+            return pstop, -1
+        return 0, pstop
+    return m, -1
+
+
+__all__ = ["PATH_CACHE_BYTES", "after_differences", "differences", "path_cell", "path_of", "ray_paths"]
