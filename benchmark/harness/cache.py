@@ -16,6 +16,7 @@ entry twice.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import hashlib
 import json
 import os
@@ -135,6 +136,29 @@ def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
     return dict(sorted(out.items()))
 
 
+class EntryBusy(BaseException):
+    """Raised by :func:`locked` instead of waiting, inside :func:`defer_when_busy`: another
+    process holds the entry's lock (it is computing that entry). A ``BaseException``, so that a
+    house's ``except Exception`` (which records the house as failed) lets it through to the
+    executor that asked, which runs the house again later."""
+
+
+#: whether :func:`locked` raises :class:`EntryBusy` rather than wait (see :func:`defer_when_busy`)
+_DEFER_WHEN_BUSY: contextvars.ContextVar[bool] = contextvars.ContextVar("roomseg_defer_when_busy", default=False)
+
+
+@contextlib.contextmanager
+def defer_when_busy(on: bool = True) -> Iterator[None]:
+    """Within this block (``on``), :func:`locked` raises :class:`EntryBusy` when another process
+    holds the lock, instead of waiting for it: a job with other houses to run meanwhile
+    comes back to this one when the other process has computed the entry."""
+    token = _DEFER_WHEN_BUSY.set(bool(on))
+    try:
+        yield
+    finally:
+        _DEFER_WHEN_BUSY.reset(token)
+
+
 @contextlib.contextmanager
 def locked(path: Path, timeout: float = 3600.0) -> Iterator[None]:
     """Hold an inter-process lock tied to ``path`` (a ``.lock`` file beside it, removed when
@@ -167,6 +191,8 @@ def locked(path: Path, timeout: float = 3600.0) -> Iterator[None]:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                     break
                 except BlockingIOError:
+                    if _DEFER_WHEN_BUSY.get():
+                        raise EntryBusy(lock) from None
                     if time.monotonic() > deadline:
                         raise TimeoutError(f"{lock}: held by another process for over {timeout:g} s") from None
                     time.sleep(delay)

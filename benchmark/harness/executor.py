@@ -50,6 +50,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from benchmark.harness.cache import EntryBusy, defer_when_busy
 from benchmark.harness.processes import staggered, worker_init
 from envs.atomic import file_identity
 
@@ -186,15 +187,29 @@ class SerialExecutor:
 
     def map(self, spec: JobSpec, house_ids: Sequence[str], progress: Progress | None = None,
             where: str = "") -> list[HouseResult]:
-        """The results in the order of ``house_ids``; the houses are run in the order of
+        """The results in the order of ``house_ids``. The houses are run in the order of
         :func:`benchmark.harness.processes.staggered` (a job running beside others of a sweep
-        starts at its own share of the houses)."""
-        order = staggered(len(house_ids))
-        ids = [house_ids[i] for i in order]
-        it = progress(ids, total=len(ids)) if progress else ids
-        out: list[HouseResult | None] = [None] * len(ids)
-        for i, h in zip(order, it):
-            out[i] = run_house(self.pipe, h)
+        starts at its own share of the houses); a house that needs an entry another process is
+        computing (its lock is held: :class:`benchmark.harness.cache.EntryBusy`) is put off,
+        and run, waiting for the entry if need be, after the others."""
+        out: list[HouseResult | None] = [None] * len(house_ids)
+
+        def run() -> Iterator[str]:
+            order, later = staggered(len(house_ids)), []
+            for k, i in enumerate(order):
+                try:
+                    with defer_when_busy(k < len(order) - 1):  # other houses to run meanwhile
+                        out[i] = run_house(self.pipe, house_ids[i])
+                except EntryBusy:
+                    later.append(i)
+                    continue
+                yield house_ids[i]
+            for i in later:
+                out[i] = run_house(self.pipe, house_ids[i])
+                yield house_ids[i]
+
+        for _ in progress(run(), total=len(house_ids)) if progress else run():
+            pass
         return out  # type: ignore[return-value]
 
 
