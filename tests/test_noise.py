@@ -93,6 +93,8 @@ def test_view_uniforms_are_each_views_first_draw(seed, salt):
         assert _first_uniforms(np.array([words], np.uint32)).tolist() == [
             np.random.default_rng([seed, key] + ([] if salt is None else [salt])).random()]
     assert view_uniforms(seed, np.zeros((0, 3)), salt).shape == (0,)
+    with pytest.raises(ValueError, match="seed -1: expected a non-negative integer"):
+        view_uniforms(-1, poses[:2], salt)
 
 
 def test_block_fixture_has_the_expected_views():

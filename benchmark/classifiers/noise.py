@@ -89,7 +89,12 @@ _PCG_MULT, _M64, _M128 = 0x2360ED051FC65DA44385DF649FCCF645, (1 << 64) - 1, (1 <
 
 
 def _words(n: int) -> list[int]:
-    """The 32-bit words of a non-negative int, least significant first (at least one)."""
+    """The 32-bit words of a non-negative int, least significant first (at least one).
+
+    Raises:
+        ValueError: a negative int (a seed must be >= 0, as numpy's generators say too)."""
+    if n < 0:
+        raise ValueError(f"seed {n}: expected a non-negative integer")
     out = [n & _M32]
     n >>= 32
     while n:
