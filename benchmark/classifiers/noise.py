@@ -151,7 +151,7 @@ def _first_uniforms(entropy: np.ndarray) -> np.ndarray:
 
 def view_uniforms(seed: int, poses: np.ndarray, salt: int | None = None) -> np.ndarray:
     """(N,) float64 in [0, 1): ``view_rng(seed, pose, salt).random()`` of each pose, bit for bit,
-    without making a generator per view (about 20 us each).
+    without making a generator per view.
 
     Args:
         seed: the run's seed (>= 0).
