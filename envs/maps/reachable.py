@@ -81,14 +81,12 @@ def seed_cells(grid: GridMap, points_xz: np.ndarray | Sequence, snap_m: float = 
     on = walk[r, c]
     if on.all():
         return np.stack([r, c], axis=1)
-    snapped = _snap_in_windows(walk, r[~on], c[~on], grid.resolution, snap_m)
+    off_r, off_c = r[~on], c[~on]
+    snapped = _snap_in_windows(walk, off_r, off_c, grid.resolution, snap_m)
     if snapped is None:  # two walkable cells equally near a point: the whole map's feature transform decides
         dist, (nr, nc) = ndimage.distance_transform_edt(~walk, return_indices=True)
-        near = dist[r, c] * grid.resolution <= snap_m + 1e-9
-        keep = on | near
-        rr = np.where(on, r, nr[r, c])[keep]
-        cc = np.where(on, c, nc[r, c])[keep]
-        return np.stack([rr, cc], axis=1).astype(np.int64)
+        near = dist[off_r, off_c] * grid.resolution <= snap_m + 1e-9
+        snapped = np.where(near[:, None], np.stack([nr[off_r, off_c], nc[off_r, off_c]], axis=1), -1)
     rr, cc, keep = r.copy(), c.copy(), on.copy()
     rr[~on], cc[~on], keep[~on] = snapped[:, 0], snapped[:, 1], snapped[:, 0] >= 0
     return np.stack([rr[keep], cc[keep]], axis=1).astype(np.int64)
