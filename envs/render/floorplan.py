@@ -232,8 +232,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 for j in range(walk_from, pend + 1):  # what the walk rewrites, or lies beyond this path
                     n_act = _touch(pobj[j], -1, cnt, active, where, n_act)
                     pobj[j] = -1
-                if walk_from <= pend:
-                    pend = walk_from - 1
+                pend = min(pend, walk_from - 1)
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
                     r, c = path_cell(r0, c0, gr, gc, mr, mc, j, pm[s, j])
