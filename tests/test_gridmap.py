@@ -29,6 +29,19 @@ def test_round_trip_and_cells():
     assert np.allclose(fr, r + 0.5) and np.allclose(fc, c + 0.5)
 
 
+def test_cell_of_one_point_is_world_to_cell():
+    """The scalar cell (plain floats, Python ints) equals the array one, on pixel corners and
+    edges (where floor decides) as well as anywhere, and off the map."""
+    rng = np.random.default_rng(1)
+    for g in (make(), make(res=0.05, origin=(-3.3, 2.7)), make(res=0.02, origin=(0.1, 0.3))):
+        x = np.r_[rng.uniform(-5, 8, 300), g.origin[0] + np.arange(-3, 40) * g.resolution]
+        z = np.r_[rng.uniform(-5, 8, 300), g.origin[1] - np.arange(-3, 40) * g.resolution]
+        rows, cols = g.world_to_cell(x, z)
+        got = [g.cell_of(a, b) for a, b in zip(x, z)]
+        assert got == list(zip(rows.tolist(), cols.tolist()))
+        assert all(type(v) is int for rc in got for v in rc)
+
+
 def test_axes_orientation():
     g = make()
     r0, c0 = g.world_to_cell(2.0, 3.0)

@@ -15,6 +15,7 @@ Conventions (fixed once, tested in ``tests/test_gridmap.py``):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,16 +66,22 @@ class GridMap:
 
         Returns float arrays; ``np.floor`` of them gives the pixel index containing the point.
         """
-        x = np.asarray(x, dtype=float)
-        z = np.asarray(z, dtype=float)
-        col = (x - self.origin[0]) / self.resolution
-        row = (self.origin[1] - z) / self.resolution
-        return row, col
+        return self._pixel(np.asarray(x, dtype=float), np.asarray(z, dtype=float))
+
+    def _pixel(self, x, z):
+        """The one world -> continuous pixel formula, for arrays and plain floats alike."""
+        return (self.origin[1] - z) / self.resolution, (x - self.origin[0]) / self.resolution
 
     def world_to_cell(self, x, z):
         """World (x, z) metres -> integer pixel (row, col) containing the point."""
         row, col = self.world_to_pixel(x, z)
         return np.floor(row).astype(np.int64), np.floor(col).astype(np.int64)
+
+    def cell_of(self, x: float, z: float) -> tuple[int, int]:
+        """:meth:`world_to_cell` of one point, as Python ints, without NumPy's cost per scalar (the
+        same IEEE arithmetic on plain floats): for loops over many single points."""
+        row, col = self._pixel(float(x), float(z))
+        return math.floor(row), math.floor(col)
 
     def pixel_to_world(self, row, col):
         """Pixel (row, col) -> world (x, z) metres; integer indices give pixel centres."""

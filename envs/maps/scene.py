@@ -10,7 +10,6 @@ centre (the first such room in the house's room order, for pixels on a shared ed
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -148,11 +147,8 @@ def _pixel_window(grid: GridMap, xmin: float, xmax: float, zmin: float, zmax: fl
     """Pixel index window covering a world box, and its pixel-centre coordinates: x (1, w) per
     column and z (h, 1) per row, which broadcast to the window's (h, w)."""
     h, w = grid.shape
-    # GridMap.world_to_cell's arithmetic on plain floats (the same IEEE operations, without
-    # NumPy's cost per scalar)
-    x0, z0, res = float(grid.origin[0]), float(grid.origin[1]), float(grid.resolution)
-    r0, c0 = math.floor((z0 - float(zmax)) / res), math.floor((float(xmin) - x0) / res)
-    r1, c1 = math.floor((z0 - float(zmin)) / res), math.floor((float(xmax) - x0) / res)
+    r0, c0 = grid.cell_of(xmin, zmax)
+    r1, c1 = grid.cell_of(xmax, zmin)
     r0, c0 = max(r0 - 1, 0), max(c0 - 1, 0)
     r1, c1 = min(r1 + 2, h), min(c1 + 2, w)
     if r0 >= r1 or c0 >= c1:
