@@ -15,7 +15,14 @@ import pandas as pd
 import pytest
 from procs import NEEDS_PROC, wait_for
 
-from benchmark.commands.maintainer.scaling import descendants, main, tree_memory
+from benchmark.commands.maintainer.scaling import (
+    PeakMemory,
+    _descendants_by_children,
+    _proc_table,
+    descendants,
+    main,
+    tree_memory,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,6 +49,9 @@ def test_tree_memory_sums_a_process_tree_of_known_size(tmp_path):
         assert wait_for(lambda: (tmp_path / "child").exists() and (tmp_path / "parent").exists(), timeout=60)
         pss, rss, n = tree_memory(p.pid)
         assert n == 2 and len(descendants(p.pid)) == 2
+        # the tree from the children files is the tree from every process's parent
+        kids = [c for c, parent in _proc_table().items() if parent == p.pid]
+        assert len(kids) == 1 and sorted(_descendants_by_children(p.pid)) == sorted([p.pid, *kids])
         mb = 2**20
         assert 450 * mb <= pss < 600 * mb, pss / mb  # own 150 x 2 + shared 150 once (+ two interpreters)
         assert rss - pss > 120 * mb, (rss / mb, pss / mb)  # the shared block counted in both RSS
@@ -50,6 +60,25 @@ def test_tree_memory_sums_a_process_tree_of_known_size(tmp_path):
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
         p.wait()
+
+
+@NEEDS_PROC
+def test_the_memory_sampler_runs_at_the_lowest_priority():
+    """The sampler thread is niced to 19 (its reads of smaps_rollup cost CPU the measured run
+    would otherwise lose); the process's own priority is left as it was."""
+    import threading
+
+    before = os.getpriority(os.PRIO_PROCESS, 0)
+    peak = PeakMemory(os.getpid(), every=0.05)
+    try:
+        assert wait_for(lambda: peak.procs >= 1, timeout=30)
+        tid = peak._thread.native_id
+        fields = Path(f"/proc/self/task/{tid}/stat").read_text().rsplit(")", 1)[1].split()
+        assert int(fields[16]) == 19  # field 19 of stat: nice
+        assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == before
+    finally:
+        peak.stop()
+    assert peak.pss > 0 and peak.rss >= peak.pss
 
 
 @pytest.mark.slow
