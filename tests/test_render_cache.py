@@ -45,6 +45,28 @@ def test_round_trip_with_images_objects_and_refused_views(tmp_path):
     assert read_observations(folder, images=False)[1].image is None
 
 
+def test_the_files_written_byte_for_byte(tmp_path):
+    """The format as written: poses.csv and observations.jsonl as text, written out here by
+    hand, and COMPLETE's count and the sha256 of each file as it lies on disk, in name order."""
+    import hashlib
+
+    obs = [Observation(pose=(0.5, -1.25, 90.0), objects=[("Bed", 0.25)], visible_classes=np.array([1, 0], np.float32),
+                       meta={"n_visible_cells": np.int64(3)}),
+           Observation(pose=(2.0, 3.0, -45.5), image=np.zeros((2, 2, 3), np.uint8)),
+           Observation(pose=(1.0, 1.0, 0.0), meta={"refused": True, "error": "é"})]
+    folder = tmp_path / "h"
+    write_observations(folder, obs)
+    assert (folder / "poses.csv").read_bytes() == (
+        b"index,x,z,yaw,refused,image\n0,0.5,-1.25,90.0,0,\n1,2.0,3.0,-45.5,0,images/000001.png\n2,1.0,1.0,0.0,1,\n")
+    assert (folder / "observations.jsonl").read_bytes() == (
+        b'{"objects": [["Bed", 0.25]], "visible_classes": [1.0, 0.0], "meta": {"n_visible_cells": 3}}\n'
+        b'{"objects": [], "visible_classes": null, "meta": {}}\n'
+        b'{"objects": [], "visible_classes": null, "meta": {"refused": true, "error": "\\u00e9"}}\n')
+    names = ["images/000001.png", "observations.jsonl", "poses.csv"]
+    assert (folder / "COMPLETE").read_text() == "3\n" + "".join(
+        f"{hashlib.sha256((folder / n).read_bytes()).hexdigest()} {n}\n" for n in names)
+
+
 def test_a_copied_cache_reads_the_same(tmp_path):
     obs = _obs(np.random.default_rng(1))
     write_observations(tmp_path / "gpu-box" / "h", obs)

@@ -58,28 +58,36 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
         first = str(observations[0].meta.get("error", "")).strip()[:200]
         raise ValueError(f"every one of {len(observations)} views was refused by the renderer (first: {first!r}); "
                          f"not cached in {folder}, the next run renders it again")
+    # every file in memory first (its checksum from the same bytes), each written once
+    lines = ["index,x,z,yaw,refused,image"]
+    jsonl = []
+    files: dict[str, bytes] = {}
+    for i, o in enumerate(observations):
+        image = ""
+        if o.image is not None:
+            img = np.asarray(o.image)
+            if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+                raise ValueError(f"observation {i}: image must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
+            image = f"images/{i:06d}.png"
+            buf = io.BytesIO()
+            Image.fromarray(img).save(buf, format="PNG")
+            files[image] = buf.getvalue()
+        x, z, yaw = (float(v) for v in o.pose)
+        lines.append(f"{i},{x!r},{z!r},{yaw!r},{int(bool(o.meta.get('refused', False)))},{image}")
+        vis = None if o.visible_classes is None else np.asarray(o.visible_classes).astype(np.float64).tolist()
+        jsonl.append(_ENCODER.encode({"objects": [[str(t), float(a)] for t, a in o.objects],
+                                      "visible_classes": vis, "meta": o.meta}) + "\n")
+    files["observations.jsonl"] = "".join(jsonl).encode("utf-8")
+    files["poses.csv"] = ("\n".join(lines) + "\n").encode("utf-8")
+    marker = f"{len(observations)}\n" + "".join(f"{hashlib.sha256(files[f]).hexdigest()} {f}\n" for f in sorted(files))
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = ordinary_temp_dir(folder.parent, "." + folder.name + ".")  # the entry gets an ordinary folder's mode
     try:
-        lines = ["index,x,z,yaw,refused,image"]
-        with open(tmp / "observations.jsonl", "w", encoding="utf-8") as f:
-            for i, o in enumerate(observations):
-                image = ""
-                if o.image is not None:
-                    img = np.asarray(o.image)
-                    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-                        raise ValueError(f"observation {i}: image must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
-                    (tmp / "images").mkdir(exist_ok=True)
-                    image = f"images/{i:06d}.png"
-                    Image.fromarray(img).save(tmp / image)
-                x, z, yaw = (float(v) for v in o.pose)
-                lines.append(f"{i},{x!r},{z!r},{yaw!r},{int(bool(o.meta.get('refused', False)))},{image}")
-                vis = None if o.visible_classes is None else [float(v) for v in np.asarray(o.visible_classes)]
-                f.write(_ENCODER.encode({"objects": [[str(t), float(a)] for t, a in o.objects],
-                                         "visible_classes": vis, "meta": o.meta}) + "\n")
-        (tmp / "poses.csv").write_text("\n".join(lines) + "\n")
-        files = sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*") if p.is_file())
-        (tmp / MARKER).write_text(f"{len(observations)}\n" + "".join(f"{_digest(tmp / f)} {f}\n" for f in files))
+        if any(f.startswith("images/") for f in files):
+            (tmp / "images").mkdir()
+        for f, data in files.items():
+            (tmp / f).write_bytes(data)
+        (tmp / MARKER).write_text(marker)
         old = None
         if folder.exists():
             old = Path(tempfile.mkdtemp(prefix="." + folder.name + ".old.", dir=folder.parent))
