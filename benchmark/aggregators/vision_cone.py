@@ -222,10 +222,10 @@ def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: n
     ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
     state = ray_state(~blocked)  # a cell some view reached holds that view's index (>= 0)
     n = int(ok.sum())
-    # every view votes class 0 into a one-class count the union does not read (it may wrap)
+    # no view votes (label -1, no classes): the walk only stamps the cells it reaches
     _cone_votes(blocked, state, rows[ok], cols[ok], np.asarray(yaws, np.float64).ravel()[ok],
-                np.ascontiguousarray(offsets, np.float64), float(max_range), 0.0, np.zeros(n, np.int64),
-                np.zeros((n, 1), np.float32), np.zeros((1, h, w), np.uint8), *ray_paths(float(max_range), PATH_CACHE_BYTES))
+                np.ascontiguousarray(offsets, np.float64), float(max_range), 0.0, np.full(n, -1, np.int64),
+                np.zeros((n, 0), np.float32), np.zeros((0, h, w), np.uint8), *ray_paths(float(max_range), PATH_CACHE_BYTES))
     return state[1:-1, 1:-1] >= 0
 
 
