@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish scaling-10k-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -114,6 +114,9 @@ scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000
 scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
 	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
 
+scaling-10k-publish: setup  ## one configuration over 10,000 generated houses (ProcTHOR-10k's size) on 2 workers, about 5 min -> results/published/scaling_10k.md (docs/sweeps-and-clusters.md)
+	$(PY) -m benchmark.commands.maintainer.scaling --houses 10000 --workers 2 --out results/published/scaling_10k.md
+
 # roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 1.5 GB), extrapolated to 16000^2 px;
 # measured there with `make perf PERF_SEGMENT_ROOMS="20 40 80"` (80: 16020^2 px, ~2 minutes more, 5.5 GB of memory)
 PERF_SEGMENT_ROOMS ?= 20 40
@@ -136,7 +139,7 @@ install-sizes-publish: setup-test  ## .venv's size by install step (core, docs, 
 
 # the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
 # fails when it writes other numbers); the measured ones (timings, memory, sizes) are written by
-# the *-publish targets: perf, scaling, segment-memory, compile, install-sizes, bench, robustness
+# the *-publish targets: perf, scaling, scaling-10k, segment-memory, compile, install-sizes, bench, robustness
 docs-numbers: setup  ## the numbers the docs include -> results/published/: autotrace coverage, the default confusion matrix, robot coverage, SLAM levels, map calibration, house statistics, clutter tables, tables examples, SeLRoS Table V, leaderboard, objects accuracy, sensitivity (ROSE2=<checkout> adds ROSE²)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.coverage --range 0:150 --out results/published/coverage.md
