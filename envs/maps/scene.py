@@ -184,9 +184,10 @@ def inside_or_on(polygon: np.ndarray, x: np.ndarray, z: np.ndarray) -> np.ndarra
     """Points inside ``polygon`` or on its boundary (``shapely.intersects_xy``).
 
     A polygon of 4 corners whose edges lie along the axes, turning at every corner (a
-    rectangle: every room of the generated houses, about a third of ProcTHOR's) is tested by comparing coordinates with
-    its sides, which is exact: a point is on such an edge when its coordinate equals the
-    edge's. Any other polygon goes to GEOS (prepared: an indexed point-in-area test).
+    rectangle: every room of the generated houses, about a third of ProcTHOR's), is tested by
+    comparing coordinates with its sides, which is exact: a point is on such an edge when its
+    coordinate equals the edge's. Any other polygon goes to GEOS (prepared: an indexed
+    point-in-area test).
 
     Args:
         polygon: (V, 2) x, z vertices, metres.
