@@ -10,7 +10,8 @@ with ``run.workers=W`` and an empty results folder and cache, and prints one tab
   of children: exact for local workers; Ray's own processes are not children, so with
   ``--executor ray`` it counts the driver only);
 - peak memory (MB) of the process tree, sampled every ``--sample`` seconds from ``/proc``
-  by a thread at the lowest CPU priority (:class:`PeakMemory`; later while every core is busy):
+  by a thread at niceness ``--sample-nice`` (default 19, the lowest CPU priority: samples
+  come later while every core is busy; :class:`PeakMemory`):
   the sum of PSS (proportional set size: a page shared by forked workers counts once,
   split between them) and, for comparison, the sum of RSS (shared pages counted in
   every process); Linux only;
@@ -132,24 +133,25 @@ def tree_memory(pid: int) -> tuple[int, int, int]:
 class PeakMemory:
     """Samples :func:`tree_memory` of ``pid`` every ``every`` seconds in a thread; keeps the peaks.
 
-    The thread runs at the lowest CPU priority (nice 19, Linux: a thread's own priority). A
-    sample reads every process's ``smaps_rollup``, which walks its page tables: about 20 ms of
-    CPU for a driver and two workers of 300 MB, so at normal priority sampling every 0.25 s
-    took about a twelfth of a core from the run it measures. At nice 19 a sample waits while
-    every core is busy, and the sampler takes little from the run; samples are then further
-    apart than ``every``."""
+    The thread runs at niceness ``nice`` (Linux: a thread's own priority; default 19, the
+    lowest). A sample reads every process's ``smaps_rollup``, which walks its page tables:
+    about 20 ms of CPU for a driver and two workers of 300 MB, so at normal priority (0)
+    sampling every 0.25 s took about a twelfth of a core from the run it measures. At nice 19
+    a sample waits while every core is busy, so the sampler takes little from the run, but
+    samples are then further apart than ``every``: a run of a few seconds on a busy machine
+    may end before its workers are sampled (use 0 there)."""
 
-    def __init__(self, pid: int, every: float = 0.25) -> None:
-        self.pid, self.every = pid, every
+    def __init__(self, pid: int, every: float = 0.25, nice: int = 19) -> None:
+        self.pid, self.every, self.nice = pid, every, nice
         self.pss = self.rss = self.procs = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, daemon=True)
         self._thread.start()
 
     def _loop(self) -> None:
-        if sys.platform.startswith("linux"):  # (elsewhere it would be the whole process's)
+        if self.nice and sys.platform.startswith("linux"):  # (elsewhere it would be the whole process's)
             with contextlib.suppress(OSError):
-                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), self.nice)
         while not self._stop.is_set():
             pss, rss, n = tree_memory(self.pid)
             self.pss, self.rss, self.procs = max(self.pss, pss), max(self.rss, rss), max(self.procs, n)
@@ -161,7 +163,7 @@ class PeakMemory:
 
 
 def measure(n_houses: int, workers: int, overrides: list[str], work: Path, executor: str = "local",
-            sample: float = 0.25) -> dict:
+            sample: float = 0.25, sample_nice: int = 19) -> dict:
     """One fresh ``roomseg-bench`` run of ``n_houses`` houses on ``workers`` workers into ``work``.
 
     Returns:
@@ -180,7 +182,7 @@ def measure(n_houses: int, workers: int, overrides: list[str], work: Path, execu
     t0 = time.perf_counter()
     with open(work.with_suffix(".log"), "w") as log:
         p = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
-        peak = PeakMemory(p.pid, sample) if sys.platform.startswith("linux") else None
+        peak = PeakMemory(p.pid, sample, sample_nice) if sys.platform.startswith("linux") else None
         code = p.wait()
     wall = time.perf_counter() - t0
     if peak is not None:
@@ -216,6 +218,10 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"numbers of workers (default: 1 and the cores available, here {available_cores()})")
     ap.add_argument("--executor", choices=("local", "ray"), default="local", help="run.executor (default local)")
     ap.add_argument("--sample", type=float, default=0.25, help="seconds between two memory samples (default 0.25)")
+    ap.add_argument("--sample-nice", type=int, default=19, choices=range(20), metavar="0-19",
+                    help="CPU niceness of the memory sampler (default 19: it takes CPU only when a core is free, "
+                         "so samples come later while every core is busy; 0: on time, taking about a twelfth of "
+                         "a core from the run)")
     ap.add_argument("--work", type=Path, default=None,
                     help="folder for the runs' results and caches (default: a temporary folder, removed)")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (Markdown; CSV beside it)")
@@ -233,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
             first = None
             for w in workers:
                 try:
-                    row = measure(n, w, a.overrides, work / f"n{n}_w{w}", a.executor, a.sample)
+                    row = measure(n, w, a.overrides, work / f"n{n}_w{w}", a.executor, a.sample, a.sample_nice)
                 except RuntimeError as e:
                     print(f"scaling: error: {e}", file=sys.stderr)
                     return 1
@@ -250,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     md = table.to_markdown(index=False, floatfmt=".1f")
     note = (f"\nOne configuration ({' '.join(DEFAULTS + tuple(a.overrides))}), each run a fresh process from an "
             f"empty cache; CPU: the process and its reaped workers; memory: peak over samples every {a.sample} s "
-            f"(at nice 19: later while every core is busy) of the process tree's summed PSS (RSS counts pages shared by forked workers in each); stage times: "
+            f"(at nice {a.sample_nice}{': later while every core is busy' if a.sample_nice else ''}) of the process tree's summed PSS (RSS counts pages shared by forked workers in each); stage times: "
             f"mean ms over the houses computed (timings.csv); 'rows identical': metrics.csv byte-equal to the "
             f"first worker count's for the same houses.")
     print()
