@@ -114,7 +114,7 @@ scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000
 scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
 	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
 
-scaling-10k-publish: setup  ## one configuration over 10,000 generated houses (ProcTHOR-10k's size) on 2 workers, about 5 min -> results/published/scaling_10k.md (docs/sweeps-and-clusters.md)
+scaling-10k-publish: setup  ## one configuration over 10,000 generated houses (ProcTHOR-10k's size) on 2 workers, several minutes -> results/published/scaling_10k.md (docs/sweeps-and-clusters.md)
 	$(PY) -m benchmark.commands.maintainer.scaling --houses 10000 --workers 2 --out results/published/scaling_10k.md
 
 # roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 1.5 GB), extrapolated to 16000^2 px;
