@@ -35,7 +35,6 @@ from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_differences,
     differences,
-    path_cell,
     path_of,
     ray_paths,
 )
@@ -95,6 +94,11 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     the view on each cell it votes for (one vote per view and cell). The vote is written out at
     each of the three walks: as an inlined helper it made the kernel a quarter slower."""
     cap = int(np.ceil(max(max_range, short_px))) + 2
+    # flat indices along the paths: a state cell (r + 1) * w2 + c + 1, a count cell r * w + c
+    w2 = state.shape[1]
+    w = counts.shape[2]
+    flat_state = state.reshape(-1)
+    flat_counts = counts.reshape(counts.shape[0], counts.shape[1] * w)
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
     used = 0
@@ -113,6 +117,8 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             continue
         used += 1
         lab = labels[v]
+        base_s = (r0 + 1) * w2 + c0 + 1
+        base_c = r0 * w + c0
         prev = -1
         pstop = 0
         per = 0
@@ -144,10 +150,11 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                 continue
             if s == prev:
                 continue
-            gr = geo[s, 0]
-            gc = geo[s, 1]
-            mr = geo[s, 2]
-            mc = geo[s, 3]
+            # cell j of the path, minor coordinate mn: base + j * step + mn * mstep
+            step_s = geo[s, 0] * w2 + geo[s, 1]
+            mstep_s = geo[s, 2] * w2 + geo[s, 3]
+            step_c = geo[s, 0] * w + geo[s, 1]
+            mstep_c = geo[s, 2] * w + geo[s, 3]
             a = er - per
             b = ec - pec
             walk_from = 0
@@ -155,37 +162,41 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             if prev >= 0 and -1 <= a <= 1 and -1 <= b <= 1:
                 m, lim, i, e = differences(s, prev, a, b, plen, pstop, dstart)
                 while i < e and dj[2 * i] < lim:
-                    j = dj[2 * i]
-                    r, c = path_cell(r0, c0, gr, gc, mr, mc, j, dj[2 * i + 1])
-                    x = state[r + 1, c + 1]
+                    j = np.int64(dj[2 * i])
+                    mn = np.int64(dj[2 * i + 1])
+                    fs = base_s + step_s * j + mstep_s * mn
+                    x = flat_state[fs]
                     if x < FREE:
                         stop = j
                         break
                     if x != v:
-                        state[r + 1, c + 1] = v
+                        flat_state[fs] = v
+                        fc = base_c + step_c * j + mstep_c * mn
                         if lab >= 0:
-                            counts[lab, r, c] += 1
+                            flat_counts[lab, fc] += 1
                         else:
                             for q in range(n_cls):
-                                counts[q, r, c] += votes[v, q]
+                                flat_counts[q, fc] += votes[v, q]
                     i += 1
                 if stop < 0:
                     walk_from, stop = after_differences(i, e, dj, pstop, m)
             if stop < 0:
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
-                    r, c = path_cell(r0, c0, gr, gc, mr, mc, j, pm[s, j])
-                    x = state[r + 1, c + 1]
+                    mn = np.int64(pm[s, j])
+                    fs = base_s + step_s * j + mstep_s * mn
+                    x = flat_state[fs]
                     if x < FREE:
                         stop = j
                         break
                     if x != v:
-                        state[r + 1, c + 1] = v
+                        flat_state[fs] = v
+                        fc = base_c + step_c * j + mstep_c * mn
                         if lab >= 0:
-                            counts[lab, r, c] += 1
+                            flat_counts[lab, fc] += 1
                         else:
                             for q in range(n_cls):
-                                counts[q, r, c] += votes[v, q]
+                                flat_counts[q, fc] += votes[v, q]
             prev = s
             pstop = stop
             per = er
