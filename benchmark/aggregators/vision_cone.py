@@ -36,6 +36,7 @@ from envs.maps.ray_paths import (
     after_differences,
     differences,
     path_of,
+    path_steps,
     ray_paths,
 )
 from envs.maps.rays import (
@@ -151,10 +152,8 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             if s == prev:
                 continue
             # cell j of the path, minor coordinate mn: base + j * step + mn * mstep
-            step_s = geo[s, 0] * w2 + geo[s, 1]
-            mstep_s = geo[s, 2] * w2 + geo[s, 3]
-            step_c = geo[s, 0] * w + geo[s, 1]
-            mstep_c = geo[s, 2] * w + geo[s, 3]
+            step_s, mstep_s = path_steps(geo, s, w2)
+            step_c, mstep_c = path_steps(geo, s, w)
             a = er - per
             b = ec - pec
             walk_from = 0

@@ -141,10 +141,11 @@ def path_of(er, ec, k, slot):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def path_cell(r0, c0, gr, gc, mr, mc, j, minor):
-    """Cell ``j`` of a path (its ``geo`` row: ``gr, gc, mr, mc``) with minor coordinate ``minor``,
-    put at the camera's cell (r0, c0)."""
-    return r0 + gr * j + mr * minor, c0 + gc * j + mc * minor
+def path_steps(geo, s, width):
+    """Path ``s``'s steps in a row-major array ``width`` cells wide: ``(step, mstep)``, so that cell
+    ``j`` of the path, with minor coordinate ``minor``, lies at ``base + j * step + minor * mstep``
+    where ``base`` is the camera cell's flat index."""
+    return geo[s, 0] * width + geo[s, 1], geo[s, 2] * width + geo[s, 3]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -171,4 +172,4 @@ def after_differences(i, e, dj, pstop, m):
     return m, -1
 
 
-__all__ = ["PATH_CACHE_BYTES", "after_differences", "differences", "path_cell", "path_of", "ray_paths"]
+__all__ = ["PATH_CACHE_BYTES", "after_differences", "differences", "path_of", "path_steps", "ray_paths"]

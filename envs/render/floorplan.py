@@ -23,8 +23,8 @@ from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_differences,
     differences,
-    path_cell,
     path_of,
+    path_steps,
     ray_paths,
 )
 from envs.maps.rays import (
@@ -142,11 +142,18 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     n_act = 0
     cos_off = np.cos(offsets)
     sin_off = np.sin(offsets)
+    # flat indices along the paths: a state cell (r + 1) * (w + 2) + c + 1, a map cell r * w + c
+    w2 = w + 2
+    flat_state = state.reshape(-1)
+    flat_rooms = rooms.reshape(-1)
+    flat_objects = object_map.reshape(-1)
     for v in range(n_views):
         r0 = rows[v]
         c0 = cols[v]
         if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w:
             continue
+        base_s = (r0 + 1) * w2 + c0 + 1
+        base_c = r0 * w + c0
         yaw = yaws[v]
         cy = np.cos(yaw)
         sy = np.sin(yaw)
@@ -199,19 +206,20 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                     obj_rays[v, active[i]] += 1
                 prev = -1
                 continue
-            gr = geo[s, 0]
-            gc = geo[s, 1]
-            mr = geo[s, 2]
-            mc = geo[s, 3]
+            # cell j of the path, minor coordinate mn: base + j * step + mn * mstep
+            step_s, mstep_s = path_steps(geo, s, w2)
+            step_c, mstep_c = path_steps(geo, s, w)
             walk_from = 0
             stop = -1
             if pend >= 0:  # the ray before was a neighbouring path: its cells except where they differ
                 m, lim, i, e = differences(s, prev, a, b, plen, pstop, dstart)
                 while i < e and dj[2 * i] < lim:
-                    j = dj[2 * i]
-                    r, c = path_cell(r0, c0, gr, gc, mr, mc, j, dj[2 * i + 1])
-                    x = state[r + 1, c + 1]
-                    o = -1 if x == OUTSIDE else object_map[r, c]
+                    j = np.int64(dj[2 * i])
+                    mn = np.int64(dj[2 * i + 1])
+                    fs = base_s + step_s * j + mstep_s * mn
+                    fc = base_c + step_c * j + mstep_c * mn
+                    x = flat_state[fs]
+                    o = -1 if x == OUTSIDE else flat_objects[fc]
                     if o != pobj[j]:
                         n_act = _touch(pobj[j], -1, cnt, active, where, n_act)
                         n_act = _touch(o, 1, cnt, active, where, n_act)
@@ -220,9 +228,9 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                         stop = j
                         break
                     if x != v:
-                        state[r + 1, c + 1] = v
+                        flat_state[fs] = v
                         n_cells[v] += 1
-                        q = rooms[r, c]
+                        q = flat_rooms[fc]
                         if q >= 0 and room_cls[q] >= 0:
                             vis[v, room_cls[q]] += 1
                     i += 1
@@ -235,18 +243,20 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 pend = min(pend, walk_from - 1)
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
-                    r, c = path_cell(r0, c0, gr, gc, mr, mc, j, pm[s, j])
-                    x = state[r + 1, c + 1]
-                    o = -1 if x == OUTSIDE else object_map[r, c]
+                    mn = np.int64(pm[s, j])
+                    fs = base_s + step_s * j + mstep_s * mn
+                    fc = base_c + step_c * j + mstep_c * mn
+                    x = flat_state[fs]
+                    o = -1 if x == OUTSIDE else flat_objects[fc]
                     pobj[j] = o
                     n_act = _touch(o, 1, cnt, active, where, n_act)
                     if x < FREE:
                         stop = j
                         break
                     if x != v:
-                        state[r + 1, c + 1] = v
+                        flat_state[fs] = v
                         n_cells[v] += 1
-                        q = rooms[r, c]
+                        q = flat_rooms[fc]
                         if q >= 0 and room_cls[q] >= 0:
                             vis[v, room_cls[q]] += 1
             end = min(stop, plen[s] - 1)
@@ -291,7 +301,8 @@ class FloorplanRenderer(Renderer):
         offsets = cone_thetas(0.0, self.fov, max_px)
         omap = scene.object_map if scene.object_map is not None else np.full(scene.grid.shape, -1, np.int32)
         vis, obj_rays, n_cells = _render_views(
-            ray_state(~blocked), scene.rooms, np.asarray(scene.instance_classes, np.int64), omap,
+            ray_state(~blocked), np.ascontiguousarray(scene.rooms), np.asarray(scene.instance_classes, np.int64),
+            np.ascontiguousarray(omap),
             r.astype(np.int64), c.astype(np.int64), np.deg2rad(poses[:, 2]), offsets, float(max_px), n_cls,
             len(scene.objects), *ray_paths(float(max_px), PATH_CACHE_BYTES))
         n_rays = len(offsets)
