@@ -143,6 +143,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     cos_off = np.cos(offsets)
     sin_off = np.sin(offsets)
     # flat indices along the paths: a state cell (r + 1) * (w + 2) + c + 1, a map cell r * w + c
+    # (as unsigned integers: numba then skips its test for negative indices, a tenth of the walk)
     w2 = w + 2
     flat_state = state.reshape(-1)
     flat_rooms = rooms.reshape(-1)
@@ -216,8 +217,8 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 while i < e and dj[2 * i] < lim:
                     j = np.int64(dj[2 * i])
                     mn = np.int64(dj[2 * i + 1])
-                    fs = base_s + step_s * j + mstep_s * mn
-                    fc = base_c + step_c * j + mstep_c * mn
+                    fs = np.uint64(base_s + step_s * j + mstep_s * mn)
+                    fc = np.uint64(base_c + step_c * j + mstep_c * mn)
                     x = flat_state[fs]
                     o = -1 if x == OUTSIDE else flat_objects[fc]
                     if o != pobj[j]:
@@ -244,8 +245,8 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
                     mn = np.int64(pm[s, j])
-                    fs = base_s + step_s * j + mstep_s * mn
-                    fc = base_c + step_c * j + mstep_c * mn
+                    fs = np.uint64(base_s + step_s * j + mstep_s * mn)
+                    fc = np.uint64(base_c + step_c * j + mstep_c * mn)
                     x = flat_state[fs]
                     o = -1 if x == OUTSIDE else flat_objects[fc]
                     pobj[j] = o
