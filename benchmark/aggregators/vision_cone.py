@@ -161,9 +161,9 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             stop = -1
             if prev >= 0 and -1 <= a <= 1 and -1 <= b <= 1:
                 m, lim, i, e = differences(s, prev, a, b, plen, pstop, dstart)
-                while i < e and dj[2 * i] < lim:
-                    j = np.int64(dj[2 * i])
-                    mn = np.int64(dj[2 * i + 1])
+                while i < e and dj[np.uint64(2 * i)] < lim:
+                    j = np.int64(dj[np.uint64(2 * i)])
+                    mn = np.int64(dj[np.uint64(2 * i + 1)])
                     fs = np.uint64(base_s + step_s * j + mstep_s * mn)
                     x = flat_state[fs]
                     if x < FREE:
@@ -183,7 +183,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             if stop < 0:
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
-                    mn = np.int64(pm[s, j])
+                    mn = np.int64(pm[np.uint64(s), np.uint64(j)])
                     fs = np.uint64(base_s + step_s * j + mstep_s * mn)
                     x = flat_state[fs]
                     if x < FREE:

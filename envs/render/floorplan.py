@@ -214,9 +214,9 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
             stop = -1
             if pend >= 0:  # the ray before was a neighbouring path: its cells except where they differ
                 m, lim, i, e = differences(s, prev, a, b, plen, pstop, dstart)
-                while i < e and dj[2 * i] < lim:
-                    j = np.int64(dj[2 * i])
-                    mn = np.int64(dj[2 * i + 1])
+                while i < e and dj[np.uint64(2 * i)] < lim:
+                    j = np.int64(dj[np.uint64(2 * i)])
+                    mn = np.int64(dj[np.uint64(2 * i + 1)])
                     fs = np.uint64(base_s + step_s * j + mstep_s * mn)
                     fc = np.uint64(base_c + step_c * j + mstep_c * mn)
                     x = flat_state[fs]
@@ -244,7 +244,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 pend = min(pend, walk_from - 1)
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
-                    mn = np.int64(pm[s, j])
+                    mn = np.int64(pm[np.uint64(s), np.uint64(j)])
                     fs = np.uint64(base_s + step_s * j + mstep_s * mn)
                     fc = np.uint64(base_c + step_c * j + mstep_c * mn)
                     x = flat_state[fs]
