@@ -112,10 +112,15 @@ scaling: setup  ## houses/s, wall, CPU, peak memory, ms per stage: 100 and 1,000
 	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2
 
 scaling-publish: setup  ## make scaling's table -> results/published/scaling.md (included by docs/sweeps-and-clusters.md)
-	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2 --out results/published/scaling.md
+	@# the runs' results and caches on the disk of results/, as bench-publish's (not the system's temporary folder)
+	rm -rf $(PUBLISH_TMP)/scaling
+	$(PY) -m benchmark.commands.maintainer.scaling --houses 100 1000 --workers 1 2 --work $(PUBLISH_TMP)/scaling --out results/published/scaling.md
+	rm -rf $(PUBLISH_TMP)/scaling
 
 scaling-10k-publish: setup  ## one configuration over 10,000 generated houses (ProcTHOR-10k's size) on 2 workers, several minutes -> results/published/scaling_10k.md (docs/sweeps-and-clusters.md)
-	$(PY) -m benchmark.commands.maintainer.scaling --houses 10000 --workers 2 --out results/published/scaling_10k.md
+	rm -rf $(PUBLISH_TMP)/scaling
+	$(PY) -m benchmark.commands.maintainer.scaling --houses 10000 --workers 2 --work $(PUBLISH_TMP)/scaling --out results/published/scaling_10k.md
+	rm -rf $(PUBLISH_TMP)/scaling
 
 # roomseg-segment's peak memory on N x N rooms of 10 m (20 40: 4020^2 and 8020^2 px, 1.5 GB), extrapolated to 16000^2 px;
 # measured there with `make perf PERF_SEGMENT_ROOMS="20 40 80"` (80: 16020^2 px, ~2 minutes more, 5.5 GB of memory)
