@@ -79,7 +79,7 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
                                       "visible_classes": vis, "meta": o.meta}) + "\n")
     files["observations.jsonl"] = "".join(jsonl).encode("utf-8")
     files["poses.csv"] = ("\n".join(lines) + "\n").encode("utf-8")
-    marker = f"{len(observations)}\n" + "".join(f"{hashlib.sha256(files[f]).hexdigest()} {f}\n" for f in sorted(files))
+    marker = f"{len(observations)}\n" + "".join(f"{_digest(files[f])} {f}\n" for f in sorted(files))
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = ordinary_temp_dir(folder.parent, "." + folder.name + ".")  # the entry gets an ordinary folder's mode
     try:
@@ -112,8 +112,9 @@ def _plain(o):
 _ENCODER = json.JSONEncoder(default=_plain)
 
 
-def _digest(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+def _digest(data: bytes) -> str:
+    """A file's checksum in the ``COMPLETE`` marker: the SHA-256 of its bytes, in hex."""
+    return hashlib.sha256(data).hexdigest()
 
 
 def _manifest(folder: Path) -> tuple[int, dict[str, str]]:
@@ -132,7 +133,7 @@ def _manifest(folder: Path) -> tuple[int, dict[str, str]]:
 def _read_checked(folder: Path, name: str, sums: dict[str, str]) -> bytes:
     """The bytes of ``folder/name`` after checking them against the render's checksum."""
     data = (folder / name).read_bytes()
-    if name not in sums or hashlib.sha256(data).hexdigest() != sums[name]:
+    if name not in sums or _digest(data) != sums[name]:
         raise ValueError(f"{folder / name}: content does not match the render's checksum: the render is damaged")
     return data
 
