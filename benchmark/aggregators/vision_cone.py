@@ -35,6 +35,7 @@ from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_differences,
     differences,
+    path_index,
     path_of,
     path_steps,
     ray_paths,
@@ -96,7 +97,6 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     each of the three walks: as an inlined helper it made the kernel a quarter slower."""
     cap = int(np.ceil(max(max_range, short_px))) + 2
     # flat indices along the paths: a state cell (r + 1) * w2 + c + 1, a count cell r * w + c
-    # (as unsigned integers: numba then skips its test for negative indices, a tenth of the walk)
     w2 = state.shape[1]
     w = counts.shape[2]
     flat_state = state.reshape(-1)
@@ -164,14 +164,14 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                 while i < e and dj[np.uint64(2 * i)] < lim:
                     j = np.int64(dj[np.uint64(2 * i)])
                     mn = np.int64(dj[np.uint64(2 * i + 1)])
-                    fs = np.uint64(base_s + step_s * j + mstep_s * mn)
+                    fs = path_index(base_s, step_s, mstep_s, j, mn)
                     x = flat_state[fs]
                     if x < FREE:
                         stop = j
                         break
                     if x != v:
                         flat_state[fs] = v
-                        fc = np.uint64(base_c + step_c * j + mstep_c * mn)
+                        fc = path_index(base_c, step_c, mstep_c, j, mn)
                         if lab >= 0:
                             flat_counts[lab, fc] += 1
                         else:
@@ -184,14 +184,14 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
                     mn = np.int64(pm[np.uint64(s), np.uint64(j)])
-                    fs = np.uint64(base_s + step_s * j + mstep_s * mn)
+                    fs = path_index(base_s, step_s, mstep_s, j, mn)
                     x = flat_state[fs]
                     if x < FREE:
                         stop = j
                         break
                     if x != v:
                         flat_state[fs] = v
-                        fc = np.uint64(base_c + step_c * j + mstep_c * mn)
+                        fc = path_index(base_c, step_c, mstep_c, j, mn)
                         if lab >= 0:
                             flat_counts[lab, fc] += 1
                         else:

@@ -149,6 +149,14 @@ def path_steps(geo, s, width):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def path_index(base, step, mstep, j, minor):
+    """The flat index of cell ``j`` of a path, with minor coordinate ``minor``, in an array whose
+    camera cell is at ``base`` (steps of :func:`path_steps`): unsigned, so that numba skips its
+    test for negative indices on each cell (a tenth of the walk)."""
+    return np.uint64(base + step * j + mstep * minor)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def differences(s, prev, a, b, plen, pstop, dstart):
     """Where path ``s`` differs from ``prev``, the path of the ray before (its end (a, b) cells
     from s's, each within one), that stopped at index ``pstop``: ``(m, lim, i, e)``: the
@@ -172,4 +180,4 @@ def after_differences(i, e, dj, pstop, m):
     return m, -1
 
 
-__all__ = ["PATH_CACHE_BYTES", "after_differences", "differences", "path_of", "path_steps", "ray_paths"]
+__all__ = ["PATH_CACHE_BYTES", "after_differences", "differences", "path_index", "path_of", "path_steps", "ray_paths"]

@@ -23,6 +23,7 @@ from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_differences,
     differences,
+    path_index,
     path_of,
     path_steps,
     ray_paths,
@@ -143,7 +144,6 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     cos_off = np.cos(offsets)
     sin_off = np.sin(offsets)
     # flat indices along the paths: a state cell (r + 1) * (w + 2) + c + 1, a map cell r * w + c
-    # (as unsigned integers: numba then skips its test for negative indices, a tenth of the walk)
     w2 = w + 2
     flat_state = state.reshape(-1)
     flat_rooms = rooms.reshape(-1)
@@ -217,8 +217,8 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 while i < e and dj[np.uint64(2 * i)] < lim:
                     j = np.int64(dj[np.uint64(2 * i)])
                     mn = np.int64(dj[np.uint64(2 * i + 1)])
-                    fs = np.uint64(base_s + step_s * j + mstep_s * mn)
-                    fc = np.uint64(base_c + step_c * j + mstep_c * mn)
+                    fs = path_index(base_s, step_s, mstep_s, j, mn)
+                    fc = path_index(base_c, step_c, mstep_c, j, mn)
                     x = flat_state[fs]
                     o = -1 if x == OUTSIDE else flat_objects[fc]
                     if o != pobj[j]:
@@ -245,8 +245,8 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
                 stop = plen[s]
                 for j in range(walk_from, plen[s]):
                     mn = np.int64(pm[np.uint64(s), np.uint64(j)])
-                    fs = np.uint64(base_s + step_s * j + mstep_s * mn)
-                    fc = np.uint64(base_c + step_c * j + mstep_c * mn)
+                    fs = path_index(base_s, step_s, mstep_s, j, mn)
+                    fc = path_index(base_c, step_c, mstep_c, j, mn)
                     x = flat_state[fs]
                     o = -1 if x == OUTSIDE else flat_objects[fc]
                     pobj[j] = o
