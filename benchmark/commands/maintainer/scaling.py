@@ -50,6 +50,8 @@ DEFAULTS = ("env=synthetic", "classifier=oracle", "aggregator=vision_cone", "pos
 STAGES = ("t_scene", "t_viewpoints", "t_render", "t_render_load", "t_classify", "t_aggregate", "t_postprocess",
           "t_segment", "t_score")
 
+#: the memory sampler's default CPU niceness: the lowest priority (see :class:`PeakMemory`)
+SAMPLE_NICE = 19
 
 def _proc_table() -> dict[int, int]:
     """{pid: parent pid} of every process (Linux ``/proc``)."""
@@ -141,7 +143,7 @@ class PeakMemory:
     samples are then further apart than ``every``: a run of a few seconds on a busy machine
     may end before its workers are sampled (use 0 there)."""
 
-    def __init__(self, pid: int, every: float = 0.25, nice: int = 19) -> None:
+    def __init__(self, pid: int, every: float = 0.25, nice: int = SAMPLE_NICE) -> None:
         self.pid, self.every, self.nice = pid, every, nice
         self.pss = self.rss = self.procs = 0
         self._stop = threading.Event()
@@ -163,7 +165,7 @@ class PeakMemory:
 
 
 def measure(n_houses: int, workers: int, overrides: list[str], work: Path, executor: str = "local",
-            sample: float = 0.25, sample_nice: int = 19) -> dict:
+            sample: float = 0.25, sample_nice: int = SAMPLE_NICE) -> dict:
     """One fresh ``roomseg-bench`` run of ``n_houses`` houses on ``workers`` workers into ``work``.
 
     Returns:
@@ -218,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"numbers of workers (default: 1 and the cores available, here {available_cores()})")
     ap.add_argument("--executor", choices=("local", "ray"), default="local", help="run.executor (default local)")
     ap.add_argument("--sample", type=float, default=0.25, help="seconds between two memory samples (default 0.25)")
-    ap.add_argument("--sample-nice", type=int, default=19, choices=range(20), metavar="0-19",
+    ap.add_argument("--sample-nice", type=int, default=SAMPLE_NICE, choices=range(20), metavar="0-19",
                     help="CPU niceness of the memory sampler (default 19: it takes CPU only when a core is free, "
                          "so samples come later while every core is busy; 0: on time, taking about a twelfth of "
                          "a core from the run)")
@@ -256,7 +258,8 @@ def main(argv: list[str] | None = None) -> int:
     md = table.to_markdown(index=False, floatfmt=".1f")
     note = (f"\nOne configuration ({' '.join(DEFAULTS + tuple(a.overrides))}), each run a fresh process from an "
             f"empty cache; CPU: the process and its reaped workers; memory: peak over samples every {a.sample} s "
-            f"(at nice {a.sample_nice}{': later while every core is busy' if a.sample_nice else ''}) of the process tree's summed PSS (RSS counts pages shared by forked workers in each); stage times: "
+            f"(at nice {a.sample_nice}{': later while every core is busy' if a.sample_nice else ''}) "
+            f"of the process tree's summed PSS (RSS counts pages shared by forked workers in each); stage times: "
             f"mean ms over the houses computed (timings.csv); 'rows identical': metrics.csv byte-equal to the "
             f"first worker count's for the same houses.")
     print()
