@@ -22,14 +22,18 @@ def true_labels(observations: Sequence) -> np.ndarray:
     Raises:
         ValueError: an observation has no ``visible_classes`` (not the floorplan renderer).
     """
-    out = np.full(len(observations), -1, dtype=np.int64)
+    rows = []
     for i, o in enumerate(observations):
-        v = o.visible_classes
-        if v is None:
+        if o.visible_classes is None:
             raise ValueError(f"observation {i} has no visible_classes: the oracle needs the floorplan renderer")
-        v = np.asarray(v)
-        if v.sum() > 0:
-            out[i] = int(np.argmax(v))
+        rows.append(np.asarray(o.visible_classes))
+    if len({r.shape for r in rows}) > 1:  # rows of different lengths: one at a time
+        return np.array([int(np.argmax(r)) if r.sum() > 0 else -1 for r in rows], np.int64)
+    out = np.full(len(rows), -1, dtype=np.int64)
+    if rows:  # all views at once: each row's sum and first largest class, as one row's
+        v = np.stack(rows)
+        seen = v.sum(axis=-1) > 0
+        out[seen] = np.argmax(v, axis=-1)[seen]
     return out
 
 

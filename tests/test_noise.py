@@ -17,9 +17,11 @@ from benchmark.classifiers.noise import (
     PerHouse,
     PerRoom,
     load_confusion,
+    uniform_confusion,
     view_confusion,
     view_rng,
     view_rooms,
+    wrong_class_rows,
 )
 from benchmark.classifiers.oracle import OracleClassifier
 from benchmark.harness.entries import seen_from_render
@@ -77,24 +79,102 @@ N_ROOMS = len(np.unique(ROOMS))
 
 @pytest.mark.parametrize("seed", [0, 7, 2**32 + 5, 2**63 + 11])
 @pytest.mark.parametrize("salt", [None, 1, 2**40])
-def test_view_uniforms_are_each_views_first_draw(seed, salt):
-    """The vectorised first draw equals numpy's own generator of each view, bit for bit: on
-    random poses (rounded to the millimetre as the key is), and on keys of one 32-bit word
-    (a pose key below 2**32, as likely as 1 in 4 billion, so given directly)."""
-    from benchmark.classifiers.noise import _first_uniforms, _words, view_uniforms
+def test_view_draws_are_each_views_first_draws(seed, salt):
+    """The vectorised draws equal numpy's own generator of each view, bit for bit: the first
+    three of each stream on random poses (rounded to the millimetre as the key is), and on
+    keys of one 32-bit word (a pose key below 2**32, as likely as 1 in 4 billion, so given
+    directly)."""
+    from benchmark.classifiers.noise import _stream_uniforms, _words, view_draws, view_uniforms
 
     rng = np.random.default_rng(3)
     poses = np.column_stack([rng.uniform(-50, 50, (300, 2)), rng.uniform(-720, 720, 300)])
     poses[:20] = np.round(poses[:20], 1)  # ties of the rounding
-    want = [view_rng(seed, p, salt).random() for p in poses]
-    assert view_uniforms(seed, poses, salt).tolist() == want
+    want = [view_rng(seed, p, salt).random(3).tolist() for p in poses]
+    assert view_draws(seed, poses, 3, salt).tolist() == want
+    assert view_uniforms(seed, poses, salt).tolist() == [w[0] for w in want]
     for key in (0, 1, 2**32 - 1, 2**32, 2**64 - 1):
         words = _words(seed) + _words(key) + ([] if salt is None else _words(salt))
-        assert _first_uniforms(np.array([words], np.uint32)).tolist() == [
-            np.random.default_rng([seed, key] + ([] if salt is None else [salt])).random()]
+        assert _stream_uniforms(np.array([words], np.uint32), 2).tolist() == [
+            np.random.default_rng([seed, key] + ([] if salt is None else [salt])).random(2).tolist()]
     assert view_uniforms(seed, np.zeros((0, 3)), salt).shape == (0,)
+    assert view_draws(seed, np.zeros((0, 3)), 2, salt).shape == (0, 2)
     with pytest.raises(ValueError, match="seed -1: expected a non-negative integer"):
         view_uniforms(-1, poses[:2], salt)
+
+
+def test_wrong_classes_equal_numpys_choice():
+    """wrong_classes gives the class each view's own generator's ``choice(C, p=row)`` draws
+    after its first draw: on uniform and skewed confusion rows (zeros, rows summing to 1 only
+    to rounding), 2 to 12 classes, and a single class."""
+    from benchmark.classifiers.noise import view_draws, wrong_classes
+
+    gen = np.random.default_rng(11)
+    n = 0
+    for trial in range(40):
+        c = int(gen.integers(1, 13)) if trial else 1
+        conf = gen.random((c, c)) ** 4 * (gen.random((c, c)) < 0.7)
+        wrong = wrong_class_rows(conf, c) if trial % 3 else uniform_confusion(c)
+        poses = np.column_stack([gen.uniform(-30, 30, (60, 2)), gen.uniform(-180, 180, 60)])
+        truth = gen.integers(0, c, 60)
+        seed = int(gen.integers(0, 2**40))
+        want = []
+        for p, t in zip(poses, truth):
+            r = view_rng(seed, p)
+            r.random()
+            want.append(int(r.choice(c, p=wrong[t])))
+        assert wrong_classes(view_draws(seed, poses, 2)[:, 1], truth, wrong).tolist() == want
+        n += len(set(want))
+    assert n > 100  # many different classes drawn
+
+
+def _reference_labels(model, truth, poses, accuracy, wrong, seed, scene):
+    """A model's labels drawn one view at a time from numpy generators (no shared code with
+    the vectorised draws): right with the stream's first draw below ``accuracy``, else the
+    wrong class ``choice`` draws next; per room: a view follows its room on its
+    ``_FOLLOW`` stream; per house: a wrong view leans to the bias class on its ``_BIAS`` stream."""
+    from benchmark.classifiers import noise
+
+    out = np.full(len(truth), -1, np.int64)
+    memo = {}
+    rooms = noise.view_rooms(scene, poses, truth) if isinstance(model, PerRoom) else None
+    b = model.bias(str(scene.house_id), tuple(scene.classes), seed) if isinstance(model, PerHouse) else None
+    for i, t in enumerate(truth):
+        if t < 0:
+            continue
+        t = int(t)
+        if isinstance(model, PerRoom) and view_rng(seed, poses[i], noise._FOLLOW).random() < model.correlation:
+            k = int(rooms[i])
+            rid = scene.room_ids[k] if k >= 0 else f"no-room-of-class-{t}"
+            out[i] = memo.setdefault((k, t), model.room_label(str(scene.house_id), str(rid), t, accuracy, wrong, seed))
+            continue
+        rng = view_rng(seed, poses[i])
+        if rng.random() < accuracy:
+            out[i] = t
+        elif b is not None and t != b and view_rng(seed, poses[i], noise._BIAS).random() < model.strength:
+            out[i] = b
+        else:
+            out[i] = int(rng.choice(len(wrong), p=wrong[t]))
+    return out
+
+
+@pytest.mark.parametrize("model", [Independent(), PerRoom(0.0), PerRoom(0.6), PerHouse(None, 0.5),
+                                   PerHouse("dining_room", 1.0)], ids=lambda m: m.describe())
+def test_noise_models_equal_one_generator_per_view(model):
+    """Each model's vectorised labels equal the reference's drawn from one numpy generator per
+    view, on the block house's views at several accuracies, seeds and confusion rows (views
+    that saw nothing stay -1)."""
+    gen = np.random.default_rng(5)
+    poses = np.array([o.pose for o in OBS], float)
+    c = len(PAPER_CLASSES)
+    for _ in range(6):
+        truth = TRUTH.astype(np.int64).copy()
+        truth[gen.random(len(truth)) < 0.1] = -1
+        wrong = wrong_class_rows(gen.random((c, c)) ** 3, c)
+        accuracy, seed = float(gen.choice([0.0, 0.3, 0.8])), int(gen.integers(0, 2**33))
+        got = model.labels(truth, poses, accuracy, wrong, seed, SCENE)
+        want = _reference_labels(model, truth, poses, accuracy, wrong, seed, SCENE)
+        assert got.tolist() == want.tolist()
+        assert (got[truth < 0] == -1).all() and (accuracy == 0.0 or (got == truth).any())
 
 
 def test_block_fixture_has_the_expected_views():

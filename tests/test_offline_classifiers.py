@@ -135,3 +135,23 @@ def test_objects_training_key_is_kept_per_process_and_follows_the_training_file(
     os.utime(f, ns=(1, 1))  # an old modification time: the size differs
     changed = ObjectsClassifier(train_path=str(f)).training_key()
     assert changed != first and changed == ObjectsClassifier(train_path=str(f))._training_key()
+
+
+def test_true_labels_equal_each_views_own_argmax():
+    """All views at once (rows of one length) and one at a time (rows of different lengths)
+    give each view's first largest visible class, -1 where it saw nothing: on random shares
+    with ties and empty views."""
+    rng = np.random.default_rng(4)
+    for lengths in ([7] * 300, list(rng.integers(1, 9, 300))):
+        obs = []
+        for i, n in enumerate(lengths):
+            v = rng.integers(0, 3, n).astype(float) * (rng.random() < 0.8)  # ties of whole shares
+            obs.append(Observation(pose=(float(i), 0.0, 0.0), visible_classes=v))
+        want = [int(np.flatnonzero(o.visible_classes == o.visible_classes.max())[0])
+                if o.visible_classes.max() > 0 else -1 for o in obs]
+        got = true_labels(obs)
+        assert got.dtype == np.int64 and got.tolist() == want
+        assert -1 in want and len(set(want)) > 3
+    assert true_labels([]).shape == (0,)
+    with pytest.raises(ValueError, match="observation 1 has no visible_classes"):
+        true_labels([obs[0], Observation(pose=(0.0, 0.0, 0.0))])

@@ -103,11 +103,11 @@ def _words(n: int) -> list[int]:
     return out
 
 
-def _first_uniforms(entropy: np.ndarray) -> np.ndarray:
-    """(N,) float64: the first ``random()`` of ``np.random.default_rng(words)`` for each row of
-    ``entropy`` ((N, L) uint32 words of the seed parts): the seed sequence's entropy mixing and
-    its 4 state words for all rows at once (uint32 arithmetic wraps), then PCG64's seeding, one
-    step and its first 64-bit output as exact integers."""
+def _stream_uniforms(entropy: np.ndarray, draws: int = 1) -> np.ndarray:
+    """(N, draws) float64: the first ``draws`` ``random()`` of ``np.random.default_rng(words)`` for
+    each row of ``entropy`` ((N, L) uint32 words of the seed parts): the seed sequence's entropy
+    mixing and its 4 state words for all rows at once (uint32 arithmetic wraps), then PCG64's
+    seeding, and per draw one step and its 64-bit output, as exact integers."""
     n, length = entropy.shape
     hc = _INIT_A
 
@@ -138,36 +138,70 @@ def _first_uniforms(entropy: np.ndarray) -> np.ndarray:
         v = v * np.uint32(hb)
         state.append((v ^ (v >> np.uint32(16))).astype(np.uint64))
     w = [(state[2 * i] | (state[2 * i + 1] << np.uint64(32))).tolist() for i in range(4)]
-    out = np.empty(n)
+    out = np.empty((n, draws))
     for j in range(n):
         inc = (((w[2][j] << 64 | w[3][j]) << 1) | 1) & _M128
         x = (((inc + (w[0][j] << 64 | w[1][j])) & _M128) * _PCG_MULT + inc) & _M128  # seeded
-        x = (x * _PCG_MULT + inc) & _M128  # the first step
-        hi = x >> 64
-        y, rot = hi ^ (x & _M64), hi >> 58
-        out[j] = (((y >> rot) | (y << (-rot & 63))) & _M64) >> 11
+        for d in range(draws):
+            x = (x * _PCG_MULT + inc) & _M128  # a step
+            hi = x >> 64
+            y, rot = hi ^ (x & _M64), hi >> 58
+            out[j, d] = (((y >> rot) | (y << (-rot & 63))) & _M64) >> 11
     return out * (1.0 / 9007199254740992.0)
 
 
+def view_draws(seed: int, poses: np.ndarray, draws: int, salt: int | None = None) -> np.ndarray:
+    """(N, draws) float64 in [0, 1): the first ``draws`` ``view_rng(seed, pose, salt).random()``
+    of each pose, bit for bit, without making a generator per view.
+
+    Args:
+        seed: the run's seed (>= 0).
+        poses: (N, 3) x, z (metres), yaw (degrees).
+        draws: how many draws of each view's stream (>= 1).
+        salt: as in :func:`view_rng`.
+    """
+    keys = pose_keys(poses)
+    out = np.empty((len(keys), draws))
+    if not keys:
+        return out
+    tail = [] if salt is None else _words(int(salt))
+    rows = [_words(int(seed)) + _words(k) + tail for k in keys]  # a key below 2**32 is one word
+    lengths = np.array([len(r) for r in rows])
+    for n in np.unique(lengths):
+        idx = np.flatnonzero(lengths == n)
+        out[idx] = _stream_uniforms(np.array([rows[i] for i in idx], np.uint32), draws)
+    return out
+
+
 def view_uniforms(seed: int, poses: np.ndarray, salt: int | None = None) -> np.ndarray:
-    """(N,) float64 in [0, 1): ``view_rng(seed, pose, salt).random()`` of each pose, bit for bit,
-    without making a generator per view.
+    """(N,) float64 in [0, 1): ``view_rng(seed, pose, salt).random()`` of each pose, bit for bit
+    (the first of :func:`view_draws`).
 
     Args:
         seed: the run's seed (>= 0).
         poses: (N, 3) x, z (metres), yaw (degrees).
         salt: as in :func:`view_rng`.
     """
-    keys = pose_keys(poses)
-    if not keys:
-        return np.zeros(0)
-    tail = [] if salt is None else _words(int(salt))
-    rows = [_words(int(seed)) + _words(k) + tail for k in keys]  # a key below 2**32 is one word
-    lengths = np.array([len(r) for r in rows])
-    out = np.empty(len(rows))
-    for n in np.unique(lengths):
-        idx = np.flatnonzero(lengths == n)
-        out[idx] = _first_uniforms(np.array([rows[i] for i in idx], np.uint32))
+    return view_draws(seed, poses, 1, salt)[:, 0]
+
+
+def wrong_classes(u: np.ndarray, truth: np.ndarray, wrong: np.ndarray) -> np.ndarray:
+    """(N,) int64: the class ``rng.choice(len(wrong), p=wrong[t])`` draws for a view of true
+    class ``t`` when its generator's next ``random()`` is ``u`` (numpy's choice with ``p``:
+    the row's running sum divided by its last value, searched at ``u`` from the right).
+
+    Args:
+        u: (N,) float64 in [0, 1), each view's draw.
+        truth: (N,) int true classes (>= 0).
+        wrong: (C, C) wrong-class rows (:func:`wrong_class_rows`).
+    """
+    u, truth = np.asarray(u, np.float64), np.asarray(truth, np.int64)
+    out = np.empty(len(truth), np.int64)
+    for t in np.unique(truth):
+        cdf = np.array(wrong[t], np.float64).cumsum()
+        cdf /= cdf[-1]
+        at = truth == t
+        out[at] = cdf.searchsorted(u[at], side="right")
     return out
 
 
@@ -339,11 +373,17 @@ class NoiseModel:
         return self.name
 
 
-def _independent_label(t: int, pose, accuracy: float, wrong: np.ndarray, seed: int) -> int:
-    rng = view_rng(seed, pose)
-    if rng.random() < accuracy:
-        return int(t)
-    return int(rng.choice(len(wrong), p=wrong[t]))
+def _independent_labels(truth: np.ndarray, poses: np.ndarray, accuracy: float, wrong: np.ndarray,
+                        seed: int) -> np.ndarray:
+    """(N,) labels of views of true classes ``truth`` (>= 0) erring independently: a view is
+    right when its stream's first draw is below ``accuracy``, else its second draw picks a class
+    from the confusion row (:func:`wrong_classes`)."""
+    truth = np.asarray(truth, np.int64)
+    u = view_draws(seed, np.asarray(poses, float).reshape(-1, 3), 2)
+    right = u[:, 0] < accuracy
+    out = truth.copy()
+    out[~right] = wrong_classes(u[~right, 1], truth[~right], wrong)
+    return out
 
 
 class Independent(NoiseModel):
@@ -356,10 +396,7 @@ class Independent(NoiseModel):
         truth = np.asarray(truth)
         out = np.full(len(truth), -1, dtype=np.int64)
         idx = np.flatnonzero(truth >= 0)
-        right = view_uniforms(seed, np.asarray(poses, float)[idx]) < accuracy  # each view's first draw
-        out[idx[right]] = truth[idx[right]]
-        for i in idx[~right]:  # a wrong view draws its class from the same stream
-            out[i] = _independent_label(int(truth[i]), poses[i], accuracy, wrong, seed)
+        out[idx] = _independent_labels(truth[idx], np.asarray(poses, float)[idx], accuracy, wrong, seed)
         return out
 
 
@@ -400,13 +437,12 @@ class PerRoom(NoiseModel):
         out = np.full(len(truth), -1, dtype=np.int64)
         memo: dict[tuple[int, int], int] = {}
         follows = view_uniforms(seed, poses, _FOLLOW) < self.correlation
+        alone = np.flatnonzero((truth >= 0) & ~follows)
+        out[alone] = _independent_labels(truth[alone], np.asarray(poses, float)[alone], accuracy, wrong, seed)
         for i, t in enumerate(truth):
-            if t < 0:
+            if t < 0 or not follows[i]:
                 continue
             t = int(t)
-            if not follows[i]:
-                out[i] = _independent_label(t, poses[i], accuracy, wrong, seed)
-                continue
             k = int(rooms[i])
             if (k, t) not in memo:
                 rid = scene.room_ids[k] if k >= 0 else f"no-room-of-class-{t}"
@@ -457,17 +493,11 @@ class PerHouse(NoiseModel):
         truth = np.asarray(truth)
         b = self.bias(str(scene.house_id), tuple(scene.classes), seed)
         out = np.full(len(truth), -1, dtype=np.int64)
-        for i, t in enumerate(truth):
-            if t < 0:
-                continue
-            t = int(t)
-            rng = view_rng(seed, poses[i])
-            if rng.random() < accuracy:
-                out[i] = t
-            elif t != b and view_rng(seed, poses[i], _BIAS).random() < self.strength:
-                out[i] = b
-            else:
-                out[i] = int(rng.choice(len(wrong), p=wrong[t]))
+        idx = np.flatnonzero(truth >= 0)
+        t, at = truth[idx].astype(np.int64), np.asarray(poses, float).reshape(-1, 3)[idx]
+        u = view_draws(seed, at, 2)  # right or not, then the wrong class, from the view's stream
+        leans = (t != b) & (view_uniforms(seed, at, _BIAS) < self.strength)  # a stream of its own
+        out[idx] = np.where(u[:, 0] < accuracy, t, np.where(leans, b, wrong_classes(u[:, 1], t, wrong)))
         return out
 
 
@@ -531,4 +561,4 @@ def classifier_confusion(env, viewpoints, renderer, method, house_ids: Sequence[
 
 
 __all__ = ["NoiseModel", "Independent", "PerRoom", "PerHouse", "load_confusion", "wrong_class_rows",
-           "view_rooms", "view_confusion", "classifier_confusion", "pose_key", "pose_keys", "text_key", "view_rng", "view_uniforms", "uniform_confusion"]
+           "view_rooms", "view_confusion", "classifier_confusion", "pose_key", "pose_keys", "text_key", "view_rng", "view_draws", "view_uniforms", "wrong_classes", "uniform_confusion"]

@@ -28,7 +28,6 @@ from benchmark.classifiers.noise import (
     NoiseModel,
     load_confusion,
     uniform_confusion,
-    view_rng,
     wrong_class_rows,
 )
 from benchmark.interfaces import Classifier
@@ -81,9 +80,6 @@ class OracleClassifier(Classifier):
         """The house whose views the next calls classify (its id and rooms seed the per-room
         and per-house models); the pipeline calls this before each house."""
         self.scene = scene
-
-    def _rng(self, pose) -> np.random.Generator:
-        return view_rng(self.seed, pose)
 
     def predict_proba(self, observations: Sequence) -> np.ndarray:
         """(N, C) one-hot rows (uniform for a view that saw no floor).
