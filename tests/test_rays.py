@@ -161,15 +161,24 @@ def test_cones_reach_equals_the_union_of_reference_rays(seed):
     fov = (90.0, 90.0, 45.0, 180.0, 360.0, 360.0)[seed]
     yaws = rng.uniform(-180, 540, n_views)
     offsets = cone_thetas(0.0, fov, max_range, 4.0)
+    groups = rng.integers(0, 3, n_views)
+    groups[2:4] = 1  # a group of two views
     want = np.zeros((h, w), bool)
+    per_group = np.zeros((4, h, w), bool)  # group 3: no views
     for v in range(n_views):
         if 0 <= rows[v] < h and 0 <= cols[v] < w:
             for th in cone_thetas(float(yaws[v]), fov, max_range, 4.0):
                 for r, c in reference_ray(blocked, int(rows[v]), int(cols[v]), float(th), max_range)[0]:
                     want[r, c] = True
+                    per_group[groups[v], r, c] = True
     got = cones_reach(blocked, rows, cols, np.deg2rad(yaws), offsets, max_range)
     assert want.any() and not want[rows[1], cols[1]]
     assert (got == want).all()
+    # in one walk, each group's views' cells apart
+    grouped = cones_reach(blocked, rows, cols, np.deg2rad(yaws), offsets, max_range, groups, 4)
+    assert grouped.shape == (4, h, w) and (grouped == per_group).all() and not grouped[3].any()
+    if seed == 5:  # whole-map 360 degree cones: cells two groups see
+        assert (grouped.sum(0) > 1).any()
 
 
 def test_cone_end_is_ray_end_on_every_heading():

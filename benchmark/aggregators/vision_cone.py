@@ -205,7 +205,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
 
 
 def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: np.ndarray, offsets: np.ndarray,
-                max_range: float) -> np.ndarray:
+                max_range: float, groups: np.ndarray | None = None, n_groups: int = 1) -> np.ndarray:
     """(H, W) bool: the cells some view's cone reaches (the union of the cones), walked as the
     vision cone walks its rays: neighbouring rays share their cells (:func:`envs.maps.ray_paths.ray_paths`), and a
     ray ending on the cell of the ray before is skipped (the same digital line). The cells are
@@ -221,9 +221,13 @@ def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: n
         offsets: (R,) ray headings around a view's heading, radians (:func:`envs.maps.rays.cone_thetas`
             of heading 0).
         max_range: ray length, pixels (>= 0).
+        groups: (N,) int in ``[0, n_groups)``, or None: with groups, the cells of each group's
+            views apart, in one walk (a view's cells do not depend on the other views walked
+            with it).
+        n_groups: the number of groups (>= 1).
 
     Returns:
-        (H, W) bool.
+        (H, W) bool; with ``groups``, (n_groups, H, W) bool.
     """
     if max_range < 0:
         raise ValueError(f"max_range must be >= 0 pixels, got {max_range}")
@@ -233,11 +237,23 @@ def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: n
     ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
     state = ray_state(~blocked)  # a cell some view reached holds that view's index (>= 0)
     n = int(ok.sum())
-    # no view votes (label -1, no classes): the walk only stamps the cells it reaches
-    _cone_votes(blocked, state, rows[ok], cols[ok], np.asarray(yaws, np.float64).ravel()[ok],
-                np.ascontiguousarray(offsets, np.float64), float(max_range), 0.0, np.full(n, -1, np.int64),
-                np.zeros((n, 0), np.float32), np.zeros((0, h, w), np.uint8), *ray_paths(float(max_range), PATH_CACHE_BYTES))
-    return state[1:-1, 1:-1] >= 0
+    args = (blocked, state, rows[ok], cols[ok], np.asarray(yaws, np.float64).ravel()[ok],
+            np.ascontiguousarray(offsets, np.float64), float(max_range), 0.0)
+    paths = ray_paths(float(max_range), PATH_CACHE_BYTES)
+    if groups is None:
+        # no view votes (label -1, no classes): the walk only stamps the cells it reaches
+        _cone_votes(*args, np.full(n, -1, np.int64), np.zeros((n, 0), np.float32), np.zeros((0, h, w), np.uint8), *paths)
+        return state[1:-1, 1:-1] >= 0
+    groups = np.asarray(groups, np.int64).ravel()
+    if len(groups) != len(rows) or (len(groups) and (groups.min() < 0 or groups.max() >= n_groups)):
+        raise ValueError(f"groups must be {len(rows)} ints in [0, {n_groups}), got {len(groups)} "
+                         f"in [{groups.min() if len(groups) else 0}, {groups.max() if len(groups) else 0}]")
+    # each view votes once for its group on each cell it reaches: a cell a group reaches has a count > 0
+    most = min(n, max_votes_per_cell((h, w), rows[ok], cols[ok], reach_px(float(max_range))))
+    whole = np.uint8 if most < 2**8 else np.uint16 if most < 2**16 else np.uint32
+    counts = np.zeros((n_groups, h, w), whole)
+    _cone_votes(*args, groups[ok], np.zeros((n, 0), np.float32), counts, *paths)
+    return counts > 0
 
 
 #: rows of the map the window mode works on at once (its float work arrays are this many rows)

@@ -34,7 +34,8 @@ RAY_OVERSAMPLE = 4.0
 MIN_ROOM_SHARE = 0.1
 
 
-def visible_cells(scene: Scene, poses: np.ndarray, fov: float, max_range: float, blocked: np.ndarray) -> np.ndarray:
+def visible_cells(scene: Scene, poses: np.ndarray, fov: float, max_range: float, blocked: np.ndarray,
+                  groups: np.ndarray | None = None, n_groups: int = 1) -> np.ndarray:
     """(H, W) bool cells inside at least one view's cone with line of sight.
 
     Args:
@@ -43,6 +44,11 @@ def visible_cells(scene: Scene, poses: np.ndarray, fov: float, max_range: float,
         fov: cone angle, degrees (0 < fov <= 360).
         max_range: metres (> 0, ``math.inf`` allowed).
         blocked: (H, W) bool cells that stop a ray (e.g. :func:`envs.render.floorplan.occluders`).
+        groups: (N,) int in ``[0, n_groups)``, or None: the cells of each group's views apart.
+        n_groups: the number of groups.
+
+    Returns:
+        (H, W) bool; with ``groups``, (n_groups, H, W) bool, one group's cells per plane.
     """
     if not (isinstance(fov, int | float) and 0 < fov <= 360):
         raise ValueError(f"coverage fov = {fov!r}: expected degrees, 0 < fov <= 360")
@@ -53,11 +59,12 @@ def visible_cells(scene: Scene, poses: np.ndarray, fov: float, max_range: float,
     if np.shape(blocked) != grid.shape:
         raise ValueError(f"coverage blocked mask shape {np.shape(blocked)}: expected the map's {grid.shape}")
     if len(poses) == 0:
-        return np.zeros(grid.shape, bool)
+        return np.zeros(grid.shape if groups is None else (n_groups, *grid.shape), bool)
     px = math.ceil(math.hypot(*grid.shape)) + 2 if math.isinf(max_range) else max_range / grid.resolution
     rows, cols = grid.world_to_cell(poses[:, 0], poses[:, 1])
     # every cone has the same rays around its heading; neighbouring rays share their cells
-    return cones_reach(blocked, rows, cols, np.deg2rad(poses[:, 2]), cone_thetas(0.0, fov, px, RAY_OVERSAMPLE), px)
+    return cones_reach(blocked, rows, cols, np.deg2rad(poses[:, 2]), cone_thetas(0.0, fov, px, RAY_OVERSAMPLE), px,
+                       groups, n_groups)
 
 
 def view_coverage(scene: Scene, poses: np.ndarray, fov: float, max_range: float, blocked: np.ndarray,
@@ -88,13 +95,12 @@ def view_coverage(scene: Scene, poses: np.ndarray, fov: float, max_range: float,
     on_map = grid.in_bounds(rows, cols)
     room_of_view = np.full(len(poses), -1, np.int64)
     room_of_view[on_map] = inst[rows[on_map], cols[on_map]]
-    seen = np.zeros(grid.shape, bool)
-    from_inside = np.zeros(n_rooms, np.int64)
-    for k in np.unique(room_of_view):
-        cells = visible_cells(scene, poses[room_of_view == k], fov, max_range, blocked)
-        seen |= cells
-        if k >= 0:
-            from_inside[k] = int((cells & (inst == k)).sum())
+    # plane k + 1: the cells the views standing in room k see; plane 0: those of the other views
+    reach = visible_cells(scene, poses, fov, max_range, blocked, room_of_view + 1, n_rooms + 1)
+    seen = reach.any(axis=0)
+    r, c = np.nonzero(gt)
+    own = inst[r, c]
+    from_inside = np.bincount(own[reach[own + 1, r, c]], minlength=n_rooms)
     got = np.bincount(inst[gt & seen], minlength=n_rooms)
     has = total > 0
     rooms_seen = int((from_inside[has] >= min_room_share * total[has]).sum())
