@@ -14,6 +14,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from procs import (
@@ -278,6 +279,36 @@ def test_a_killed_pools_spec_folder_is_removed_by_the_next_pool(tmp_path, monkey
     finally:
         pool.close()
     assert not pool._dir.exists()
+
+
+@pytest.mark.parametrize("workers,method", [(1, "fork"), (2, "fork"), (3, "fork"), (2, "spawn")])
+def test_each_pool_worker_gets_its_share_of_the_cores_for_opencv(workers, method, monkeypatch):
+    """A worker of a pool of n gets cores // n OpenCV threads (at least 1): forked workers from
+    the launching process, which sets it before it forks them (on 4 cores, as this machine
+    would report them: 4, 2 and 1), started ones in the pool's initializer (on this machine's
+    cores). The launching process has just used OpenCV's threads: a forked worker that set them
+    itself would wait for its parent's threads for ever."""
+    import cv2
+
+    from benchmark.harness import processes
+    from benchmark.harness.executor import LocalPool
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(max(before, 2))
+    cv2.GaussianBlur(np.random.default_rng(0).random((1500, 1500), np.float32), (9, 9), 2.0)  # its threads at work
+    cores = processes.available_cores()
+    if method == "fork":
+        monkeypatch.setattr(processes, "available_cores", lambda: 4)
+        cores = 4
+    try:
+        pool = LocalPool(workers, start_method=method)
+        try:
+            got = {pool._pool.submit(cv2.getNumThreads).result(timeout=120) for _ in range(2 * workers)}
+        finally:
+            pool.close()
+    finally:
+        cv2.setNumThreads(before)
+    assert got == {max(1, cores // workers)}
 
 
 # ---------------------------------------------------------------- issue 40, item 6

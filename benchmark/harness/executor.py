@@ -51,7 +51,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from benchmark.harness.cache import EntryBusy, defer_when_busy
-from benchmark.harness.processes import staggered, worker_init
+from benchmark.harness.processes import available_cores, share_threads, staggered, worker_init
 from envs.atomic import file_identity
 
 log = logging.getLogger("roomseg-bench")
@@ -223,8 +223,8 @@ def _forward_logs(queue: Any) -> None:
     root.addHandler(logging.handlers.QueueHandler(queue))
 
 
-def _pool_init(parent_pid: int, queue: Any) -> None:
-    worker_init(parent_pid)
+def _pool_init(parent_pid: int, queue: Any, workers: int | None = None) -> None:
+    worker_init(parent_pid, workers)
     _forward_logs(queue)
 
 
@@ -279,8 +279,12 @@ class LocalPool:
         self._specs: set[str] = set()
         self._logs = self._ctx.Queue()
         self._listener: threading.Thread | None = None
+        forked = self.start_method == "fork"
+        if forked:  # the workers inherit OpenCV's threads: their share of the cores
+            share_threads(self.workers)
         self._pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
-            self.workers, mp_context=self._ctx, initializer=_pool_init, initargs=(os.getpid(), self._logs))
+            self.workers, mp_context=self._ctx, initializer=_pool_init,
+            initargs=(os.getpid(), self._logs, None if forked else self.workers))
         self._procs: list[Any] = []
 
     @property
@@ -442,12 +446,14 @@ def unreachable(address: str, timeout: float) -> str | None:
         return getattr(e, "strerror", None) or str(e)
 def _ray_task(key: str, box: list, hid: str) -> HouseResult:
     """A Ray task: ``box`` holds the ObjectRef of the job's spec, fetched only by a worker that
-    has not built the job's pipeline yet."""
+    has not built the job's pipeline yet. The task holds one CPU: OpenCV gets a thread per task
+    that fits on the node's cores side by side (:func:`benchmark.harness.processes.share_threads`)."""
     def load() -> JobSpec:
         import ray  # noqa: PLC0415
 
         return ray.get(box[0])
 
+    share_threads(available_cores())
     return run_house(pipeline_for(key, load), hid)
 
 

@@ -163,12 +163,36 @@ def staggered(n_items: int) -> list[int]:
     return [(start + i) % n_items for i in range(n_items)] if n_items else []
 
 
-def worker_init(parent_pid: int) -> None:
-    """A pool initializer: die with the parent, and leave Ctrl-C to the parent, which stops
-    the workers itself (SIGINT goes to the whole foreground process group)."""
+def share_threads(workers: int) -> int:
+    """Give OpenCV's thread pool its share of the cores: ``available_cores() // workers`` threads
+    (at least 1) for each of ``workers`` processes that run side by side, as Ray and Dask give
+    their workers' OpenMP. Left as it is, each worker's OpenCV keeps a thread per core, and
+    between calls they spin (``sched_yield``) on the cores the other workers need.
+
+    Called in a process that forks the workers before it forks them (they inherit the setting),
+    or first thing in a started one: never in a forked child, where OpenCV's pool still counts
+    the parent's threads and setting it waits for them for ever.
+
+    Returns:
+        The number of threads OpenCV now uses.
+    """
+    import cv2
+
+    n = max(1, available_cores() // max(1, int(workers)))
+    cv2.setNumThreads(n)
+    return n
+
+
+def worker_init(parent_pid: int, workers: int | None = None) -> None:
+    """A pool initializer: die with the parent, and leave Ctrl-C to the parent, which stops the
+    workers itself (SIGINT goes to the whole foreground process group); a started (not forked)
+    worker of a pool of ``workers`` takes its share of the cores (:func:`share_threads`; a forked
+    one inherits it from the parent)."""
     die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if workers is not None:
+        share_threads(workers)
 
 
-__all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "PR_SET_PDEATHSIG",
-           "JOB_SLOT_ENV", "job_slot", "staggered"]
+__all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "share_threads",
+           "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered"]

@@ -65,7 +65,7 @@ from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, open_dict
 
-from benchmark.harness.processes import JOB_SLOT_ENV, available_cores, worker_init
+from benchmark.harness.processes import JOB_SLOT_ENV, available_cores, share_threads, worker_init
 from benchmark.harness.sweep_progress import SweepProgress
 from benchmark.harness.write_errors import naming_the_file
 
@@ -183,7 +183,8 @@ _SWEEP: tuple[HydraContext, DictConfig, TaskFunction, dict[Any, Any]] | None = N
 
 def _init_worker(sweep: tuple | bytes, parent_pid: int, slots: Any = None, n: int = 1) -> None:
     global _SWEEP
-    worker_init(parent_pid)  # dies with the launching process; Ctrl-C is the launching process's: it stops us
+    # dies with the launching process; Ctrl-C is the launching process's: it stops us
+    worker_init(parent_pid, None if isinstance(sweep, tuple) else n)  # (forked: OpenCV's threads inherited)
     if slots is not None:  # this worker's place among the n: its jobs take their houses from there
         with slots.get_lock():
             slot = slots.value % n
@@ -346,6 +347,8 @@ class LocalLauncher(Launcher):
 
             state = cloudpickle.dumps(_SWEEP)
         slots = ctx.Value("i", 0)
+        if self.start_method == "fork":  # the workers inherit OpenCV's threads: their share of the cores
+            share_threads(n)
         pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker,
                                    initargs=(state, os.getpid(), slots, n))
         try:
