@@ -3,7 +3,13 @@ import shutil
 import numpy as np
 import pytest
 
-from envs.render.cache import is_complete, read_observations, read_poses, write_observations
+from envs.render.cache import (
+    is_complete,
+    poses_table,
+    read_observations,
+    read_poses,
+    write_observations,
+)
 from envs.render.observation import Observation
 
 
@@ -102,3 +108,25 @@ def test_incomplete_and_damaged(tmp_path):
     with pytest.raises(TypeError, match="not JSON serialisable"):
         write_observations(tmp_path / "z", [Observation(pose=(0, 0, 0), meta={"x": object()})])
     assert not (tmp_path / "z").exists()
+
+
+def test_the_poses_table_of_views_is_the_one_their_render_holds(tmp_path):
+    """poses_table of the views written (and of the views read back) equals read_poses of the
+    folder bit for bit: on random floats of every magnitude, numpy floats, -0.0, refused views
+    and none."""
+    rng = np.random.default_rng(8)
+    obs = []
+    for i in range(300):
+        x, z, yaw = rng.uniform(-1, 1, 3) * 10.0 ** rng.integers(-9, 9, 3)
+        pose = (np.float64(x), float(z), float(yaw)) if i % 2 else (-0.0, float(z), float(np.float32(yaw)))
+        obs.append(Observation(pose=pose, visible_classes=rng.random(3), meta={"refused": True} if i % 7 == 0 else {}))
+    for views in (obs, [obs[1]]):
+        folder = tmp_path / f"house-{len(views)}"
+        write_observations(folder, views)
+        want = read_poses(folder)
+        for got in (poses_table(views), poses_table(read_observations(folder))):
+            assert got[0].tobytes() == want[0].tobytes() and got[0].shape == want[0].shape
+            assert got[1].dtype == bool and got[1].tolist() == want[1].tolist()
+    assert want[1].tolist() == [False] and read_poses(tmp_path / "house-300")[1].sum() == 43
+    empty = poses_table([])
+    assert empty[0].shape == (0, 3) and empty[1].shape == (0,)

@@ -478,8 +478,10 @@ class MethodPipeline(Pipeline):
             timings["t_render"] = time.perf_counter() - t
             return obs
 
-        return self._cached("render", self.entry("render", hid), load, compute, render_cache.write_observations,
-                            exists=render_cache.is_complete)
+        path = self.entry("render", hid)
+        obs = self._cached("render", path, load, compute, render_cache.write_observations, exists=render_cache.is_complete)
+        self._keep_render_table(path, render_cache.poses_table(obs))  # the map, route and coverage need no read
+        return obs
 
     @property
     def method(self) -> method.Method:

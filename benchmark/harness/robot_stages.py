@@ -281,17 +281,23 @@ class RobotStages:
     def _render_table(self, hid: str) -> tuple[np.ndarray, np.ndarray]:
         """The render's poses table (:func:`envs.render.cache.read_poses`: (N, 3) poses, (N,)
         refused). The house's map, its route, its coverage and the check of its classification
-        all ask: read once per render entry (the last one read is kept, read-only)."""
+        all ask: read once per render entry, unless this process rendered or read its views (the
+        last one is kept, read-only)."""
         from envs.render import cache as render_cache
 
         path = self.entry("render", hid)
         if path not in self._poses_read:
-            table = render_cache.read_poses(path)
-            for a in table:
-                a.setflags(write=False)
-            self._poses_read.clear()
-            self._poses_read[path] = table
+            self._keep_render_table(path, render_cache.read_poses(path))
         return self._poses_read[path]
+
+    def _keep_render_table(self, path: Path, table: tuple[np.ndarray, np.ndarray]) -> None:
+        """Keep ``table`` as the poses table of the render entry ``path`` (read-only): read from
+        the entry, or taken from the views just rendered into it or read from it
+        (:func:`envs.render.cache.poses_table`), which the entry's ``poses.csv`` holds."""
+        for a in table:
+            a.setflags(write=False)
+        self._poses_read.clear()
+        self._poses_read[path] = table
 
     def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
         """How much of the house the views saw (:func:`benchmark.conditions.coverage.view_coverage`) with

@@ -167,6 +167,14 @@ def read_observations(folder: str | Path, images: bool = True) -> list[Observati
     return out
 
 
+def poses_table(observations: Sequence[Observation]) -> tuple[np.ndarray, np.ndarray]:
+    """The poses table a render of ``observations`` holds (:func:`read_poses` of the folder
+    :func:`write_observations` wrote them to, equal bit for bit: a pose is written as the
+    shortest text that reads back as the same float): poses (N, 3) and refused (N,) bool."""
+    poses = np.array([[float(v) for v in o.pose] for o in observations], dtype=float).reshape(-1, 3)
+    return poses, np.array([bool(o.meta.get("refused", False)) for o in observations], dtype=bool)
+
+
 def read_poses(folder: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """The poses table of a render: poses (N, 3) [x, z, yaw_deg] and refused (N,) bool.
 
