@@ -446,8 +446,8 @@ def unreachable(address: str, timeout: float) -> str | None:
         return getattr(e, "strerror", None) or str(e)
 def _ray_task(key: str, box: list, hid: str) -> HouseResult:
     """A Ray task: ``box`` holds the ObjectRef of the job's spec, fetched only by a worker that
-    has not built the job's pipeline yet. The task holds one CPU: OpenCV gets a thread per task
-    that fits on the node's cores side by side (:func:`benchmark.harness.processes.share_threads`)."""
+    has not built the job's pipeline yet. The task holds one CPU, so OpenCV gets one thread, a
+    core's share when every core runs a task (:func:`benchmark.harness.processes.share_threads`)."""
     def load() -> JobSpec:
         import ray  # noqa: PLC0415
 
