@@ -287,12 +287,14 @@ def test_each_pool_worker_gets_its_share_of_the_cores_for_opencv(workers, method
     the launching process, which sets it before it forks them (on 4 cores, as this machine
     would report them: 4, 2 and 1), started ones in the pool's initializer (on this machine's
     cores). The launching process has just used OpenCV's threads: a forked worker that set them
-    itself would wait for its parent's threads for ever."""
+    itself would wait for its parent's threads for ever. A started worker sets it in the pool's
+    initializer, where OpenCV, not loaded yet, reads it from the environment when first used."""
     import cv2
 
     from benchmark.harness import processes
     from benchmark.harness.executor import LocalPool
 
+    monkeypatch.delenv(processes.OPENCV_THREADS_ENV, raising=False)  # (the pool sets it: restored after)
     before = cv2.getNumThreads()
     cv2.setNumThreads(max(before, 2))
     cv2.GaussianBlur(np.random.default_rng(0).random((1500, 1500), np.float32), (9, 9), 2.0)  # its threads at work

@@ -171,16 +171,24 @@ def share_threads(workers: int) -> int:
 
     Called in a process that forks the workers before it forks them (they inherit the setting),
     or first thing in a started one: never in a forked child, where OpenCV's pool still counts
-    the parent's threads and setting it waits for them for ever.
+    the parent's threads and setting it waits for them for ever. OpenCV is not imported here (the
+    sweep launcher imports this module, and stays light): its ``OPENCV_FOR_THREADS_NUM`` is set,
+    which OpenCV reads when it first needs its threads and a started child inherits, and an
+    OpenCV this process has loaded is set too (``cv2.setNumThreads``).
 
     Returns:
         The number of threads OpenCV now uses.
     """
-    import cv2
-
     n = max(1, available_cores() // max(1, int(workers)))
-    cv2.setNumThreads(n)
+    os.environ[OPENCV_THREADS_ENV] = str(n)
+    cv2 = sys.modules.get("cv2")
+    if cv2 is not None and hasattr(cv2, "setNumThreads"):
+        cv2.setNumThreads(n)
     return n
+
+
+#: OpenCV's thread count, read when it first needs its threads (:func:`share_threads`).
+OPENCV_THREADS_ENV = "OPENCV_FOR_THREADS_NUM"
 
 
 def worker_init(parent_pid: int, workers: int | None = None) -> None:
@@ -195,4 +203,4 @@ def worker_init(parent_pid: int, workers: int | None = None) -> None:
 
 
 __all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "share_threads",
-           "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered"]
+           "OPENCV_THREADS_ENV", "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered"]
