@@ -171,7 +171,7 @@ def poses_table(observations: Sequence[Observation]) -> tuple[np.ndarray, np.nda
     """The poses table a render of ``observations`` holds (:func:`read_poses` of the folder
     :func:`write_observations` wrote them to, equal bit for bit: a pose is written as the
     shortest text that reads back as the same float): poses (N, 3) and refused (N,) bool."""
-    poses = np.array([[float(v) for v in o.pose] for o in observations], dtype=float).reshape(-1, 3)
+    poses = np.array([o.pose for o in observations], dtype=float).reshape(-1, 3)
     return poses, np.array([bool(o.meta.get("refused", False)) for o in observations], dtype=bool)
 
 
