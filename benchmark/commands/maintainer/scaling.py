@@ -53,6 +53,7 @@ STAGES = ("t_scene", "t_viewpoints", "t_render", "t_render_load", "t_classify", 
 #: the memory sampler's default CPU niceness: the lowest priority (see :class:`PeakMemory`)
 SAMPLE_NICE = 19
 
+
 def _proc_table() -> dict[int, int]:
     """{pid: parent pid} of every process (Linux ``/proc``)."""
     out = {}
