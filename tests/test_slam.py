@@ -444,3 +444,25 @@ def test_the_estimate_mapper_matches_a_pure_python_reference():
         got = scan_map_at_estimate(obstacles, grid, true, est, s).log_odds
         want = _reference_map_at_estimate(obstacles, grid, true, est, s)
         np.testing.assert_allclose(got, want, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_an_exact_scanner_measuring_again_from_one_cell_matches_the_reference():
+    """Views turning in place: scans from one cell, one after another and again later, each
+    inserted at its own estimate (an exact scanner measures once per cell, the fast path)"""
+    scene = two_rooms_scene()
+    grid = scene.grid
+    obstacles = scan_obstacles(scene, 0.25)
+    rng = np.random.default_rng(11)
+    rows, cols = rng.integers(4, 36, 5), rng.integers(4, 74, 5)
+    cells = np.array([0, 0, 0, 1, 1, 2, 0, 0, 3, 4, 4, 4])  # runs of a cell; cell 0 again after others
+    xs, zs = grid.pixel_to_world(rows[cells], cols[cells])
+    true = np.column_stack([xs, zs, rng.uniform(0, 360, len(cells))])
+    est = true + np.column_stack([rng.normal(0, 0.15, len(cells)), rng.normal(0, 0.15, len(cells)),
+                                  rng.normal(0, 8.0, len(cells))])
+    est[4] = [-50.0, -50.0, 0.0]  # inserted off the map: nothing, the next scan from its cell still measures
+    for s in (ScanSettings(max_range=2.0, angular_step=4.0), ScanSettings(max_range=6.0, angular_step=1.0),
+              ScanSettings(max_range=2.0, angular_step=2.0, range_noise=0.05, seed=2)):
+        got = scan_map_at_estimate(obstacles, grid, true, est, s).log_odds
+        want = _reference_map_at_estimate(obstacles, grid, true, est, s)
+        np.testing.assert_allclose(got, want, atol=1e-6)

@@ -397,6 +397,13 @@ def people_draws(settings: ScanSettings, rng, obstacles: np.ndarray, resolution:
     return out
 
 
+def exact_scanner(settings: ScanSettings) -> bool:
+    """True when ``settings`` draw nothing per beam (no range noise, dropout, grazing loss or
+    people): two scans from one cell then measure the same ranges, beam for beam."""
+    s = settings
+    return s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0 and s.people == 0
+
+
 def _draw_streams(seed: int):
     """Separate generators for range noise and dropout, so that adding scans in chunks draws
     the same numbers as adding them all at once."""
@@ -608,7 +615,7 @@ class ScanMapper:
         noise, drop = _beam_draws(s, self._noise_rng, self._drop_rng, len(poses))
         r, c = self.grid.world_to_cell(poses[:, 0], poses[:, 1])
         res = self.grid.resolution
-        exact = s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0 and s.people == 0
+        exact = exact_scanner(s)
         graze_u = _grazing_draws(s, self._graze_rng, len(poses))
         persons = people_draws(s, self._people_rng, self.obstacles, self.grid.resolution, len(poses))
         done = _scan_kernel(self.obstacles, r.astype(np.int64), c.astype(np.int64), s.n_beams,

@@ -41,6 +41,7 @@ from envs.maps.scan import (
     _mark,
     _range_px,
     beam_return,
+    exact_scanner,
     occupancy_from_log_odds,
     people_draws,
     surface_normals,
@@ -50,11 +51,18 @@ from envs.maps.scan import (
 @njit(cache=True, nogil=True)
 def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_px, res, max_range_m, noise, drop,
                      l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, normals, grazing, graze_u,
-                     persons):
+                     persons, exact):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
     lc = np.empty(cap, np.int32)
+    # an exact scanner's readings from one cell (``exact``: no noise, dropout, grazing loss or
+    # people): the beams' headings are fixed in the world, so a scan from the cell of the
+    # previous one measures what it measured; only the insertion differs
+    seen_hit = np.zeros(n_beams, np.bool_)
+    seen_d = np.zeros(n_beams, np.float64)
+    seen_r = -1
+    seen_c = -1
     two_pi = 2.0 * np.pi
     done = 0
     for m in range(rows.shape[0]):
@@ -69,24 +77,32 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
         done += 1
         s = done - 1
         nt = 0
+        again = exact and r0 == seen_r and c0 == seen_c
         for b in range(n_beams):
             if drop[m, b]:
                 continue
             theta = two_pi * b / n_beams
-            # measure from the true cell
-            r1, c1 = ray_end(r0, c0, theta, range_px)
-            n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
-            k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
-                                          graze_u[m, b])
-            if not returned:
-                continue  # a grazing beam returned nothing
-            hit = k_hit >= 0
+            if again:
+                hit = seen_hit[b]
+                d_true = seen_d[b]
+                d_m = d_true
+            else:
+                # measure from the true cell
+                r1, c1 = ray_end(r0, c0, theta, range_px)
+                n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
+                k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
+                                              graze_u[m, b])
+                if not returned:
+                    continue  # a grazing beam returned nothing
+                hit = k_hit >= 0
+                d_m = 0.0
+                d_true = 0.0
+                if hit:
+                    d_true = np.hypot(lr[k_hit] - r0, lc[k_hit] - c0) * res
+                    d_m = max(d_true + noise[m, b], 0.0)
+                seen_hit[b] = hit
+                seen_d[b] = d_true
             long_reading = False
-            d_m = 0.0
-            d_true = 0.0
-            if hit:
-                d_true = np.hypot(lr[k_hit] - r0, lc[k_hit] - c0) * res
-                d_m = max(d_true + noise[m, b], 0.0)
             # insert from the estimated cell
             phi = theta + dyaw[m]
             r1, c1 = ray_end(e0, f0, phi, range_px)
@@ -127,6 +143,8 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             if hit:
                 nt = _mark(state, touched_r, touched_c, nt, lr[n_free], lc[n_free], s, 2)
         _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min, l_max)
+        seen_r = r0
+        seen_c = c0
     return done
 
 
@@ -169,7 +187,7 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
                             grid.resolution, float(s.max_range), noise, drop, float(s.log_odds_hit),
                             float(s.log_odds_miss), float(s.log_odds_min), float(s.log_odds_max), log_odds, state,
                             np.empty(size, np.int32), np.empty(size, np.int32), normals,
-                            float(s.grazing_dropout), graze_u, persons)
+                            float(s.grazing_dropout), graze_u, persons, exact_scanner(s))
     occ = occupancy_from_log_odds(log_odds, s)
     return ScanMap(log_odds.astype(np.float32), occ, occ == FREE, s, int(done))
 
