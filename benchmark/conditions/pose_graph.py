@@ -104,23 +104,27 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
     if graph.n < 2 or len(graph.i) == 0:
         r = residuals(x, graph) if len(graph.i) else np.zeros((0, 3))
         return x, {"chi2": float((r ** 2).sum()), "dof": 0, "iterations": 0, "converged": True}
-    cost = float((residuals(x, graph) ** 2).sum())
+    r = residuals(x, graph)
+    cost = float((r ** 2).sum())
     lam, converged, it = 1e-4, False, 0
+    system = None  # the normal equations at x: made again only when a step is taken
     while it < max_iterations:
         it += 1
-        r = residuals(x, graph).ravel()
-        jac = _jacobian(x, graph).tocsc()
-        h = (jac.T @ jac).tocsc()
-        g = jac.T @ r
-        diag = h.diagonal()
+        if system is None:
+            r = r.ravel()
+            jac = _jacobian(x, graph).tocsc()
+            h = (jac.T @ jac).tocsc()
+            system = (h, jac.T @ r, h.diagonal())
+        h, g, diag = system
         step = spsolve((h + diags(lam * np.maximum(diag, 1e-12))).tocsc(), -g)
         trial = x.copy()
         trial[1:] += step.reshape(-1, 3)
         trial[:, 2] = wrap(trial[:, 2])
-        new = float((residuals(trial, graph) ** 2).sum())
+        r_trial = residuals(trial, graph)
+        new = float((r_trial ** 2).sum())
         if new <= cost:
             done = np.abs(step).max() < 1e-9 or cost - new <= 1e-12 * max(cost, 1.0)
-            x, cost, lam = trial, new, max(lam / 10.0, 1e-12)
+            x, r, cost, lam, system = trial, r_trial, new, max(lam / 10.0, 1e-12), None
             if done:
                 converged = True
                 break
