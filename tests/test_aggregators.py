@@ -206,6 +206,32 @@ def test_euclidean_neighbours_with_lattice_ties(k):
     np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
 
 
+@pytest.mark.parametrize("k", [1, 3, 5, 9])
+def test_euclidean_neighbours_of_views_turning_in_place(k):
+    """Views in runs on one cell (1 to 8 a place, as views turning in place), places revisited
+    later in the route and places in one row: the kernel's places keep the (distance, index)
+    order of a full sort of every view."""
+    from benchmark.aggregators.euclidean_knn import euclidean_neighbours, view_places
+
+    rng = np.random.default_rng(5)
+    spots = rng.integers(0, 30, size=(12, 2))
+    spots[3] = [spots[2, 0], spots[2, 1] + 7]  # two places in one row
+    route = np.concatenate([rng.integers(0, 12, 25), [2, 2, 2]])  # places visited again
+    which = np.repeat(route, rng.integers(1, 9, len(route)))
+    rows, cols = spots[which, 0].copy(), spots[which, 1].copy()
+    cells = np.argwhere(np.ones((32, 32), bool))
+    d2 = (cells[:, None, 0] - rows[None]) ** 2 + (cells[:, None, 1] - cols[None]) ** 2
+    ids = np.broadcast_to(np.arange(len(rows)), d2.shape)
+    want = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
+    np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
+    prow, pcol, starts, members = view_places(rows.astype(np.int64), cols.astype(np.int64))
+    assert len(prow) == len(np.unique(spots[route], axis=0)) and (np.diff(prow) >= 0).all()
+    for p in range(len(prow)):  # each place: its views, in index order
+        on = members[starts[p]:starts[p + 1]]
+        assert (np.diff(on) > 0).all() and (rows[on] == prow[p]).all() and (cols[on] == pcol[p]).all()
+    assert sorted(members) == list(range(len(rows)))
+
+
 @pytest.mark.slow
 @pytest.mark.shared_data
 @pytest.mark.parametrize("vote", ["label", "probability"])
