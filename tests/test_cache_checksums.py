@@ -156,6 +156,41 @@ def test_every_entry_kind_is_verified_on_read(tmp_path, caplog):
     assert "observations.jsonl: content does not match the render's checksum" in warned
 
 
+def test_entries_that_exist_are_read_without_their_lock(tmp_path, monkeypatch, caplog):
+    """Entries are renamed into place whole, so the stages read one that exists without taking
+    its lock (a lock file made and removed per read); an entry being made, or a damaged one,
+    still goes through the lock (where the damage is named and the entry made again)."""
+    import contextlib
+
+    from benchmark.harness import pipeline
+
+    cfg, ch = _cfg(tmp_path, "run.workers=1")  # the locks are taken in this process
+    good = run(cfg, tmp_path / "job", ch)
+    pipe = build_pipeline(cfg, ch)
+    h0, h1, h2 = good["house_id"]
+    for h in (h0, h1, h2):
+        pipe.entry("score", h).unlink()  # the rows are made again from the stages' entries
+    c = load_npz(pipe.entry("classify", h1))
+    np.savez(pipe.entry("classify", h1), poses=c["poses"], proba=c["proba"][:, ::-1], n_refused=c["n_refused"])
+    taken = []
+    real = pipeline.locked
+
+    @contextlib.contextmanager
+    def recording(path, *a, **k):
+        taken.append(Path(path))
+        with real(path, *a, **k):
+            yield
+
+    monkeypatch.setattr(pipeline, "locked", recording)
+    with caplog.at_level(logging.WARNING, logger="roomseg-bench"):
+        again = run(cfg, tmp_path / "job", ch)
+    pd.testing.assert_frame_equal(again[METRICS], good[METRICS])
+    made = {pipe.entry("score", h) for h in (h0, h1, h2)} | {pipe.entry("classify", h1)}
+    assert set(taken) == made, sorted(map(str, set(taken) ^ made))
+    warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warned) == 1 and str(pipe.entry("classify", h1)) in warned[0]
+
+
 @pytest.mark.slow
 def test_a_corrupt_saved_maps_entry_is_repaired_and_report_and_figures_work(tmp_path, caplog):
     """Issue 24 item 7: a maps entry replaced by ``{}`` was never repaired (rerun exit 0, then

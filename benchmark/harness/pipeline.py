@@ -214,7 +214,6 @@ class Pipeline(RobotStages):
     _stages: dict[str, Any] = field(default_factory=dict, repr=False)
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
     _frames: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
-    _poses_read: dict[Path, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
 
     #: the stage groups whose input files feed each cached stage, in order.
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = ()
@@ -322,7 +321,12 @@ class Pipeline(RobotStages):
         """Lock ``path``; return its validated entry, or compute, save and return it.
 
         ``load`` raises on a bad entry (any exception): the entry is recomputed and one
-        warning names the file. ``stage`` in ``force`` skips the load."""
+        warning names the file. ``stage`` in ``force`` skips the load. An entry that exists is
+        read without the lock first (entries are written by renaming them into place, so a
+        reader sees a whole one); a failed read takes the locked path, which says why."""
+        if stage not in self.force and exists(path):
+            with contextlib.suppress(Exception):
+                return load(path)
         with locked(path):
             if stage not in self.force and exists(path):
                 try:
