@@ -247,3 +247,36 @@ def test_a_process_reads_each_robot_map_once_and_a_rewritten_map_again(tmp_path,
     monkeypatch.setattr(rs, "_ROBOT_MEMO", rs.ByteLRU())
     alone = _run(tmp_path, "morph", *one, "segmenter=morphological", results="fresh")
     assert _metrics_bytes(second) == _metrics_bytes(alone)
+
+
+@pytest.mark.slow
+def test_a_process_reads_each_renders_poses_once_and_a_rewritten_render_again(tmp_path, monkeypatch):
+    """Every method on the same views checks its classification against the render's poses: a
+    process keeps each render's table as read (read-only), so a second method reads none, with
+    the rows of a run from empty caches; a poses file written anew is read anew."""
+    from benchmark.harness import robot_stages as rs
+    from envs.atomic import atomic_write_bytes
+    from envs.render import cache as render_cache
+
+    monkeypatch.setattr(rs, "_POSES_MEMO", rs.ByteLRU())
+    reads = []
+    real = render_cache.read_poses
+    monkeypatch.setattr(render_cache, "read_poses", lambda folder: reads.append(folder) or real(folder))
+    one = ["run.workers=1", "corruption=pose_2"]  # the views' poses move: the classification is checked against them
+    _run(tmp_path, "cone", *one)
+    reads.clear()
+    knn = _run(tmp_path, "knn", *one, "aggregator=graph_knn")
+    assert (knn["status"] == "ok").all() and reads == []
+    assert all(not a.flags.writeable for table in rs._POSES_MEMO.values() for a in table)
+    # the render rewritten (another file, the same bytes): read again, once per house
+    cfg, ch = compose_job([*FAST, f"run.results_dir={tmp_path / 'R'}", *one, "aggregator=graph_knn"])
+    pipe = build_pipeline(cfg, ch)
+    for hid in knn["house_id"].astype(str):
+        path = pipe.entry("render", hid) / render_cache.POSES_FILE
+        atomic_write_bytes(path, path.read_bytes())
+    again = _run(tmp_path, "knn2", *one, "aggregator=graph_knn", "run.force=[score]")
+    assert sorted(map(str, reads)) == sorted(str(pipe.entry("render", h)) for h in knn["house_id"].astype(str))
+    # the rows read through what the process kept are those of a run from empty caches
+    monkeypatch.setattr(rs, "_POSES_MEMO", rs.ByteLRU())
+    alone = _run(tmp_path, "knn", *one, "aggregator=graph_knn", results="fresh")
+    assert _metrics_bytes(knn) == _metrics_bytes(alone) == _metrics_bytes(again)

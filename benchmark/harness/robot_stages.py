@@ -34,6 +34,13 @@ COVERAGE_FOV, COVERAGE_RANGE, COVERAGE_OCCLUDER = 90.0, 6.0, 1.2
 #: a worker reads and aligns each once (a ProcTHOR house's map with its ground truth in the
 #: map's frame: about 0.35 MB at 0.05 m/px)
 ROBOT_MEMO_BYTES = 128 * 2**20
+#: bytes of render poses tables a process keeps (:data:`_POSES_MEMO`; a house's views: about
+#: 10 kB): every method of every condition on the same views checks its classification against them
+POSES_MEMO_BYTES = 16 * 2**20
+#: kept per process, read-only: (render entry path, identity of its poses.csv) -> (poses (N, 3),
+#: refused (N,)), read from the entry or taken from the views just rendered into it; a rewritten
+#: entry has another identity, so it is read again
+_POSES_MEMO = ByteLRU()
 #: kept per process, read-only: ("slam", entry path, file identity) -> the loaded estimate;
 #: ("grid", map entry path, identities of the map's and the estimate's entries) -> the map's
 #: free cells (each job gets its own copy), the row columns of
@@ -281,23 +288,28 @@ class RobotStages:
     def _render_table(self, hid: str) -> tuple[np.ndarray, np.ndarray]:
         """The render's poses table (:func:`envs.render.cache.read_poses`: (N, 3) poses, (N,)
         refused). The house's map, its route, its coverage and the check of its classification
-        all ask: read once per render entry, unless this process rendered or read its views (the
-        last one is kept, read-only)."""
+        all ask, in every job on these views: read once per render entry and process, unless
+        this process rendered or read its views (:data:`_POSES_MEMO`, read-only)."""
         from envs.render import cache as render_cache
 
         path = self.entry("render", hid)
-        if path not in self._poses_read:
-            self._keep_render_table(path, render_cache.read_poses(path))
-        return self._poses_read[path]
+        ident = file_identity(path / render_cache.POSES_FILE)
+        kept = _POSES_MEMO.get((str(path), ident)) if ident is not None else None
+        if kept is not None:
+            return kept
+        table = render_cache.read_poses(path)
+        self._keep_render_table(path, table)
+        return table
 
     def _keep_render_table(self, path: Path, table: tuple[np.ndarray, np.ndarray]) -> None:
         """Keep ``table`` as the poses table of the render entry ``path`` (read-only): read from
         the entry, or taken from the views just rendered into it or read from it
         (:func:`envs.render.cache.poses_table`), which the entry's ``poses.csv`` holds."""
-        for a in table:
-            a.setflags(write=False)
-        self._poses_read.clear()
-        self._poses_read[path] = table
+        from envs.render import cache as render_cache
+
+        ident = file_identity(path / render_cache.POSES_FILE)
+        if ident is not None:
+            _POSES_MEMO.put((str(path), ident), table, _read_only(*table) + 256, POSES_MEMO_BYTES)
 
     def _coverage(self, hid: str, scene, timings: dict) -> dict[str, float]:
         """How much of the house the views saw (:func:`benchmark.conditions.coverage.view_coverage`) with

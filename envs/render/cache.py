@@ -39,6 +39,8 @@ from envs.atomic import ordinary_temp_dir
 from envs.render.observation import Observation
 
 MARKER = "COMPLETE"
+#: the render's poses table (every view's pose and whether it was refused)
+POSES_FILE = "poses.csv"
 
 
 def is_complete(folder: str | Path) -> bool:
@@ -78,7 +80,7 @@ def write_observations(folder: str | Path, observations: Sequence[Observation]) 
         jsonl.append(_ENCODER.encode({"objects": [[str(t), float(a)] for t, a in o.objects],
                                       "visible_classes": vis, "meta": o.meta}) + "\n")
     files["observations.jsonl"] = "".join(jsonl).encode("utf-8")
-    files["poses.csv"] = ("\n".join(lines) + "\n").encode("utf-8")
+    files[POSES_FILE] = ("\n".join(lines) + "\n").encode("utf-8")
     marker = f"{len(observations)}\n" + "".join(f"{_digest(files[f])} {f}\n" for f in sorted(files))
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = ordinary_temp_dir(folder.parent, "." + folder.name + ".")  # the entry gets an ordinary folder's mode
@@ -149,7 +151,7 @@ def read_observations(folder: str | Path, images: bool = True) -> list[Observati
     if not is_complete(folder):
         raise FileNotFoundError(f"no complete render in {folder}")
     n, sums = _manifest(folder)
-    rows = _read_checked(folder, "poses.csv", sums).decode("utf-8").splitlines()[1:]
+    rows = _read_checked(folder, POSES_FILE, sums).decode("utf-8").splitlines()[1:]
     recs = [json.loads(line) for line in _read_checked(folder, "observations.jsonl", sums).decode("utf-8").splitlines()]
     if len(rows) != len(recs) or n != len(rows):
         raise ValueError(f"{folder}: poses.csv has {len(rows)} views, observations.jsonl {len(recs)}, "
@@ -185,6 +187,6 @@ def read_poses(folder: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if not is_complete(folder):
         raise FileNotFoundError(f"no complete render in {folder}")
     _, sums = _manifest(folder)
-    rows = [r.split(",", 5) for r in _read_checked(folder, "poses.csv", sums).decode("utf-8").splitlines()[1:]]
+    rows = [r.split(",", 5) for r in _read_checked(folder, POSES_FILE, sums).decode("utf-8").splitlines()[1:]]
     poses = np.array([[float(r[1]), float(r[2]), float(r[3])] for r in rows], dtype=float).reshape(-1, 3)
     return poses, np.array([r[4] == "1" for r in rows], dtype=bool)
