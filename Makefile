@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish rose2-env leaderboard scaling scaling-publish scaling-10k-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish robustness-timing-publish rose2-env leaderboard scaling scaling-publish scaling-10k-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -83,6 +83,15 @@ robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results
 	$(PY) -m benchmark.commands.maintainer.readme_tables publish $(PUBLISH_TMP)/runs/robustness --name robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness" --columns robustness
 	$(PY) -m benchmark.commands.maintainer.grid_profile $(PUBLISH_TMP)/runs/robustness --out results/published/robustness_profile.md
 
+# the grid at the size target of the robustness claims' houses (100 a dataset), timed as on a fresh
+# clone -> results/published/robustness_timing.md (its time, then where it went); its rows are not published
+ROBUST_TIMING_HOUSES ?= 100
+robustness-timing-publish: setup  ## fresh timed `make robustness ROBUST_HOUSES=100` -> results/published/robustness_timing.md (time and profile)
+	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
+	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/compile-time.txt $(PY) -m benchmark.commands.compile_kernels
+	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
+	$(PY) -m benchmark.commands.maintainer.grid_profile $(PUBLISH_TMP)/runs/robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES)" --out results/published/robustness_timing.md
+
 # make leaderboard: every method on the same maps (shared ProcTHOR houses from 75, after the
 # objects_procthor classifier's training houses): view-based methods, geometric segmenters,
 # sanity rows, and ROSE² with ROSE2=<checkout>; the Table V-style table -> results/leaderboard.
@@ -144,7 +153,8 @@ install-sizes-publish: setup-test  ## .venv's size by install step (core, docs, 
 
 # the numbers the docs pages include (tests/test_docs_numbers.py runs each command again and
 # fails when it writes other numbers); the measured ones (timings, memory, sizes) are written by
-# the *-publish targets: perf, scaling, scaling-10k, segment-memory, compile, install-sizes, bench, robustness
+# the *-publish targets: perf, scaling, scaling-10k, segment-memory, compile, install-sizes, bench, robustness,
+# robustness-timing
 docs-numbers: setup  ## the numbers the docs include -> results/published/: autotrace coverage, the default confusion matrix, robot coverage, SLAM levels, map calibration, house statistics, clutter tables, tables examples, SeLRoS Table V, leaderboard, objects accuracy, sensitivity (ROSE2=<checkout> adds ROSE²)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.coverage --range 0:150 --out results/published/coverage.md

@@ -58,3 +58,25 @@ def test_a_malformed_summary_is_one_line_naming_it(tmp_path, capsys):
     assert grid_profile.main([str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(tmp_path / "a" / "summary.json") in err[0] and "malformed JSON" in err[0]
+
+
+def test_a_timed_profile_is_headed_by_the_commands_time_and_houses(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    _job(sweep, "a", "procthor", "scan", 10.0,
+         [{"house_id": "h0", "cached": False, "house_s": 3.0, "t_map": 2.0},
+          {"house_id": "h1", "cached": True, "house_s": 0.1, "t_map": ""}])
+    _job(sweep, "b", "synthetic", "clean", 8.0, [{"house_id": f"s{i}", "cached": False, "house_s": 1.0} for i in range(3)])
+    (tmp_path / "time.txt").write_text("Command exited with non-zero status 0\n905.37 1248000\n")
+    (tmp_path / "compile.txt").write_text("21.6 300000\n")
+    out = tmp_path / "t.md"
+    assert grid_profile.main([str(sweep), "--time", str(tmp_path / "time.txt"), "--compile-time",
+                              str(tmp_path / "compile.txt"), "--command", "make robustness ROBUST_HOUSES=3",
+                              "--out", str(out)]) == 0
+    head = out.read_text().split("\n\n")[1]
+    assert head.startswith("Measured with `/usr/bin/time` on ")
+    assert "`make robustness ROBUST_HOUSES=3` took **905 s wall (15.1 min), 1219 MB peak RSS**" in head
+    assert "2 jobs; houses per dataset: procthor 2, synthetic 3;" in head and "took 22 s)" in head
+    (tmp_path / "bad.txt").write_text("no time here\n")
+    assert grid_profile.main([str(sweep), "--time", str(tmp_path / "bad.txt")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.txt" in err[0] and "GNU time" in err[0]

@@ -17,12 +17,17 @@ prints one row:
   houses, writing and checking rows), summed over jobs.
 
 Job-seconds are wall seconds of one job each; with W workers the sweep's wall time is about
-their sum over W. A row ``all`` closes each dataset. Exit status 2 when the folder holds no job.
+their sum over W. A row ``all`` closes each dataset. With ``--time`` (GNU time's ``-f "%e %M"``
+of the whole command, ``--command`` naming it) the table is preceded by the command's wall time
+and peak memory, the machine, the houses per dataset and the load from other work
+(``make robustness-timing-publish``). Exit status 2 when the folder holds no job or a time file
+is unreadable.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -81,11 +86,42 @@ def profile(jobs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def timing_line(jobs: pd.DataFrame, time_file: Path, command: str, compile_time_file: Path | None = None) -> str:
+    """The measured line that heads a timed profile: date, machine, commit, the command's wall
+    time and peak RSS (``time_file``: GNU time's ``-f "%e %M"``), its jobs and houses per dataset,
+    the 5-minute load average now (other work on the machine), and the numba compile step's
+    time (``compile_time_file``) when given.
+
+    Raises:
+        ValueError: an unreadable time file (one line naming it)."""
+    import os
+
+    from benchmark.reports.readme_tables import _commit, _gnu_time, machine
+
+    wall, rss_kb = _gnu_time(time_file)
+    houses = (jobs["computed"] + jobs["cached"]).groupby(jobs["dataset"]).max()
+    per = ", ".join(f"{d} {int(n)}" for d, n in houses.items())
+    load = (f"; load average {os.getloadavg()[1]:.1f} over the last 5 minutes from other work on the machine"
+            if hasattr(os, "getloadavg") else "")
+    numba = (f"; as on a fresh clone: numba's cache empty before the kernel compile step, which took "
+             f"{_gnu_time(compile_time_file)[0]:.0f} s" if compile_time_file is not None else "")
+    commit = _commit(Path(__file__).resolve().parents[3])
+    return (f"Measured with `/usr/bin/time` on {time.strftime('%Y-%m-%d', time.gmtime())} on {machine()}"
+            f"{f' at commit {commit}' if commit else ''}: `{command}` took **{wall:.0f} s wall "
+            f"({wall / 60:.1f} min), {rss_kb / 1024:.0f} MB peak RSS** ({len(jobs)} jobs; houses per dataset: {per}; "
+            f"from an empty cache{load}{numba}).")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                             epilog="e.g. python -m benchmark.commands.maintainer.grid_profile results/runs/robustness")
     ap.add_argument("sweep", type=Path, help="a sweep's folder (results/runs/<name>)")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (Markdown)")
+    ap.add_argument("--time", type=Path, default=None,
+                    help="GNU time's '%%e %%M' output of the command that ran the sweep: its wall time heads the table")
+    ap.add_argument("--compile-time", type=Path, default=None,
+                    help="GNU time's output of the numba compile step run before it (with --time)")
+    ap.add_argument("--command", default="make robustness", help="the timed command, as the heading names it")
     a = ap.parse_args(argv)
     try:
         jobs = job_rows(a.sweep)
@@ -96,19 +132,24 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:  # a malformed summary.json or config: one line naming it
         print(f"grid_profile: error: {e}", file=sys.stderr)
         return 2
+    try:
+        head = "" if a.time is None else timing_line(jobs, a.time, a.command, a.compile_time) + "\n\n"
+    except ValueError as e:
+        print(f"grid_profile: error: {e}", file=sys.stderr)
+        return 2
     table = profile(jobs)
     md = table.to_markdown(index=False, floatfmt=".1f")
     note = (f"\n{len(jobs)} jobs, {jobs['wall_s'].sum():.0f} job-seconds. Stage columns: seconds summed over the "
             f"houses computed (timings.csv); 'in houses, untimed': inside the houses computed but in no timed stage; "
             f"'outside houses': job wall time not inside a house.")
-    print(md)
+    print(head + md)
     print(note)
     if a.out is not None:
         from benchmark.harness.cache import atomic_write_text
 
         atomic_write_text(a.out, f"Profile of the sweep in `{a.sweep}` by `python -m benchmark.commands.maintainer.grid_profile "
                                  f"{a.sweep} --out {a.out}`."
-                                 f"\n\n{md}\n{note}\n")
+                                 f"\n\n{head}{md}\n{note}\n")
     return 0
 
 
