@@ -119,7 +119,10 @@ def test_a_scan_map_along_the_mapping_run_is_the_mapper_on_that_route(tmp_path):
     for hid in df["house_id"]:
         scene, house = pipe.scene(hid), pipe.env.house(hid)
         saved = load_npz(pipe.entry("maps", hid))["free"]
-        assert np.array_equal(saved, mapping(scene, exploration_route(scene), house=house))
+        # the route explored here (not the process's kept one): the frontier run of exploration_route
+        drive = Frontier(budget=math.inf, spacing=1.0, n_headings=1, heading_spread=0.0).explore(scene).poses
+        assert np.array_equal(drive, exploration_route(scene))
+        assert np.array_equal(saved, mapping(scene, drive, house=house))
         views = pipe.stage("viewpoints").generate(scene)
         assert not np.array_equal(saved, mapping(scene, views, house=house))
     with pytest.raises(ValueError, match=r"^mapping.route='bogus': expected one of views, explore$"):
@@ -128,3 +131,28 @@ def test_a_scan_map_along_the_mapping_run_is_the_mapper_on_that_route(tmp_path):
     assert (bad["status"] == "failed").all()
     assert bad["error"].str.contains("mapping.route=explore with a SLAM pose error that places the scans").all()
 
+
+
+def test_the_mapping_route_is_explored_once_per_house_and_process(monkeypatch):
+    """Every scan-map severity drives the same frontier route through a house: a process keeps it
+    (read-only) by what the explorer reads, so a second call explores nothing, and a house whose
+    walls differ, or another house id (its scan noise seed), is explored anew."""
+    from benchmark.conditions import exploration as ex
+    from envs.memo import ByteLRU
+
+    monkeypatch.setattr(ex, "_ROUTES", ByteLRU())
+    runs = []
+    real = ex.Frontier.explore
+    monkeypatch.setattr(ex.Frontier, "explore", lambda self, scene: runs.append(scene.house_id) or real(self, scene))
+    scene = two_room_scene()
+    first = ex.exploration_route(scene)
+    want = real(Frontier(budget=math.inf, spacing=1.0, n_headings=1, heading_spread=0.0), scene).poses
+    assert np.array_equal(first, want) and not first.flags.writeable and len(runs) == 1
+    assert np.array_equal(ex.exploration_route(scene), want) and len(runs) == 1
+    other = two_room_scene()
+    other.house_id = "another"
+    ex.exploration_route(other)
+    assert len(runs) == 2
+    walled = two_room_scene()
+    walled.grid.walkable[:, walled.grid.shape[1] // 2 + 3] = False  # a wall across the second room
+    assert not np.array_equal(ex.exploration_route(walled), want) and len(runs) == 3

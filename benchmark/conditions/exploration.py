@@ -35,6 +35,7 @@ error is a separate stage), and smoothing of grid paths.
 
 from __future__ import annotations
 
+import hashlib
 import heapq
 import math
 from dataclasses import dataclass
@@ -56,6 +57,7 @@ from envs.maps.scan import (
 )
 from envs.maps.scene import Scene
 from envs.maps.trajectory import shortest_path
+from envs.memo import ByteLRU
 from envs.ranges import DROPOUT, HEADING_SPREAD, Integer, Metres, NonNegative, Positive
 
 #: metres behind and ahead on the path that set the direction of motion of a view.
@@ -305,12 +307,39 @@ class Frontier:
 ROUTE_SPACING = 1.0
 
 
+#: bytes of mapping routes :func:`exploration_route` keeps per process: every severity of a scan
+#: map (and every method of each) drives the same route through a house (a few kilobytes each)
+ROUTE_MEMO_BYTES = 8 * 2**20
+_ROUTES = ByteLRU()
+
+
+def _route_key(scene: Scene, obstacles: np.ndarray) -> bytes:
+    """A digest of everything the explorer reads from ``scene``: its walkable cells, what its
+    laser hits, the grid's size and placement, the start pose and the house id (its noise seed)."""
+    grid = scene.grid
+    h = hashlib.blake2b(digest_size=20)
+    for a in (np.asarray(grid.walkable, bool), np.asarray(obstacles, bool)):
+        h.update(repr((a.dtype.str, a.shape)).encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(repr((float(grid.resolution), tuple(float(o) for o in grid.origin), scene.start,
+                   str(scene.house_id))).encode())
+    return h.digest()
+
+
 def exploration_route(scene: Scene) -> np.ndarray:
     """(M, 3) poses (x, z metres, yaw degrees) along the route of a frontier exploration with no
     budget (default explorer: 10 m laser, scans every 0.5 m), one every :data:`ROUTE_SPACING`
     metres driven, facing the direction of motion: where a mapping robot drives
-    (``mapping.route: explore``). Deterministic per house."""
-    return Frontier(budget=math.inf, spacing=ROUTE_SPACING, n_headings=1, heading_spread=0.0).explore(scene).poses
+    (``mapping.route: explore``). Deterministic per house: kept per process by a digest of what
+    the explorer reads (:data:`ROUTE_MEMO_BYTES`), read-only."""
+    explorer = Frontier(budget=math.inf, spacing=ROUTE_SPACING, n_headings=1, heading_spread=0.0)
+    key = _route_key(scene, scan_obstacles(scene, explorer.scan.height))
+    poses = _ROUTES.get(key)
+    if poses is None:
+        poses = np.array(explorer.explore(scene).poses, dtype=np.float64)
+        poses.setflags(write=False)
+        _ROUTES.put(key, poses, poses.nbytes + 256, ROUTE_MEMO_BYTES)
+    return poses
 
 
 def _is_frontier(lo: np.ndarray, walk: np.ndarray, r: int, c: int) -> bool:
