@@ -159,7 +159,7 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
 
     prov = {"command": command, "run": str(run_dir), "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
             "machine": machine(), "commit": _commit(root), "jobs": len(jobs)}
-    if hasattr(os, "getloadavg"):  # other work on the machine while it ran (5-minute load average at the end)
+    if hasattr(os, "getloadavg"):  # the load while it ran, its own workers included (5-minute load average at the end)
         prov["load_avg_5min"] = round(os.getloadavg()[1], 1)
     if time_file is not None:
         wall, rss_kb = _gnu_time(time_file)
@@ -219,7 +219,7 @@ def render_block(block: Block, root: str | Path = ".") -> str:
         if "wall_s" not in p:
             return (f"Not timed: `{p['command']}` was published without a time file "
                     f"(on {p['date_utc']}, {p['machine']}).\n")
-        load = (f"; load average {p['load_avg_5min']:g} over the last 5 minutes from other work on the machine"
+        load = (f"; 5-minute load average {p['load_avg_5min']:g} at its end, its own workers included"
                 if "load_avg_5min" in p else "")
         numba = (f"; as on a fresh clone: numba's cache empty before `make setup`, whose kernel compile step "
                  f"took {p['numba_compile_s']:.0f} s" if "numba_compile_s" in p else "")

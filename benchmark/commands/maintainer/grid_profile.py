@@ -89,8 +89,8 @@ def profile(jobs: pd.DataFrame) -> pd.DataFrame:
 def timing_line(jobs: pd.DataFrame, time_file: Path, command: str, compile_time_file: Path | None = None) -> str:
     """The measured line that heads a timed profile: date, machine, commit, the command's wall
     time and peak RSS (``time_file``: GNU time's ``-f "%e %M"``), its jobs and houses per dataset,
-    the 5-minute load average now (other work on the machine), and the numba compile step's
-    time (``compile_time_file``) when given.
+    the 5-minute load average now (the run just ended: its own workers included), and the numba
+    compile step's time (``compile_time_file``) when given.
 
     Raises:
         ValueError: an unreadable time file (one line naming it)."""
@@ -101,7 +101,7 @@ def timing_line(jobs: pd.DataFrame, time_file: Path, command: str, compile_time_
     wall, rss_kb = _gnu_time(time_file)
     houses = (jobs["computed"] + jobs["cached"]).groupby(jobs["dataset"]).max()
     per = ", ".join(f"{d} {int(n)}" for d, n in houses.items())
-    load = (f"; load average {os.getloadavg()[1]:.1f} over the last 5 minutes from other work on the machine"
+    load = (f"; 5-minute load average {os.getloadavg()[1]:.1f} at its end, its own workers included"
             if hasattr(os, "getloadavg") else "")
     numba = (f"; as on a fresh clone: numba's cache empty before the kernel compile step, which took "
              f"{_gnu_time(compile_time_file)[0]:.0f} s" if compile_time_file is not None else "")
