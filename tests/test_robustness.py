@@ -24,7 +24,8 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
         [sys.executable, "-m", "benchmark.commands.bench", "experiment=robustness", "env=synthetic", "run.limit=2",
          "env.resolution=0.1", f"run.results_dir={results}", f"hydra.sweeper.params.corruption='{LEVELS}'",
          "hydra.sweeper.params.aggregator='vision_cone,graph_knn'", "hydra.sweeper.params.classifier=oracle",
-         "hydra.sweeper.grids.0.segmenter='voronoi,one_room'", f"hydra.sweeper.grids.0.corruption='{LEVELS}'"],
+         "hydra.sweeper.grids.0.segmenter='voronoi,one_room'", f"hydra.sweeper.grids.0.corruption='{LEVELS}'",
+         "run.save_maps=true"],  # the experiment keeps none (test below); the report's maps need them
         cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=900)
     assert sweep.returncode == 0, sweep.stderr[-2000:]
     assert "44 jobs, 88 rows, 0 failed" in sweep.stdout
@@ -78,3 +79,14 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
     assert section.count("<tr><td>") == 4  # one row per method
     # its maps are the clean condition's: one group per method, not one per condition
     assert page.count("<figcaption>ground truth</figcaption>") == 2 * 4  # 2 houses x 4 methods
+
+
+def test_the_robustness_sweep_keeps_no_label_maps_unless_asked():
+    """888 jobs x 200 houses of label maps are gigabytes the tables never read: the experiment
+    sets run.save_maps false; run.save_maps=true (as above) keeps them for the report and figures."""
+    from benchmark.config import compose_job
+
+    cfg, _ = compose_job(["experiment=robustness", "hydra.mode=RUN"])
+    assert cfg.run.save_maps is False
+    cfg, _ = compose_job(["experiment=robustness", "hydra.mode=RUN", "run.save_maps=true"])
+    assert cfg.run.save_maps is True
