@@ -35,7 +35,6 @@ error is a separate stage), and smoothing of grid paths.
 
 from __future__ import annotations
 
-import hashlib
 import heapq
 import math
 from dataclasses import dataclass
@@ -45,6 +44,7 @@ import numpy as np
 from scipy import ndimage
 
 from benchmark.classifiers.noise import text_key
+from envs.digest import arrays_key
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
 from envs.maps.rays import ray_end, trace_ray
 from envs.maps.scan import (
@@ -317,13 +317,8 @@ def _route_key(scene: Scene, obstacles: np.ndarray) -> bytes:
     """A digest of everything the explorer reads from ``scene``: its walkable cells, what its
     laser hits, the grid's size and placement, the start pose and the house id (its noise seed)."""
     grid = scene.grid
-    h = hashlib.blake2b(digest_size=20)
-    for a in (np.asarray(grid.walkable, bool), np.asarray(obstacles, bool)):
-        h.update(repr((a.dtype.str, a.shape)).encode())
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr((float(grid.resolution), tuple(float(o) for o in grid.origin), scene.start,
-                   str(scene.house_id))).encode())
-    return h.digest()
+    return arrays_key((np.asarray(grid.walkable, bool), np.asarray(obstacles, bool)),
+                      (float(grid.resolution), tuple(float(o) for o in grid.origin), scene.start, str(scene.house_id)))
 
 
 def exploration_route(scene: Scene) -> np.ndarray:

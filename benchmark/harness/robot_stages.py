@@ -298,16 +298,18 @@ class RobotStages:
         if kept is not None:
             return kept
         table = render_cache.read_poses(path)
-        self._keep_render_table(path, table)
+        self._keep_render_table(path, table, ident)  # the identity of the file as it was before the read
         return table
 
-    def _keep_render_table(self, path: Path, table: tuple[np.ndarray, np.ndarray]) -> None:
+    def _keep_render_table(self, path: Path, table: tuple[np.ndarray, np.ndarray],
+                           ident: tuple[int, int, int] | None = None) -> None:
         """Keep ``table`` as the poses table of the render entry ``path`` (read-only): read from
         the entry, or taken from the views just rendered into it or read from it
-        (:func:`envs.render.cache.poses_table`), which the entry's ``poses.csv`` holds."""
+        (:func:`envs.render.cache.poses_table`), which the entry's ``poses.csv`` holds. ``ident``:
+        that file's identity (:func:`envs.atomic.file_identity`) when it was read; None: now."""
         from envs.render import cache as render_cache
 
-        ident = file_identity(path / render_cache.POSES_FILE)
+        ident = ident if ident is not None else file_identity(path / render_cache.POSES_FILE)
         if ident is not None:
             _POSES_MEMO.put((str(path), ident), table, _read_only(*table) + 256, POSES_MEMO_BYTES)
 

@@ -94,7 +94,8 @@ def machine() -> str:
     return f"{cpu or 'unknown CPU'}, {os.cpu_count()} cores{mem}, {platform.system()} {platform.release().split('-')[0]}"
 
 
-def _commit(root: Path) -> str:
+def head_commit(root: Path) -> str:
+    """The short hash of ``root``'s checked-out commit ('' outside a git checkout)."""
     try:
         return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
                               timeout=10).stdout.strip()
@@ -108,7 +109,7 @@ def measured_line(module: str, args: list[str]) -> str:
     import datetime
     import shlex
 
-    commit = _commit(Path(__file__).resolve().parents[2])
+    commit = head_commit(Path(__file__).resolve().parents[2])
     return (f"Measured on {datetime.date.today().isoformat()} on {machine()}"
             f"{f' at commit {commit}' if commit else ''} by "
             f"`python -m {module} {' '.join(shlex.quote(x) for x in args)}`.")
@@ -158,21 +159,21 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
     import os
 
     prov = {"command": command, "run": str(run_dir), "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
-            "machine": machine(), "commit": _commit(root), "jobs": len(jobs)}
+            "machine": machine(), "commit": head_commit(root), "jobs": len(jobs)}
     if hasattr(os, "getloadavg"):  # the load while it ran, its own workers included (5-minute load average at the end)
         prov["load_avg_5min"] = round(os.getloadavg()[1], 1)
     if time_file is not None:
-        wall, rss_kb = _gnu_time(time_file)
+        wall, rss_kb = gnu_time(time_file)
         prov["wall_s"], prov["peak_rss_mb"] = round(wall, 1), round(rss_kb / 1024)
     if compile_time_file is not None:
-        prov["numba_compile_s"] = round(_gnu_time(compile_time_file)[0], 1)
+        prov["numba_compile_s"] = round(gnu_time(compile_time_file)[0], 1)
     atomic_write_json(tmp / PROVENANCE, prov)
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)
     return dest
 
 
-def _gnu_time(path: str | Path) -> tuple[float, int]:
+def gnu_time(path: str | Path) -> tuple[float, int]:
     """(wall seconds, peak RSS KiB) from GNU time's ``-f "%e %M"`` output; ValueError naming the file."""
     try:
         wall, rss_kb = Path(path).read_text().split()[-2:]
@@ -365,5 +366,5 @@ def write(readme: str | Path = "README.md", root: str | Path = ".") -> list[str]
     return changed
 
 
-__all__ = ["BLOCKS", "Block", "PUBLISHED", "publish", "provenance", "render_block", "blocks_in", "update_text",
-           "check", "write", "machine"]
+__all__ = ["BLOCKS", "Block", "PUBLISHED", "publish", "provenance", "gnu_time", "head_commit", "render_block",
+           "blocks_in", "update_text", "check", "write", "machine"]

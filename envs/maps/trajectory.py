@@ -17,7 +17,6 @@ each view (what pose drift grows with).
 
 from __future__ import annotations
 
-import hashlib
 import heapq
 import math
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from envs.digest import arrays_key
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import trace_ray
 from envs.memo import ByteLRU
@@ -140,12 +140,8 @@ _ROUTES = ByteLRU()
 def _route_key(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> bytes:
     """A digest of everything :func:`route` reads: the walkable cells, the grid's cells, size
     and placement, and the poses."""
-    h = hashlib.blake2b(digest_size=20)
-    for a in (walkable, np.asarray(grid.walkable, bool), poses):
-        h.update(repr((a.dtype.str, a.shape)).encode())
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr((float(grid.resolution), tuple(float(o) for o in grid.origin))).encode())
-    return h.digest()
+    return arrays_key((walkable, np.asarray(grid.walkable, bool), poses),
+                      (float(grid.resolution), tuple(float(o) for o in grid.origin)))
 
 
 def route(walkable: np.ndarray, grid: GridMap, poses: np.ndarray) -> Route:

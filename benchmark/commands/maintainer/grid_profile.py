@@ -19,8 +19,8 @@ prints one row:
 Job-seconds are wall seconds of one job each; with W workers the sweep's wall time is about
 their sum over W. A row ``all`` closes each dataset. With ``--time`` (GNU time's ``-f "%e %M"``
 of the whole command, ``--command`` naming it) the table is preceded by the command's wall time
-and peak memory, the machine, the houses per dataset and the load from other work
-(``make robustness-timing-publish``). Exit status 2 when the folder holds no job or a time file
+and peak memory, the machine, the houses per dataset and the 5-minute load average at its end
+(its own workers included; ``make robustness-timing-publish``). Exit status 2 when the folder holds no job or a time file
 is unreadable.
 """
 
@@ -96,16 +96,16 @@ def timing_line(jobs: pd.DataFrame, time_file: Path, command: str, compile_time_
         ValueError: an unreadable time file (one line naming it)."""
     import os
 
-    from benchmark.reports.readme_tables import _commit, _gnu_time, machine
+    from benchmark.reports.readme_tables import gnu_time, head_commit, machine
 
-    wall, rss_kb = _gnu_time(time_file)
+    wall, rss_kb = gnu_time(time_file)
     houses = (jobs["computed"] + jobs["cached"]).groupby(jobs["dataset"]).max()
     per = ", ".join(f"{d} {int(n)}" for d, n in houses.items())
     load = (f"; 5-minute load average {os.getloadavg()[1]:.1f} at its end, its own workers included"
             if hasattr(os, "getloadavg") else "")
     numba = (f"; as on a fresh clone: numba's cache empty before the kernel compile step, which took "
-             f"{_gnu_time(compile_time_file)[0]:.0f} s" if compile_time_file is not None else "")
-    commit = _commit(Path(__file__).resolve().parents[3])
+             f"{gnu_time(compile_time_file)[0]:.0f} s" if compile_time_file is not None else "")
+    commit = head_commit(Path(__file__).resolve().parents[3])
     return (f"Measured with `/usr/bin/time` on {time.strftime('%Y-%m-%d', time.gmtime())} on {machine()}"
             f"{f' at commit {commit}' if commit else ''}: `{command}` took **{wall:.0f} s wall "
             f"({wall / 60:.1f} min), {rss_kb / 1024:.0f} MB peak RSS** ({len(jobs)} jobs; houses per dataset: {per}; "
