@@ -11,6 +11,7 @@ from scipy import ndimage
 
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
+from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 from envs.ranges import NonNegative, Positive
 
@@ -37,7 +38,7 @@ class DistanceTransform(Segmenter):
     def __call__(self, grid: GridMap) -> np.ndarray:
         """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
         lo, _ = check_area_limits(grid, self.min_seed_area, self.max_area)
-        edt = ndimage.distance_transform_edt(grid.walkable)  # pixels: the watershed's too
+        edt = distance_px(grid.walkable)  # pixels (SciPy's exact transform, by OpenCV): the watershed's too
         dist = edt * grid.resolution
         thresholds = np.arange(0.0, dist.max(), max(self.step, grid.resolution))
         # the lowest threshold with the most parts of seed size, then its parts
@@ -67,7 +68,10 @@ def parts_per_threshold(dist: np.ndarray, thresholds: np.ndarray, min_pixels: fl
     # a cell is in the part map of threshold k exactly when k < level (thresholds below its distance)
     index = np.int32 if dist.size < 2**31 else np.int64  # cell indices (and sizes) in 4 bytes where they fit
     level = np.searchsorted(thresholds, np.asarray(dist, np.float64).ravel(), side="left").astype(index)
-    order = np.argsort(-level, kind="stable").astype(index)
+    # the cells by level, highest first, ties in index order (a stable sort; on 16-bit keys NumPy's
+    # is a radix sort, the same order in a fraction of the time)
+    keys = -level.astype(np.int16) if len(thresholds) < 2**15 else -level
+    order = np.argsort(keys, kind="stable").astype(index)
     return _parts_sweep(level, order, np.arange(dist.size, dtype=index), np.zeros(dist.size, index),
                         dist.shape[1], len(thresholds), float(min_pixels))
 

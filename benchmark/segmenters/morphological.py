@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
@@ -36,6 +37,7 @@ class Morphological(Segmenter):
         work = grid.walkable.copy()
         prev, _ = ndimage.label(work, FOUR)
         seeds = np.zeros(grid.shape, np.int32)
+        square = np.ones((3, 3), np.uint8)
         k = 0
         while work.any():
             lab, n = ndimage.label(work, FOUR)
@@ -47,14 +49,20 @@ class Morphological(Segmenter):
             # a real split: at least two parts of room size (>= min_seed_area) from one parent
             big = np.nonzero(sizes[1:] >= lo)[0] + 1
             siblings = np.bincount(parent[big], minlength=prev.max() + 1)
-            nxt = ndimage.binary_erosion(work, np.ones((3, 3), bool))
+            # one 3 x 3 erosion step, cells beyond the map's edge counting as obstacles (OpenCV's
+            # erosion of 0/1 cells is scipy's binary_erosion with border_value 0, cell for cell)
+            nxt = cv2.erode(work.view(np.uint8), square, borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
             alive = np.bincount(lab[nxt], minlength=n + 1) > 0
-            for i in range(1, n + 1):
-                broke_off = siblings[parent[i]] >= 2 or not alive[i]
-                if broke_off and lo <= sizes[i] <= hi:
-                    k += 1
-                    part = lab == i
-                    seeds[part] = k
-                    nxt &= ~part
+            # parts that broke off (or are about to vanish) with a seed's size, numbered in order
+            keep = (siblings[parent] >= 2) | ~alive
+            keep &= (lo <= sizes) & (sizes <= hi)
+            keep[0] = False
+            if keep.any():
+                number = np.where(keep, np.cumsum(keep) + k, 0).astype(np.int32)
+                k += int(keep.sum())
+                mark = number[lab]
+                part = mark > 0
+                seeds[part] = mark[part]
+                nxt &= ~part
             prev, work = lab, nxt
         return finish_rooms(seeds, grid, self.min_room_area)

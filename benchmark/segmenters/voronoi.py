@@ -12,6 +12,7 @@ from skimage.morphology import skeletonize
 
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
+from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 from envs.ranges import Between, NonNegative, Positive
 
@@ -44,7 +45,7 @@ class Voronoi(Segmenter):
     def critical_points(self, grid: GridMap) -> np.ndarray:
         """(M, 3) float rows of (row, col, clearance px) of the critical points."""
         walk = grid.walkable
-        dist = ndimage.distance_transform_edt(np.pad(walk, 1))[1:-1, 1:-1]  # the map edge is an obstacle
+        dist = distance_px(np.pad(walk, 1))[1:-1, 1:-1]  # the map edge is an obstacle
         skel = skeletonize(walk) & (dist > 1)
         nbrs = ndimage.convolve(skel.astype(np.uint8), np.ones((3, 3), np.uint8), mode="constant") - 1
         win = max(int(round(self.window / grid.resolution)), 1) * 2 + 1
@@ -67,7 +68,7 @@ class Voronoi(Segmenter):
         the nearest obstacle pixel, and the nearest obstacle pixel on the opposite side
         (more than 105 degrees away from the first, seen from the critical point)."""
         obst = ~np.pad(grid.walkable, 1)  # padded: the map edge is an obstacle
-        _, (ir, ic) = ndimage.distance_transform_edt(~obst, return_indices=True)
+        ir, ic = ndimage.distance_transform_edt(~obst, return_distances=False, return_indices=True)
         lines = []
         for r, c, d in self.critical_points(grid):
             r, c = int(r) + 1, int(c) + 1
