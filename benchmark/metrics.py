@@ -79,6 +79,7 @@ import numpy as np
 from numba import njit
 from scipy.optimize import linear_sum_assignment
 
+from envs.maps.ids import dense_ids
 from envs.maps.label_png import colour_int
 from envs.ranges import NonNegative, OneOf
 
@@ -559,8 +560,7 @@ def score_instances(pred_instances: np.ndarray, gt_instances: np.ndarray,
         seg = np.full(pred.shape, -1, dtype=np.int32)
         fg = pred >= 0
         if fg.any():
-            _, inv = np.unique(pred[fg], return_inverse=True)
-            seg[fg] = inv.ravel()
+            seg[fg] = dense_ids(pred[fg])[0]
     out = _segment_scores(seg, gt, params, params.min_segment_px(resolution))
     out["accuracy"] = float("nan")
     out["class_iou"] = float("nan")

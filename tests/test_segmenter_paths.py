@@ -157,3 +157,44 @@ def test_parts_per_threshold_equals_labelling_each_threshold(maps, step):
         thresholds = np.arange(0.0, dist.max(), step)
         for lo in (1.0, 40.0, 200.0):
             assert np.array_equal(parts_per_threshold(dist, thresholds, lo), _parts_reference(dist, thresholds, lo))
+
+
+def test_dense_ids_are_unique_inverse():
+    from envs.maps.ids import dense_ids
+
+    rng = np.random.default_rng(3)
+    cases = [rng.integers(0, 12, 500), rng.integers(0, 12, 500).astype(np.int32),  # a segmentation's ids
+             rng.choice([3, 90, 4000], 300),  # gaps (counted: below 2 N + 1024)
+             rng.choice([5, 10**9, 2**40], 300),  # far apart: sorted
+             rng.integers(-5, 5, 200),  # negative values: sorted
+             np.array([7]), np.zeros(0, np.int64)]
+    for v in cases:
+        ranks, n = dense_ids(v)
+        ids, inverse = np.unique(v, return_inverse=True)
+        assert ranks.dtype == np.int64 and n == len(ids)
+        assert np.array_equal(ranks, inverse.ravel())
+    with pytest.raises(ValueError, match="integer"):
+        dense_ids(np.array([0.5, 1.0]))
+
+
+def test_grid_and_instance_scores_keep_their_ids(shared_scenes):
+    """The grid's squares and score_instances' segments as np.unique numbered them."""
+    from benchmark.metrics import MetricParams, score_instances
+    from benchmark.segmenters.sanity import Grid
+
+    for scene in shared_scenes[:6]:
+        g = scene.grid
+        walk = g.walkable
+        rows = np.floor(np.arange(g.shape[0]) * g.resolution / 3.0).astype(np.int64)
+        cols = np.floor(np.arange(g.shape[1]) * g.resolution / 3.0).astype(np.int64)
+        cell = rows[:, None] * (int(cols.max()) + 1) + cols[None, :]
+        want = np.full(g.shape, -1, np.int32)
+        want[walk] = np.unique(cell[walk], return_inverse=True)[1].ravel()
+        got = Grid(3.0)(g)
+        assert np.array_equal(got, want)
+        # ids with gaps score as the same segments renumbered
+        sparse = np.where(got >= 0, got * 37 + 5, -1)
+        params = MetricParams(instances="ids")
+        a = score_instances(sparse, scene.instances, params, resolution=g.resolution)
+        b = score_instances(got, scene.instances, params, resolution=g.resolution)
+        assert a == pytest.approx(b, nan_ok=True)

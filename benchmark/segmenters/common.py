@@ -46,6 +46,7 @@ from skimage.segmentation import watershed
 
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
+from envs.maps.ids import dense_ids
 
 FOUR = ndimage.generate_binary_structure(2, 1)
 
@@ -61,10 +62,8 @@ def grow_seeds(seeds: np.ndarray, walkable: np.ndarray, dist: np.ndarray | None 
     if n:
         lab[orphan > 0] = orphan[orphan > 0] + lab.max()
     out = np.full(walkable.shape, -1, np.int32)
-    ids = np.unique(lab[lab > 0])
-    remap = np.zeros(lab.max() + 1, np.int32)
-    remap[ids] = np.arange(len(ids))
-    out[lab > 0] = remap[lab[lab > 0]]
+    grown = lab > 0
+    out[grown] = dense_ids(lab[grown])[0]
     return out
 
 
@@ -111,18 +110,9 @@ def merge_small_rooms(instances: np.ndarray, walkable: np.ndarray, min_pixels: f
     m = inst >= 0
     if not m.any():
         return out
-    # the ids present, in order, and each cell's rank among them: by counting where the ids are
-    # dense (a segmenter's 0..K-1), else by sorting (the same ranks)
-    vals = inst[m]
+    # the ids present, in order, and each cell's rank among them
     lab = np.full(inst.shape, -1, np.int64)
-    if vals.max() < 2 * vals.size + 1024:
-        present = np.bincount(vals) > 0
-        lab[m] = (np.cumsum(present) - 1)[vals]
-        n = int(present.sum())
-    else:
-        ids, dense = np.unique(vals, return_inverse=True)
-        lab[m] = dense.ravel()
-        n = len(ids)
+    lab[m], n = dense_ids(inst[m])
     size = np.bincount(lab[m], minlength=n).astype(np.int64)
     # borders: 4-adjacent pixel pairs of two different rooms, counted per unordered pair
     pairs = []

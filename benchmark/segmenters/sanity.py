@@ -19,6 +19,7 @@ import numpy as np
 
 from benchmark.interfaces import Segmenter
 from envs.maps.gridmap import GridMap
+from envs.maps.ids import dense_ids
 
 
 class OneRoom(Segmenter):
@@ -51,8 +52,7 @@ class Grid(Segmenter):
         cell = rows[:, None] * (int(cols.max()) + 1) + cols[None, :]
         out = np.full(walk.shape, -1, dtype=np.int32)
         if walk.any():
-            _, inv = np.unique(cell[walk], return_inverse=True)
-            out[walk] = inv.ravel()
+            out[walk] = dense_ids(cell[walk])[0]
         return out
 
 
