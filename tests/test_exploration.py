@@ -204,3 +204,48 @@ def test_budget_is_metres_of_path():
     scene = two_room_scene()
     e = Frontier(budget=2.0).explore(scene)
     assert e.length <= 2.0 + 1e-9 and e.length > 2.0 - math.sqrt(2) * 0.05 - 1e-9
+
+
+def _frontier_reference(known_free, unobserved, min_cells):
+    """Frontier cells by shifted masks and SciPy's 8-connected labelling (the code before)."""
+    from scipy import ndimage
+
+    nb = np.zeros_like(unobserved)
+    nb[1:] |= unobserved[:-1]
+    nb[:-1] |= unobserved[1:]
+    nb[:, 1:] |= unobserved[:, :-1]
+    nb[:, :-1] |= unobserved[:, 1:]
+    front = known_free & nb
+    if min_cells > 1 and front.any():
+        lab, n = ndimage.label(front, structure=np.ones((3, 3), bool))
+        size = np.bincount(lab.ravel(), minlength=n + 1)
+        size[0] = 0
+        front = size[lab] >= min_cells
+    return front
+
+
+def test_frontier_cells_equal_labelling():
+    """The compiled frontier (union-find over frontier cells) against SciPy's labelling, on random
+    maps with frontiers touching the map's edges, clusters meeting only at a corner, and sizes
+    around the limit."""
+    from benchmark.conditions.exploration import frontier_cells
+
+    rng = np.random.default_rng(11)
+    shapes = [(1, 1), (1, 9), (9, 1), (30, 41), (64, 64)]
+    n_front = n_dropped = 0
+    for shape in shapes:
+        for density in (0.2, 0.5, 0.8):
+            known = rng.random(shape) < density
+            unobs = ~known & (rng.random(shape) < 0.5)
+            for min_cells in (0, 1, 2, 3, 6, 20):
+                want = _frontier_reference(known, unobs, min_cells)
+                got = frontier_cells(known, unobs, min_cells)
+                assert got.dtype == bool and np.array_equal(got, want), (shape, density, min_cells)
+                n_front += int(want.sum())
+                n_dropped += int(_frontier_reference(known, unobs, 1).sum() - want.sum())
+    assert n_front > 1000 and n_dropped > 100
+    # two diagonal cells are one cluster of 2 (8-connected); a lone cell is dropped at 2
+    known = np.zeros((5, 5), bool)
+    known[1, 1] = known[2, 2] = known[4, 0] = True
+    unobs = ~known
+    assert np.argwhere(frontier_cells(known, unobs, 2)).tolist() == [[1, 1], [2, 2]]
