@@ -135,6 +135,18 @@ def test_objects_training_key_is_kept_per_process_and_follows_the_training_file(
     os.utime(f, ns=(1, 1))  # an old modification time: the size differs
     changed = ObjectsClassifier(train_path=str(f)).training_key()
     assert changed != first and changed == ObjectsClassifier(train_path=str(f))._training_key()
+    # the training ids too (a job's setup needs only them): kept without reading the houses
+    # again, and the new file's ids once it changes
+    ids = [h.id for h in ObjectsClassifier(train_path=str(f)).training_houses()]
+    assert len(ids) == 3 and ObjectsClassifier(train_path=str(f)).train_ids == ids
+    kept = ObjectsClassifier(train_path=str(f))
+    kept.training_houses = None  # would fail if called
+    assert kept.train_ids == ids
+    with pytest.raises(ValueError, match="also evaluated"):
+        kept.setup([ids[1]])
+    f.write_text("\n".join(json.dumps(h.data) for h in shared_houses[7:8]) + "\n")
+    os.utime(f, ns=(2, 2))
+    assert ObjectsClassifier(train_path=str(f)).train_ids == ids[:1]  # one house now
 
 
 def test_true_labels_equal_each_views_own_argmax():

@@ -55,6 +55,8 @@ def _types(o: ObjectFootprint) -> tuple[str, ...]:
 
 #: :meth:`ObjectsClassifier.training_key` per settings and training file, in this process
 _TRAINING_KEYS: dict[tuple, str] = {}
+#: the training houses' ids per process, by the same key (:attr:`ObjectsClassifier.train_ids`).
+_TRAIN_IDS: dict[tuple, tuple[str, ...]] = {}
 
 
 def _file_identity(path: str | None) -> tuple | None:
@@ -145,7 +147,18 @@ class ObjectsClassifier(Classifier):
 
     @property
     def train_ids(self) -> list[str]:
-        return [h.id for h in self.training_houses()]
+        """The training houses' ids, kept per process as :meth:`training_key` is (a job's
+        :meth:`setup` needs only them, not the houses)."""
+        memo = self._memo_key()
+        if memo not in _TRAIN_IDS:
+            _TRAIN_IDS[memo] = tuple(h.id for h in self.training_houses())
+        return list(_TRAIN_IDS[memo])
+
+    def _memo_key(self) -> tuple:
+        """What the training houses, their ids and key depend on (the training file by its path,
+        inode, size and modification time)."""
+        return (self.MODEL_VERSION, self.alpha, self.classes, self.TRAIN_RESOLUTION, self.train_path,
+                self.train_start, self.train_stop, self.train_synthetic, _file_identity(self.train_path))
 
     def training_key(self) -> str:
         """16 hex digits over the training houses' JSON, alpha, classes and the model version:
@@ -155,8 +168,7 @@ class ObjectsClassifier(Classifier):
         size and modification time): every job of a sweep builds its own classifier, and
         reading or generating the training houses again only to hash them cost each job
         0.2-0.3 s (the robustness grid has 156 jobs with this classifier)."""
-        memo = (self.MODEL_VERSION, self.alpha, self.classes, self.TRAIN_RESOLUTION, self.train_path,
-                self.train_start, self.train_stop, self.train_synthetic, _file_identity(self.train_path))
+        memo = self._memo_key()
         if memo not in _TRAINING_KEYS:
             _TRAINING_KEYS[memo] = self._training_key()
         return _TRAINING_KEYS[memo]
