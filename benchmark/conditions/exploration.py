@@ -57,6 +57,7 @@ from envs.maps.scan import (
 )
 from envs.maps.scene import Scene
 from envs.maps.trajectory import shortest_path
+from envs.maps.union_find import find_root
 from envs.memo import ByteLRU
 from envs.ranges import DROPOUT, HEADING_SPREAD, Integer, Metres, NonNegative, Positive
 
@@ -219,14 +220,6 @@ def frontier_cells(known_free: np.ndarray, unobserved: np.ndarray, min_cells: in
 
 
 @njit(cache=True, nogil=True)
-def _root(parent, a):
-    while parent[a] != a:
-        parent[a] = parent[parent[a]]
-        a = parent[a]
-    return a
-
-
-@njit(cache=True, nogil=True)
 def _frontier_kernel(known, unobs, min_cells, out, parent, size):
     """:func:`frontier_cells` into ``out``; ``parent`` and ``size`` are (H W,) scratch."""
     h, w = known.shape
@@ -254,8 +247,8 @@ def _frontier_kernel(known, unobs, min_cells, out, parent, size):
                 cc = c + dc
                 if rr < 0 or cc < 0 or cc >= w or not out[rr, cc]:
                     continue
-                a = _root(parent, p)
-                b = _root(parent, rr * w + cc)
+                a = find_root(parent, p)
+                b = find_root(parent, rr * w + cc)
                 if a != b:
                     if size[a] < size[b]:
                         a, b = b, a
@@ -263,7 +256,7 @@ def _frontier_kernel(known, unobs, min_cells, out, parent, size):
                     size[a] += size[b]
     for r in range(h):
         for c in range(w):
-            if out[r, c] and size[_root(parent, r * w + c)] < min_cells:
+            if out[r, c] and size[find_root(parent, r * w + c)] < min_cells:
                 out[r, c] = False
 
 

@@ -13,6 +13,7 @@ from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
+from envs.maps.union_find import find_root
 from envs.ranges import NonNegative, Positive
 
 
@@ -77,14 +78,6 @@ def parts_per_threshold(dist: np.ndarray, thresholds: np.ndarray, min_pixels: fl
 
 
 @njit(cache=True, nogil=True)
-def _find(parent, a):
-    while parent[a] != a:
-        parent[a] = parent[parent[a]]
-        a = parent[a]
-    return a
-
-
-@njit(cache=True, nogil=True)
 def _parts_sweep(level, order, parent, size, w, n_t, min_pixels):
     """:func:`parts_per_threshold`'s sweep: ``parent`` (the cells 0..H W - 1) and ``size``
     (zeros) are the union-find's, of the cell index type."""
@@ -122,8 +115,8 @@ def _parts_sweep(level, order, parent, size, w, n_t, min_pixels):
                     o = p + 1
                 if not inside[o]:
                     continue
-                a = _find(parent, p)
-                b = _find(parent, o)
+                a = find_root(parent, p)
+                b = find_root(parent, o)
                 if a == b:
                     continue
                 if size[a] >= min_pixels:
