@@ -135,6 +135,131 @@ def test_pose_graph_matches_a_dense_reference_on_a_turning_loop():
     assert ate_rmse(got[:, :2], true[:, :2]) < ate_rmse(dead[:, :2], true[:, :2])
 
 
+def _old_normal_system(states, graph, lam):
+    """The damped normal equations as SciPy formed them before (written out): the COO Jacobian,
+    ``J.T @ J``, ``J.T @ r`` and ``h + diags(...)``."""
+    from scipy.sparse import coo_matrix, diags
+
+    from benchmark.conditions.pose_graph import residuals
+
+    s = np.asarray(states, np.float64)
+    i, j = graph.i, graph.j
+    e_n = len(i)
+    d = s[j, :2] - s[i, :2]
+    c, sn = np.cos(s[i, 2]), np.sin(s[i, 2])
+    rt = np.zeros((e_n, 3, 3))
+    rt[:, 0, 0], rt[:, 0, 1], rt[:, 1, 0], rt[:, 1, 1], rt[:, 2, 2] = c, sn, -sn, c, 1.0
+    ji = -rt.copy()
+    ji[:, 0, 2] = -sn * d[:, 0] + c * d[:, 1]
+    ji[:, 1, 2] = -c * d[:, 0] - sn * d[:, 1]
+    bj = np.einsum("eab,ebc->eac", graph.sqrt_info, rt)
+    bi = np.einsum("eab,ebc->eac", graph.sqrt_info, ji)
+    rows, cols, vals = [], [], []
+    r_idx = 3 * np.arange(e_n)[:, None, None] + np.arange(3)[None, :, None]
+    for node, block in ((j, bj), (i, bi)):
+        c_idx = 3 * (node - 1)[:, None, None] + np.arange(3)[None, None, :]
+        keep = node > 0
+        rr, cc = np.broadcast_arrays(r_idx, c_idx)
+        rows.append(rr[keep].ravel())
+        cols.append(cc[keep].ravel())
+        vals.append(block[keep].ravel())
+    jac = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                     shape=(3 * e_n, 3 * (graph.n - 1))).tocsc()
+    h = (jac.T @ jac).tocsc()
+    g = jac.T @ residuals(s, graph).ravel()
+    a = (h + diags(lam * np.maximum(h.diagonal(), 1e-12))).tocsc()
+    a.sum_duplicates()
+    return a, g
+
+
+def _old_solve(graph, initial, max_iterations=100):
+    """The Levenberg-Marquardt loop before, on :func:`_old_normal_system`."""
+    from scipy.sparse.linalg import spsolve
+
+    from benchmark.conditions.odometry import wrap
+    from benchmark.conditions.pose_graph import residuals
+
+    x = np.asarray(initial, np.float64).reshape(-1, 3).copy()
+    cost = float((residuals(x, graph) ** 2).sum())
+    lam, it = 1e-4, 0
+    while it < max_iterations:
+        it += 1
+        a, g = _old_normal_system(x, graph, lam)
+        step = spsolve(a, -g)
+        trial = x.copy()
+        trial[1:] += step.reshape(-1, 3)
+        trial[:, 2] = wrap(trial[:, 2])
+        new = float((residuals(trial, graph) ** 2).sum())
+        if new <= cost:
+            done = np.abs(step).max() < 1e-9 or cost - new <= 1e-12 * max(cost, 1.0)
+            x, cost, lam = trial, new, max(lam / 10.0, 1e-12)
+            if done:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e12:
+                break
+    return x, cost, it
+
+
+def _random_graphs():
+    """Chains with loop closures (some to node 0), an edge from a node to itself, a node no edge
+    touches, and states with exact zeros (headings of 0: Jacobian entries of exactly 0)."""
+    rng = np.random.default_rng(21)
+    out = []
+    for n, extra, zero in ((40, 8, False), (60, 15, True), (25, 0, False), (12, 30, True)):
+        i = np.r_[np.arange(n - 1), rng.integers(0, n, extra)]
+        j = np.r_[np.arange(1, n), rng.integers(0, n, extra)]
+        if zero:
+            i, j = np.r_[i, 5], np.r_[j, 5]  # a self-loop
+        z = rng.normal(0, 0.5, (len(i), 3))
+        a = rng.normal(0, 1, (len(i), 3, 3))
+        info = np.triu(a) + 3 * np.eye(3)
+        states = rng.normal(0, 2, (n, 3))
+        if zero:
+            states[::3, 2] = 0.0
+            states[1, :2] = states[0, :2]
+        out.append((PoseGraph(n, i, j, z, info), states))
+    g, st = out[0]  # node 39 left without an edge
+    keep = (g.i != 39) & (g.j != 39)
+    out.append((PoseGraph(40, g.i[keep], g.j[keep], g.z[keep], g.sqrt_info[keep]), st))
+    return out
+
+
+def test_normal_equations_are_scipys_bit_for_bit():
+    """The compiled normal equations (benchmark.conditions.pose_graph) against SciPy's sparse
+    products of the COO Jacobian (the code before): the same structure and the same bits."""
+    from scipy.sparse import csc_matrix
+
+    from benchmark.conditions import pose_graph as pg
+
+    zeros = 0
+    for graph, states in _random_graphs():
+        r = pg.residuals(states, graph).ravel()
+        indptr, indices, data, g, diag = pg._normal_equations(
+            *pg._blocks(states, graph), np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64), r,
+            *pg._incidence(graph), graph.n)
+        size = 3 * (graph.n - 1)
+        for lam in (1e-4, 10.0):
+            want, want_g = _old_normal_system(states, graph, lam)
+            at = np.flatnonzero(indices == np.repeat(np.arange(size), np.diff(indptr)))
+            damped = data.copy()
+            damped[at] += lam * np.maximum(diag, 1e-12)
+            got = csc_matrix((damped, indices, indptr), shape=(size, size))
+            assert np.array_equal(got.indptr, want.indptr) and np.array_equal(got.indices, want.indices)
+            assert got.data.tobytes() == want.data.tobytes()
+            assert g.tobytes() == want_g.tobytes()
+        zeros += int((data == 0).sum())
+    assert zeros > 0  # diagonal entries SciPy leaves out (a node no edge touches) are there at 0.0
+
+
+def test_pose_graph_solve_equals_the_scipy_products_bit_for_bit():
+    for graph, states in _random_graphs()[:3] + [_square_graph()]:
+        got, info = solve(graph, states)
+        want, cost, it = _old_solve(graph, states)
+        assert got.tobytes() == want.tobytes() and info["chi2"] == cost and info["iterations"] == it
+
+
 # ----------------------------------------------------------------------------- alignment
 def test_alignment_recovers_a_known_rigid_offset_exactly():
     rng = np.random.default_rng(1)

@@ -18,7 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix, diags
+from numba import njit
+from scipy.sparse import csc_matrix
 from scipy.sparse.linalg import spsolve
 
 from benchmark.conditions.odometry import wrap
@@ -57,8 +58,9 @@ def residuals(states: np.ndarray, graph: PoseGraph) -> np.ndarray:
     return np.einsum("eab,eb->ea", graph.sqrt_info, e)
 
 
-def _jacobian(states: np.ndarray, graph: PoseGraph) -> coo_matrix:
-    """Sparse (3E, 3(n-1)) Jacobian of the whitened residuals over nodes 1..n-1."""
+def _blocks(states: np.ndarray, graph: PoseGraph) -> tuple[np.ndarray, np.ndarray]:
+    """The whitened residuals' Jacobian blocks: ((E, 3, 3) with respect to node j's state,
+    (E, 3, 3) with respect to node i's)."""
     s = np.asarray(states, np.float64)
     i, j = graph.i, graph.j
     e_n = len(i)
@@ -69,19 +71,127 @@ def _jacobian(states: np.ndarray, graph: PoseGraph) -> coo_matrix:
     ji = -rt.copy()
     ji[:, 0, 2] = -sn * d[:, 0] + c * d[:, 1]
     ji[:, 1, 2] = -c * d[:, 0] - sn * d[:, 1]
-    bj = np.einsum("eab,ebc->eac", graph.sqrt_info, rt)
-    bi = np.einsum("eab,ebc->eac", graph.sqrt_info, ji)
-    rows, cols, vals = [], [], []
-    r_idx = 3 * np.arange(e_n)[:, None, None] + np.arange(3)[None, :, None]
-    for node, block in ((j, bj), (i, bi)):
-        c_idx = 3 * (node - 1)[:, None, None] + np.arange(3)[None, None, :]
-        keep = node > 0
-        rr, cc = np.broadcast_arrays(r_idx, c_idx)
-        rows.append(rr[keep].ravel())
-        cols.append(cc[keep].ravel())
-        vals.append(block[keep].ravel())
-    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(3 * e_n, 3 * (graph.n - 1)))
+    return np.einsum("eab,ebc->eac", graph.sqrt_info, rt), np.einsum("eab,ebc->eac", graph.sqrt_info, ji)
+
+
+def _incidence(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per node, the edges that touch it in edge order: (n + 1,) offsets, the edges, and each
+    one's role (1: the node is the edge's j, 2: its i, 3: both)."""
+    i, j = np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64)
+    e = np.arange(len(i))
+    node = np.concatenate([j, i])
+    edge = np.concatenate([e, e])
+    role = np.concatenate([np.full(len(e), 1), np.full(len(e), 2)])
+    order = np.lexsort((edge, node))
+    node, edge, role = node[order], edge[order], role[order]
+    same = np.zeros(len(node), bool)  # an edge from a node to itself: one entry, both roles
+    same[1:] = (node[1:] == node[:-1]) & (edge[1:] == edge[:-1])
+    role[np.flatnonzero(same) - 1] = 3
+    node, edge, role = node[~same], edge[~same], role[~same]
+    offsets = np.searchsorted(node, np.arange(graph.n + 1)).astype(np.int64)
+    return offsets, edge.astype(np.int64), role.astype(np.int64)
+
+
+@njit(cache=True, nogil=True)
+def _normal_equations(bj, bi, ei, ej, r, offsets, edges, roles, n):
+    """The normal equations J^T J, J^T r of the sparse Jacobian over nodes 1..n-1 (column
+    3 (k - 1) + c: node k's state c), as SciPy forms them from the COO Jacobian (``J.T @ J`` by
+    its row-by-row product, ``J.T @ r``), sum for sum in the same order, so the values are its
+    values bit for bit: entry (k, l) adds J[rho, k] J[rho, l] over the rows rho holding both, rho
+    ascending, from 0.0; an entry that comes to exactly 0 is left out except on the diagonal
+    (kept at 0.0, where SciPy adds the damping to a missing entry).
+
+    Returns:
+        (indptr, indices, data, g, diag): J^T J in CSC (indices ascending in each column), J^T r
+        and J^T J's diagonal.
+    """
+    m = 3 * (n - 1)
+    cap = 0  # per column: at most 6 columns per edge touching the node (its two nodes), and the diagonal
+    for k in range(1, n):
+        cap += 3 * (6 * (offsets[k + 1] - offsets[k]) + 1)
+    indptr = np.zeros(m + 1, np.int32)
+    indices = np.empty(cap, np.int32)
+    data = np.empty(cap, np.float64)
+    g = np.zeros(m, np.float64)
+    diag = np.zeros(m, np.float64)
+    sums = np.zeros(m, np.float64)
+    mark = np.full(m, -1, np.int64)
+    touched = np.empty(m, np.int64)
+    w = np.empty(6, np.float64)
+    wc = np.empty(6, np.int64)
+    nnz = 0
+    for k in range(1, n):
+        for c in range(3):
+            col = 3 * (k - 1) + c
+            nt = 0
+            gsum = 0.0
+            for t in range(offsets[k], offsets[k + 1]):
+                e = edges[t]
+                role = roles[t]
+                a_node = ei[e]
+                b_node = ej[e]
+                for a in range(3):
+                    if role == 1:
+                        v = bj[e, a, c]
+                    elif role == 2:
+                        v = bi[e, a, c]
+                    else:
+                        v = bj[e, a, c] + bi[e, a, c]
+                    gsum += v * r[3 * e + a]
+                    # row 3 e + a of J: node i's and node j's columns, ascending
+                    nw = 0
+                    if a_node == b_node:
+                        if a_node > 0:
+                            for d in range(3):
+                                wc[nw] = 3 * (a_node - 1) + d
+                                w[nw] = bj[e, a, d] + bi[e, a, d]
+                                nw += 1
+                    else:
+                        first, second = (a_node, b_node) if a_node < b_node else (b_node, a_node)
+                        for node in (first, second):
+                            if node > 0:
+                                for d in range(3):
+                                    wc[nw] = 3 * (node - 1) + d
+                                    w[nw] = bi[e, a, d] if node == a_node else bj[e, a, d]
+                                    nw += 1
+                    for q in range(nw):
+                        lc = wc[q]
+                        if mark[lc] != col:
+                            mark[lc] = col
+                            sums[lc] = 0.0
+                            touched[nt] = lc
+                            nt += 1
+                        sums[lc] += v * w[q]
+            g[col] = gsum
+            # this column's entries, rows ascending (J^T J is symmetric, value for value)
+            for x in range(1, nt):
+                y = touched[x]
+                z = x - 1
+                while z >= 0 and touched[z] > y:
+                    touched[z + 1] = touched[z]
+                    z -= 1
+                touched[z + 1] = y
+            has_diag = False
+            for x in range(nt):
+                lc = touched[x]
+                if lc == col:
+                    has_diag = True
+                    diag[col] = sums[lc]
+                if sums[lc] != 0.0 or lc == col:
+                    if lc > col and not has_diag:
+                        indices[nnz] = col
+                        data[nnz] = 0.0
+                        nnz += 1
+                        has_diag = True
+                    indices[nnz] = lc
+                    data[nnz] = sums[lc]
+                    nnz += 1
+            if not has_diag:
+                indices[nnz] = col
+                data[nnz] = 0.0
+                nnz += 1
+            indptr[col + 1] = nnz
+    return indptr, indices[:nnz].copy(), data[:nnz].copy(), g, diag
 
 
 def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> tuple[np.ndarray, dict]:
@@ -108,15 +218,21 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
     cost = float((r ** 2).sum())
     lam, converged, it = 1e-4, False, 0
     system = None  # the normal equations at x: made again only when a step is taken
+    incidence = _incidence(graph)
+    ei, ej = np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64)
+    size = 3 * (graph.n - 1)
     while it < max_iterations:
         it += 1
         if system is None:
             r = r.ravel()
-            jac = _jacobian(x, graph).tocsc()
-            h = (jac.T @ jac).tocsc()
-            system = (h, jac.T @ r, h.diagonal())
-        h, g, diag = system
-        step = spsolve((h + diags(lam * np.maximum(diag, 1e-12))).tocsc(), -g)
+            indptr, indices, data, g, diag = _normal_equations(*_blocks(x, graph), ei, ej, r, *incidence, graph.n)
+            # each column's diagonal entry (every column keeps one)
+            at_diag = np.flatnonzero(indices == np.repeat(np.arange(size), np.diff(indptr)))
+            system = (indptr, indices, data, g, diag, at_diag)
+        indptr, indices, data, g, diag, at_diag = system
+        damped = data.copy()
+        damped[at_diag] += lam * np.maximum(diag, 1e-12)  # (the damping is > 0: no entry becomes 0)
+        step = spsolve(csc_matrix((damped, indices, indptr), shape=(size, size)), -g)
         trial = x.copy()
         trial[1:] += step.reshape(-1, 3)
         trial[:, 2] = wrap(trial[:, 2])
