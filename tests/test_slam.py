@@ -236,13 +236,14 @@ def test_normal_equations_are_scipys_bit_for_bit():
     zeros = 0
     for graph, states in _random_graphs():
         r = pg.residuals(states, graph).ravel()
-        indptr, indices, data, g, diag = pg._normal_equations(
+        indptr, indices, data, g, diag, at = pg._normal_equations(
             *pg._blocks(states, graph), np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64), r,
             *pg._incidence(graph), graph.n)
         size = 3 * (graph.n - 1)
         for lam in (1e-4, 10.0):
             want, want_g = _old_normal_system(states, graph, lam)
-            at = np.flatnonzero(indices == np.repeat(np.arange(size), np.diff(indptr)))
+            # each column's diagonal entry, where the kernel says it is
+            assert np.array_equal(at, np.flatnonzero(indices == np.repeat(np.arange(size), np.diff(indptr))))
             damped = data.copy()
             damped[at] += lam * np.maximum(diag, 1e-12)
             got = csc_matrix((damped, indices, indptr), shape=(size, size))

@@ -102,8 +102,8 @@ def _normal_equations(bj, bi, ei, ej, r, offsets, edges, roles, n):
     (kept at 0.0, where SciPy adds the damping to a missing entry).
 
     Returns:
-        (indptr, indices, data, g, diag): J^T J in CSC (indices ascending in each column), J^T r
-        and J^T J's diagonal.
+        (indptr, indices, data, g, diag, at_diag): J^T J in CSC (indices ascending in each
+        column), J^T r, J^T J's diagonal and the index in ``data`` of each column's diagonal entry.
     """
     m = 3 * (n - 1)
     cap = 0  # per column: at most 6 columns per edge touching the node (its two nodes), and the diagonal
@@ -114,6 +114,7 @@ def _normal_equations(bj, bi, ei, ej, r, offsets, edges, roles, n):
     data = np.empty(cap, np.float64)
     g = np.zeros(m, np.float64)
     diag = np.zeros(m, np.float64)
+    at_diag = np.empty(m, np.int64)
     sums = np.zeros(m, np.float64)
     mark = np.full(m, -1, np.int64)
     touched = np.empty(m, np.int64)
@@ -179,19 +180,23 @@ def _normal_equations(bj, bi, ei, ej, r, offsets, edges, roles, n):
                     diag[col] = sums[lc]
                 if sums[lc] != 0.0 or lc == col:
                     if lc > col and not has_diag:
+                        at_diag[col] = nnz
                         indices[nnz] = col
                         data[nnz] = 0.0
                         nnz += 1
                         has_diag = True
+                    if lc == col:
+                        at_diag[col] = nnz
                     indices[nnz] = lc
                     data[nnz] = sums[lc]
                     nnz += 1
             if not has_diag:
+                at_diag[col] = nnz
                 indices[nnz] = col
                 data[nnz] = 0.0
                 nnz += 1
             indptr[col + 1] = nnz
-    return indptr, indices[:nnz].copy(), data[:nnz].copy(), g, diag
+    return indptr, indices[:nnz].copy(), data[:nnz].copy(), g, diag, at_diag
 
 
 def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> tuple[np.ndarray, dict]:
@@ -225,10 +230,7 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
         it += 1
         if system is None:
             r = r.ravel()
-            indptr, indices, data, g, diag = _normal_equations(*_blocks(x, graph), ei, ej, r, *incidence, graph.n)
-            # each column's diagonal entry (every column keeps one)
-            at_diag = np.flatnonzero(indices == np.repeat(np.arange(size), np.diff(indptr)))
-            system = (indptr, indices, data, g, diag, at_diag)
+            system = _normal_equations(*_blocks(x, graph), ei, ej, r, *incidence, graph.n)
         indptr, indices, data, g, diag, at_diag = system
         damped = data.copy()
         damped[at_diag] += lam * np.maximum(diag, 1e-12)  # (the damping is > 0: no entry becomes 0)
