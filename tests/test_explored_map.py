@@ -141,12 +141,13 @@ def test_the_mapping_route_is_explored_once_per_house_and_process(monkeypatch):
     from envs.memo import ByteLRU
 
     monkeypatch.setattr(ex, "_ROUTES", ByteLRU())
-    runs = []
-    real = ex.Frontier.explore
-    monkeypatch.setattr(ex.Frontier, "explore", lambda self, scene: runs.append(scene.house_id) or real(self, scene))
     scene = two_room_scene()
+    want = Frontier(budget=math.inf, spacing=1.0, n_headings=1, heading_spread=0.0).explore(scene).poses
+    runs = []
+    real = ex.Frontier._explore
+    monkeypatch.setattr(ex.Frontier, "_explore",
+                        lambda self, scene, obstacles: runs.append(scene.house_id) or real(self, scene, obstacles))
     first = ex.exploration_route(scene)
-    want = real(Frontier(budget=math.inf, spacing=1.0, n_headings=1, heading_spread=0.0), scene).poses
     assert np.array_equal(first, want) and not first.flags.writeable and len(runs) == 1
     assert np.array_equal(ex.exploration_route(scene), want) and len(runs) == 1
     other = two_room_scene()

@@ -305,10 +305,15 @@ class Frontier:
 
     def explore(self, scene: Scene) -> Exploration:
         """Explore ``scene`` (fast path). Returns :class:`Exploration`."""
+        return self._explore(scene, scan_obstacles(scene, self.scan.height))
+
+    def _explore(self, scene: Scene, obstacles: np.ndarray) -> Exploration:
+        """:meth:`explore` with the scan plane's obstacles (``scan_obstacles(scene,
+        self.scan.height)``) already made."""
         grid = scene.grid
         walk = np.asarray(grid.walkable, bool)
         settings = self.settings_for(scene)
-        mapper = ScanMapper(scan_obstacles(scene, settings.height), grid, settings)
+        mapper = ScanMapper(obstacles, grid, settings)
         r, c, yaw = start_cell(grid, scene.start)
         drive = _Drive(grid, r, c, yaw, self.budget, self.spacing,
                        heading_offsets(self.n_headings, self.heading_spread), mapper, settings.spacing)
@@ -368,10 +373,11 @@ def exploration_route(scene: Scene) -> np.ndarray:
     (``mapping.route: explore``). Deterministic per house: kept per process by a digest of what
     the explorer reads (:data:`ROUTE_MEMO_BYTES`), read-only."""
     explorer = Frontier(budget=math.inf, spacing=ROUTE_SPACING, n_headings=1, heading_spread=0.0)
-    key = _route_key(scene, scan_obstacles(scene, explorer.scan.height))
+    obstacles = scan_obstacles(scene, explorer.scan.height)
+    key = _route_key(scene, obstacles)
     poses = _ROUTES.get(key)
-    if poses is None:
-        poses = np.array(explorer.explore(scene).poses, dtype=np.float64)
+    if poses is None:  # (the obstacles of the key are the explorer's: made once)
+        poses = np.array(explorer._explore(scene, obstacles).poses, dtype=np.float64)
         poses.setflags(write=False)
         _ROUTES.put(key, poses, poses.nbytes + 256, ROUTE_MEMO_BYTES)
     return poses
