@@ -146,7 +146,7 @@ def test_parts_per_threshold_equals_labelling_each_threshold():
     space, with distances that equal thresholds exactly and seed sizes of 1 cell and more."""
     from scipy import ndimage
 
-    from benchmark.segmenters.common import FOUR
+    FOUR = ndimage.generate_binary_structure(2, 1)  # SciPy's cross
     from benchmark.segmenters.distance import parts_per_threshold
 
     rng = np.random.default_rng(3)

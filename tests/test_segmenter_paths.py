@@ -1,6 +1,7 @@
 """The geometric segmenters' fast paths against the code they replaced (written out here):
 the morphological erosion by OpenCV and its seeds numbered at once, the distance transforms by
-:func:`envs.maps.distance.distance_px`, and the distance sweep's cells sorted on 16-bit keys.
+:func:`envs.maps.distance.distance_px`, the parts labelled by
+:func:`envs.maps.components.components`, and the distance sweep's cells sorted on 16-bit keys.
 Same rooms, cell for cell, on the shared ProcTHOR maps, on the same maps with holes and specks
 (clutter), and on cut-outs whose free space runs off the map's edge."""
 
@@ -11,11 +12,13 @@ import pytest
 from scipy import ndimage
 
 from benchmark.segmenters import voronoi as voronoi_mod
-from benchmark.segmenters.common import FOUR, check_area_limits, finish_rooms
+from benchmark.segmenters.common import check_area_limits, finish_rooms
 from benchmark.segmenters.distance import DistanceTransform, parts_per_threshold
 from benchmark.segmenters.morphological import Morphological
 from benchmark.segmenters.voronoi import Voronoi
 from envs.maps.gridmap import GridMap
+
+FOUR = ndimage.generate_binary_structure(2, 1)  # SciPy's cross: the labelling the segmenters had
 
 
 def _morphological_reference(seg: Morphological, grid: GridMap) -> np.ndarray:

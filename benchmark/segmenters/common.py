@@ -41,14 +41,12 @@ eroded free space, much smaller than its room), the second the area of a finishe
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 from skimage.segmentation import watershed
 
+from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 from envs.maps.ids import dense_ids
-
-FOUR = ndimage.generate_binary_structure(2, 1)
 
 
 def grow_seeds(seeds: np.ndarray, walkable: np.ndarray, dist: np.ndarray | None = None) -> np.ndarray:
@@ -58,7 +56,7 @@ def grow_seeds(seeds: np.ndarray, walkable: np.ndarray, dist: np.ndarray | None 
     if dist is None:
         dist = distance_px(walkable)
     lab = watershed(-dist, seeds, mask=walkable, connectivity=1)
-    orphan, n = ndimage.label(walkable & (lab == 0), FOUR)
+    orphan, n = components(walkable & (lab == 0))
     if n:
         lab[orphan > 0] = orphan[orphan > 0] + lab.max()
     out = np.full(walkable.shape, -1, np.int32)
@@ -166,4 +164,4 @@ def finish_rooms(seeds: np.ndarray, grid: GridMap, min_room_area: float, dist: n
     return merge_small_rooms(rooms, grid.walkable, check_room_area(min_room_area) / grid.resolution ** 2)
 
 
-__all__ = ["grow_seeds", "check_area_limits", "check_room_area", "finish_rooms", "merge_small_rooms", "FOUR"]
+__all__ = ["grow_seeds", "check_area_limits", "check_room_area", "finish_rooms", "merge_small_rooms"]

@@ -7,10 +7,10 @@ from typing import Annotated
 
 import numpy as np
 from numba import njit
-from scipy import ndimage
 
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
+from benchmark.segmenters.common import check_area_limits, check_room_area, finish_rooms
+from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 from envs.maps.union_find import find_root
@@ -44,7 +44,7 @@ class DistanceTransform(Segmenter):
         thresholds = np.arange(0.0, dist.max(), max(self.step, grid.resolution))
         # the lowest threshold with the most parts of seed size, then its parts
         t = thresholds[int(np.argmax(parts_per_threshold(dist, thresholds, lo)))]
-        lab, n = ndimage.label(dist > t, FOUR)
+        lab, n = components(dist > t)
         keep = np.nonzero(np.bincount(lab.ravel())[1:] >= lo)[0] + 1
         number = np.zeros(n + 1, np.int32)  # the kept parts numbered 1.. in label order
         number[keep] = np.arange(1, len(keep) + 1)

@@ -7,10 +7,10 @@ from typing import Annotated
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
+from benchmark.segmenters.common import check_area_limits, check_room_area, finish_rooms
+from envs.maps.components import components
 from envs.maps.gridmap import GridMap
 from envs.ranges import NonNegative, Positive
 
@@ -35,12 +35,12 @@ class Morphological(Segmenter):
         """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
         lo, hi = check_area_limits(grid, self.min_seed_area, self.max_area)
         work = grid.walkable.copy()
-        prev, _ = ndimage.label(work, FOUR)
+        prev, _ = components(work)
         seeds = np.zeros(grid.shape, np.int32)
         square = np.ones((3, 3), np.uint8)
         k = 0
         while work.any():
-            lab, n = ndimage.label(work, FOUR)
+            lab, n = components(work)
             # each part lies inside one part of the step before (the free space only shrinks):
             # any of its cells names that parent (the background's entry is never read)
             parent = np.zeros(n + 1, np.int64)

@@ -11,7 +11,8 @@ from skimage.draw import line as draw_line
 from skimage.morphology import skeletonize
 
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import FOUR, check_area_limits, check_room_area, finish_rooms
+from benchmark.segmenters.common import check_area_limits, check_room_area, finish_rooms
+from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
 from envs.ranges import Between, NonNegative, Positive
@@ -54,7 +55,7 @@ class Voronoi(Segmenter):
         # a narrowing on a plain stretch of the skeleton (two neighbours: not a junction or a tip)
         cand = (skel & (nbrs == 2) & (dist <= local_min) & (dist * grid.resolution <= self.max_door / 2)
                 & (local_max >= dist * self.widening))
-        lab, n = ndimage.label(cand, np.ones((3, 3), bool))
+        lab, n = components(cand, 8)
         pts = []
         for sl, i in zip(ndimage.find_objects(lab), range(1, n + 1)):
             rr, cc = np.nonzero(lab[sl] == i)
@@ -98,5 +99,5 @@ class Voronoi(Segmenter):
                 rr, cc = draw_line(*a, *b)
                 ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
                 cut[rr[ok], cc[ok]] = False
-        seeds, _ = ndimage.label(cut, FOUR)  # every part of the cut free space is a seed
+        seeds, _ = components(cut)  # every part of the cut free space is a seed
         return finish_rooms(seeds.astype(np.int32), grid, self.min_room_area)
