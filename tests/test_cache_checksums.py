@@ -304,3 +304,39 @@ def test_a_classification_that_disagrees_with_its_render_is_recomputed(tmp_path,
     warned = "\n".join(r.getMessage() for r in caplog.records if r.levelno == logging.WARNING)
     assert f"{pipe.entry('classify', h0)}: bad cache entry, recomputing it (BadEntry: poses differ from the render's)" in warned
     assert "refused views, but the render has" in warned and str(pipe.entry("classify", h1)) in warned
+
+
+def test_a_process_reads_each_classification_once_and_a_rewritten_one_again(tmp_path, monkeypatch):
+    """Every method of every robot condition on one render and classifier uses the same classify
+    entry: a process keeps it as read (read-only) and each job checks it again; an entry
+    written anew is read anew, and the rows are those of a process that kept nothing."""
+    from benchmark.harness import pipeline as pl
+    from envs.atomic import atomic_write_bytes
+
+    monkeypatch.setattr(pl, "_CLASSIFIED_MEMO", pl.ByteLRU())
+    reads: list[str] = []
+    real = pl.load_npz
+    monkeypatch.setattr(pl, "load_npz", lambda p: (reads.append(str(p)) if "/classify/" in str(p) else None) or real(p))
+    base = ["run.workers=1", "aggregator=vision_cone"]
+    cfg, ch = _cfg(tmp_path, *base)
+    run(cfg, tmp_path / "cone", ch)  # computes the classifications (nothing read)
+    pipe = build_pipeline(cfg, ch)
+    ids = [pipe.entry("classify", h) for h in pipe.env.house_ids()[:3]]
+    assert reads == []
+    cfg, ch = _cfg(tmp_path, "run.workers=1", "aggregator=graph_knn")
+    knn = run(cfg, tmp_path / "knn", ch)
+    assert sorted(reads) == sorted(map(str, ids))  # read once each ...
+    reads.clear()
+    cfg, ch = _cfg(tmp_path, "run.workers=1", "aggregator=euclidean_knn")
+    run(cfg, tmp_path / "eu", ch)
+    assert reads == []  # ... and kept
+    assert all(not a.flags.writeable for z in pl._CLASSIFIED_MEMO.values() for a in z.values())
+    atomic_write_bytes(ids[1], ids[1].read_bytes())  # the same bytes, another file
+    cfg, ch = _cfg(tmp_path, "run.workers=1", "aggregator=graph_knn", "run.force=[score]")
+    again = run(cfg, tmp_path / "knn", ch)
+    assert reads == [str(ids[1])]
+    monkeypatch.setattr(pl, "_CLASSIFIED_MEMO", pl.ByteLRU())
+    cfg, ch = _cfg(tmp_path, "run.workers=1", "aggregator=graph_knn", "run.force=[score]")
+    alone = run(cfg, tmp_path / "knn", ch)
+    pd.testing.assert_frame_equal(knn[METRICS], again[METRICS])
+    pd.testing.assert_frame_equal(knn[METRICS], alone[METRICS])

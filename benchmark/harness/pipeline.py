@@ -57,6 +57,7 @@ from benchmark.harness.run_settings import STAGES
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
 from benchmark.view_accuracy import seen_accuracy, true_labels, view_accuracy
+from envs.atomic import file_identity
 from envs.datasets.base import Environment
 from envs.memo import ByteLRU
 from envs.render.base import Renderer
@@ -113,6 +114,35 @@ def scene_cache_limit() -> int:
     if not mb >= 0:
         raise ValueError(f"ROOMSEG_SCENE_CACHE_MB={raw!r}: expected a number of MiB >= 0")
     return int(mb * 2**20)
+#: bytes of classify entries one process keeps (:data:`_CLASSIFIED_MEMO`; a house's views and
+#: their class probabilities: about 25 kB)
+CLASSIFIED_MEMO_BYTES = 32 * 2**20
+#: kept per process, read-only: (classify entry path, identity of the file) -> its arrays as
+#: read (:func:`classify_arrays`). Every method of every robot condition on one render and
+#: classifier uses the same entry; each job still checks what it gets against its classes and
+#: its render's views. A rewritten entry (atomic renames: another file) has another identity.
+_CLASSIFIED_MEMO = ByteLRU()
+
+
+def classify_arrays(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of the classify entry at ``path`` (:func:`benchmark.harness.cache.load_npz`:
+    its checksum checked), read once per process and file (:data:`_CLASSIFIED_MEMO`): read-only.
+
+    Raises:
+        FileNotFoundError, ChecksumError: as :func:`load_npz`."""
+    ident = file_identity(path)  # the file as it is before the read (see _render_table)
+    key = (str(path), ident)
+    kept = _CLASSIFIED_MEMO.get(key) if ident is not None else None
+    if kept is not None:
+        return kept
+    z = load_npz(path)
+    if ident is not None:
+        for a in z.values():
+            a.setflags(write=False)
+        _CLASSIFIED_MEMO.put(key, z, sum(a.nbytes for a in z.values()) + 1024, CLASSIFIED_MEMO_BYTES)
+    return z
+
+
 #: house content hashes kept per process, like scenes: (env key, house id) -> hex string.
 _HOUSE_CONTENTS: dict[tuple[str, str], str] = {}
 
@@ -577,13 +607,15 @@ class _HouseCache:
         pipe, hid = self.pipe, self.hid
 
         def load(path: Path) -> method.Classified:
-            z = load_npz(path)
+            z = classify_arrays(path)
             render = pipe.entry("render", hid)
             views = pipe._render_table(hid) if render_cache.is_complete(render) else None
             poses, proba, n_refused = check_classified(z, len(pipe.classes) if pipe.classes is not None else None,
                                                        views)
             check_poses(poses, self.scene)
-            return method.Classified(poses, proba, n_refused, seen=check_seen(z, len(poses), proba.shape[1]))
+            seen = check_seen(z, len(poses), proba.shape[1])
+            # the job's own arrays (those kept per process are read-only)
+            return method.Classified(poses.copy(), proba, n_refused, seen=None if seen is None else seen.copy())
 
         def compute_seen() -> method.Classified:
             c = compute()
