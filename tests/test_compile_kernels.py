@@ -91,14 +91,82 @@ def test_measure_out_writes_the_table_under_a_measured_line(tmp_path, monkeypatc
 
     records = iter([COLD, WARM])
     monkeypatch.setattr(ck, "_measure_once", lambda cache_dir: next(records))
+    commands = iter([9.0, 1.5])
+    monkeypatch.setattr(ck, "_command_seconds", lambda cache_dir, processes: next(commands))
     out = tmp_path / "pub" / "compile.md"
-    assert ck.main(["--measure", "--out", str(out)]) == 0
+    assert ck.main(["--measure", "--processes", "3", "--out", str(out)]) == 0
     text = out.read_text()
     head, rest = text.split("\n\n", 1)
     assert head.startswith("Measured on ") and head.endswith(
-        f"by `python -m benchmark.commands.compile_kernels --measure --out {out}`.")
-    assert rest == ck.measure_table(COLD, WARM) + "\n"
+        f"by `python -m benchmark.commands.compile_kernels --measure --processes 3 --out {out}`.")
+    assert rest == ck.measure_table(COLD, WARM, {"processes": 3, "cold": 9.0, "warm": 1.5}) + "\n"
+    assert "| the command as `make setup` runs it (stages shared among 3 processes) | 9.00 | 1.50 |" in rest
     with pytest.raises(SystemExit) as e:
         ck.main(["--out", str(out)])
     assert e.value.code == 2
     assert f"--out {out}: only with --measure" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_warm_up_shared_among_processes_fills_the_cache_one_process_would(tmp_path):
+    """``make setup``'s warm-up, its stages shared among 2 processes, leaves nothing for the
+    whole warm-up in one process to compile: every stage was run by one of them."""
+    cache = tmp_path / "numba-cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    p = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--processes", "2"], env=env,
+                       cwd=ROOT, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert " on 2 processes (" in p.stdout
+    before = _cache_files(cache)
+    assert before
+    one = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--child"], env=env, cwd=ROOT,
+                         capture_output=True, text=True)
+    assert one.returncode == 0, one.stderr
+    assert _cache_files(cache) == before
+
+
+def test_warm_parts_share_out_every_stage_once(monkeypatch):
+    from benchmark.commands import compile_kernels as ck
+
+    ran: list[str] = []
+    names = [f"stage {i}" for i in range(7)]
+    monkeypatch.setattr(ck, "stages", lambda: [(n, lambda n=n: ran.append(n)) for n in names])
+    for n in (1, 2, 3, 8):
+        ran.clear()
+        took = [ck.warm(part=(i, n)) for i in range(n)]
+        assert sorted(ran) == sorted(names) and len(ran) == len(names)  # each stage once, by one part
+        assert all(set(t) - {"setup (house, autotrace)"} <= set(names) for t in took)
+
+
+def test_a_failed_process_fails_the_shared_warm_up_and_an_interrupt_stops_the_others(monkeypatch):
+    import time as _time
+
+    from benchmark.commands import compile_kernels as ck
+
+    real_popen = subprocess.Popen
+    started: list[subprocess.Popen] = []
+
+    def popen(script):
+        def start(cmd, **kw):
+            started.append(real_popen([sys.executable, "-c", script], **kw))
+            return started[-1]
+        return start
+
+    monkeypatch.setattr(ck, "warm", lambda part=(0, 1): {})
+    monkeypatch.setattr(ck.subprocess, "Popen", popen("import sys; sys.stderr.write('stage boom'); sys.exit(3)"))
+    with pytest.raises(RuntimeError, match=r"part 1/2 exited 3: stage boom"):
+        ck.warm_shared(2)
+    assert ck.main(["--processes", "2"]) == 1  # the command says so and fails
+    assert ck.warm_shared(1) == 1 and len(started) == 2  # one process: no other started
+
+    def interrupted(part=(0, 1)):
+        raise KeyboardInterrupt
+
+    started.clear()
+    monkeypatch.setattr(ck, "warm", interrupted)
+    monkeypatch.setattr(ck.subprocess, "Popen", popen("import time; time.sleep(60)"))
+    t = _time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        ck.warm_shared(3)
+    assert len(started) == 2 and all(p.returncode is not None for p in started)  # stopped, not left running
+    assert _time.monotonic() - t < 30

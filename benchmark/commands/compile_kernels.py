@@ -11,10 +11,17 @@ kernel is compiled (or loaded) with exactly the signature a run needs:
     python -m benchmark.commands.compile_kernels            # compile into numba's cache
     python -m benchmark.commands.compile_kernels --measure  # the options, timed (below)
 
+The stages are shared out, in turn, among as many processes as the cores this process may use
+(at most :data:`MAX_PROCESSES`; ``--processes N`` sets it): each compiles its own share into the
+same cache (numba writes each kernel's files apart, by renaming them into place), so on 2 cores
+the warm-up takes about half the wall time. A process that fails makes the command fail with its
+message; Ctrl-C stops them all.
+
 ``--measure`` runs the warm-up in fresh processes and prints, per stage, the seconds with
 an empty cache (a temporary ``NUMBA_CACHE_DIR``: what a fresh clone pays) and with the
-cache filled (what every run after ``make setup`` pays), and how many signatures the kernels
-were compiled for (each one is a separate compile). Nothing
+cache filled (what every run after ``make setup`` pays), how many signatures the kernels
+were compiled for (each one is a separate compile), and the wall time of the whole command
+as ``make setup`` runs it (its processes side by side) with an empty cache. Nothing
 outside the temporary folder is written by ``--measure`` but the table to ``--out`` (under a line
 saying when, where and by which command it was measured: ``make compile-publish`` writes
 ``results/published/compile_kernels.md``, which docs/sweeps-and-clusters.md includes).
@@ -37,6 +44,10 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+
+#: the most processes the warm-up is shared among (about 15 stages: beyond a few, each process's
+#: start, imports and house cost more than its share of compiling)
+MAX_PROCESSES = 4
 
 #: packages whose modules hold kernels (algorithm modules only: commands hold none)
 PACKAGES = ("envs", "benchmark")
@@ -122,16 +133,52 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     ]
 
 
-def warm() -> dict[str, float]:
-    """Run every stage once; return the seconds each took (compile or cache load included)."""
+def warm(part: tuple[int, int] = (0, 1)) -> dict[str, float]:
+    """Run every stage once (``part`` = (i, n): only stages i, i + n, i + 2n, ... of
+    :func:`stages`); return the seconds each took (compile or cache load included)."""
+    i, n = part
     t0 = time.perf_counter()
-    todo = stages()
+    todo = stages()[i::n]
     took = {"setup (house, autotrace)": time.perf_counter() - t0}
     for name, call in todo:
         t = time.perf_counter()
         call()
         took[name] = time.perf_counter() - t
     return took
+
+
+def warm_shared(processes: int) -> int:
+    """:func:`warm`, its stages shared out among ``processes`` processes (this one and the others
+    it starts, ``--part i/n``) that compile into the same cache side by side.
+
+    Returns:
+        The number of processes used (1: all in this one).
+
+    Raises:
+        RuntimeError: a process failed (its exit status and the end of its error output).
+    """
+    n = max(1, int(processes))
+    if n == 1:
+        warm()
+        return 1
+    cmd = [sys.executable, "-m", "benchmark.commands.compile_kernels", "--part"]
+    others = [subprocess.Popen([*cmd, f"{i}/{n}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+              for i in range(1, n)]
+    try:
+        warm(part=(0, n))
+    except BaseException:  # Ctrl-C or a failed stage here: the others stop too
+        for p in others:
+            p.kill()
+            p.communicate()
+        raise
+    failed = []
+    for i, p in enumerate(others, 1):
+        _, err = p.communicate()
+        if p.returncode != 0:
+            failed.append(f"part {i}/{n} exited {p.returncode}: {err.strip()[-1500:]}")
+    if failed:
+        raise RuntimeError("the kernel warm-up failed in another process: " + "; ".join(failed))
+    return n
 
 
 def _child() -> None:
@@ -156,25 +203,44 @@ def _measure_once(cache_dir: str) -> dict:
     return res
 
 
-def measure() -> str:
-    """The warm-up timed in fresh processes, empty cache then filled cache (a table)."""
+def _command_seconds(cache_dir: str, processes: int) -> float:
+    """Wall seconds of the warm-up command as ``make setup`` runs it, on ``processes`` processes."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--processes", str(processes)],
+                       env=env, capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"the warm-up command failed (exit {p.returncode}): {p.stderr.strip()[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def measure(processes: int) -> str:
+    """The warm-up timed in fresh processes, empty cache then filled cache, stage by stage in one
+    process, then the whole command on ``processes`` processes (a table)."""
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as d:
         cold = _measure_once(d)
         warm_ = _measure_once(d)
-    return measure_table(cold, warm_)
+    with tempfile.TemporaryDirectory(prefix="numba-cache-") as d:
+        shared = {"processes": processes, "cold": _command_seconds(d, processes),
+                  "warm": _command_seconds(d, processes)}
+    return measure_table(cold, warm_, shared)
 
 
-def measure_table(cold: dict, warm_: dict) -> str:
+def measure_table(cold: dict, warm_: dict, shared: dict | None = None) -> str:
     """The Markdown table of two warm-up processes' records (``{"stages": {name: seconds},
     "process": seconds, "signatures": {kernel: count}}``; ``cold`` with an empty numba cache,
-    ``warm_`` with it filled): seconds per stage, their sums, the whole processes, then a line on
-    the kernels and their signatures as ``cold`` compiled them."""
+    ``warm_`` with it filled): seconds per stage, their sums, the whole processes, then (``shared``:
+    ``{"processes": n, "cold": s, "warm": s}``) the whole command with its stages shared among n
+    processes, then a line on the kernels and their signatures as ``cold`` compiled them."""
     lines = ["| stage | empty numba cache (s) | filled cache (s) |", "|---|---:|---:|"]
     for k in cold["stages"]:
         lines.append(f"| {k} | {cold['stages'][k]:.2f} | {warm_['stages'][k]:.2f} |")
     tc, tw = sum(cold["stages"].values()), sum(warm_["stages"].values())
     lines.append(f"| **all stages** | **{tc:.2f}** | **{tw:.2f}** |")
     lines.append(f"| whole process (python start, imports, stages) | {cold['process']:.2f} | {warm_['process']:.2f} |")
+    if shared is not None:
+        lines.append(f"| the command as `make setup` runs it (stages shared among {shared['processes']} processes) "
+                     f"| {shared['cold']:.2f} | {shared['warm']:.2f} |")
     sigs = cold["signatures"]  # as compiled (a kernel loaded from the cache lists none)
     multi = {k: v for k, v in sigs.items() if v > 1}
     inner = sorted(k for k, v in sigs.items() if v == 0)
@@ -194,15 +260,29 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None,
                     help="with --measure: also write the table here (Markdown, under a line with the date, machine, "
                          "commit and command)")
+    ap.add_argument("--processes", type=int, default=None,
+                    help=f"processes the stages are shared among (default: the cores this process may use, at most "
+                         f"{MAX_PROCESSES})")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--part", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         _child()
         return 0
+    if a.part is not None:  # one share of warm_shared's stages: "i/n"
+        i, n = (int(x) for x in a.part.split("/"))
+        warm(part=(i, n))
+        return 0
+    if a.processes is not None and a.processes < 1:
+        ap.error(f"--processes {a.processes}: expected a number of processes >= 1")
+    if a.processes is None:
+        from benchmark.harness.processes import available_cores
+
+        a.processes = min(available_cores(), MAX_PROCESSES)
     if a.out is not None and not a.measure:
         ap.error(f"--out {a.out}: only with --measure (expected --measure --out FILE)")
     if a.measure:
-        text = measure()
+        text = measure(a.processes)
         print(text)
         if a.out is not None:
             from benchmark.reports.published import write_measured
@@ -210,9 +290,13 @@ def main(argv: list[str] | None = None) -> int:
             write_measured(a.out, "benchmark.commands.compile_kernels", argv, text)
         return 0
     t0 = time.perf_counter()
-    warm()
-    print(f"numba kernels compiled into the cache in {time.perf_counter() - t0:.1f} s "
-          f"({len(kernels())} kernels; a first run now loads them instead of compiling)")
+    try:
+        n = warm_shared(a.processes)
+    except RuntimeError as e:
+        print(f"compile_kernels: {e}", file=sys.stderr)
+        return 1
+    print(f"numba kernels compiled into the cache in {time.perf_counter() - t0:.1f} s on {n} process"
+          f"{'es' if n > 1 else ''} ({len(kernels())} kernels; a first run now loads them instead of compiling)")
     return 0
 
 
