@@ -117,6 +117,12 @@ def test_the_warm_up_shared_among_processes_fills_the_cache_one_process_would(tm
                        cwd=ROOT, capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     assert " on 2 processes (" in p.stdout
+    from benchmark.commands.compile_kernels import stages
+
+    every = [name for name, _ in stages()]
+    # the two processes' stages (the command's line names their counts): together every stage, once
+    counts = p.stdout.split(" on 2 processes (", 1)[1].split(" stages;", 1)[0].split(" + ")
+    assert sum(int(c) for c in counts) == len(every) and len(counts) == 2
     before = _cache_files(cache)
     assert before
     one = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--child"], env=env, cwd=ROOT,
@@ -125,17 +131,30 @@ def test_the_warm_up_shared_among_processes_fills_the_cache_one_process_would(tm
     assert _cache_files(cache) == before
 
 
-def test_warm_parts_share_out_every_stage_once(monkeypatch):
+def test_processes_sharing_a_warm_up_run_every_stage_once(tmp_path, monkeypatch):
     from benchmark.commands import compile_kernels as ck
 
-    ran: list[str] = []
+    ran: list[tuple[int, str]] = []
     names = [f"stage {i}" for i in range(7)]
-    monkeypatch.setattr(ck, "stages", lambda: [(n, lambda n=n: ran.append(n)) for n in names])
-    for n in (1, 2, 3, 8):
-        ran.clear()
-        took = [ck.warm(part=(i, n)) for i in range(n)]
-        assert sorted(ran) == sorted(names) and len(ran) == len(names)  # each stage once, by one part
-        assert all(set(t) - {"setup (house, autotrace)"} <= set(names) for t in took)
+    who = [0]
+
+    def stage(n):
+        ran.append((who[0], n))
+        if n == "stage 0":  # while the first process compiles this, the second takes the next ones
+            who[0] = 1
+            assert [n for _, n in ran] == ["stage 0"]
+            took.append(ck.warm(tmp_path))
+            who[0] = 0
+
+    monkeypatch.setattr(ck, "stages", lambda: [(n, lambda n=n: stage(n)) for n in names])
+    took: list[dict] = []
+    took.append(ck.warm(tmp_path))
+    assert sorted(n for _, n in ran) == names  # each stage once, by the process that claimed it
+    assert ran == [(0, "stage 0"), *((1, n) for n in names[1:])]
+    assert set(took[0]) == {"setup (house, autotrace)", *names[1:]} and set(took[1]) == {"setup (house, autotrace)", "stage 0"}
+    ran.clear()
+    ck.warm()  # without claims: every stage, here
+    assert [n for _, n in ran] == names
 
 
 def test_a_failed_process_fails_the_shared_warm_up_and_an_interrupt_stops_the_others(monkeypatch):
@@ -152,14 +171,16 @@ def test_a_failed_process_fails_the_shared_warm_up_and_an_interrupt_stops_the_ot
             return started[-1]
         return start
 
-    monkeypatch.setattr(ck, "warm", lambda part=(0, 1): {})
+    monkeypatch.setattr(ck, "warm", lambda claims=None: {"setup (house, autotrace)": 0.1})
     monkeypatch.setattr(ck.subprocess, "Popen", popen("import sys; sys.stderr.write('stage boom'); sys.exit(3)"))
-    with pytest.raises(RuntimeError, match=r"part 1/2 exited 3: stage boom"):
+    with pytest.raises(RuntimeError, match=r"process 2 of 2 exited 3: stage boom"):
         ck.warm_shared(2)
     assert ck.main(["--processes", "2"]) == 1  # the command says so and fails
-    assert ck.warm_shared(1) == 1 and len(started) == 2  # one process: no other started
+    assert ck.warm_shared(1) == [[]] and len(started) == 2  # one process: no other started
+    monkeypatch.setattr(ck.subprocess, "Popen", popen("print('compiling'); print('[' + chr(34) + 'scan map' + chr(34) + ']')"))
+    assert ck.warm_shared(2) == [[], ["scan map"]]  # each process's stages, this one's first
 
-    def interrupted(part=(0, 1)):
+    def interrupted(claims=None):
         raise KeyboardInterrupt
 
     started.clear()

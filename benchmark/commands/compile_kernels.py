@@ -11,11 +11,11 @@ kernel is compiled (or loaded) with exactly the signature a run needs:
     python -m benchmark.commands.compile_kernels            # compile into numba's cache
     python -m benchmark.commands.compile_kernels --measure  # the options, timed (below)
 
-The stages are shared out, in turn, among as many processes as the cores this process may use
-(at most :data:`MAX_PROCESSES`; ``--processes N`` sets it): each compiles its own share into the
-same cache (numba writes each kernel's files apart, by renaming them into place), so on 2 cores
-the warm-up takes about half the wall time. A process that fails makes the command fail with its
-message; Ctrl-C stops them all.
+The stages are shared among as many processes as the cores this process may use (at most
+:data:`MAX_PROCESSES`; ``--processes N`` sets it): each takes the next stage no other has taken
+(a work queue: a file per stage, created by the first to claim it) and compiles it into the same
+cache (numba writes each kernel's files apart, by renaming them into place). A process that
+fails makes the command fail with its message; Ctrl-C stops them all.
 
 ``--measure`` runs the warm-up in fresh processes and prints, per stage, the seconds with
 an empty cache (a temporary ``NUMBA_CACHE_DIR``: what a fresh clone pays) and with the
@@ -42,6 +42,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -133,52 +134,73 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     ]
 
 
-def warm(part: tuple[int, int] = (0, 1)) -> dict[str, float]:
-    """Run every stage once (``part`` = (i, n): only stages i, i + n, i + 2n, ... of
-    :func:`stages`); return the seconds each took (compile or cache load included)."""
-    i, n = part
+def warm(claims: Path | None = None) -> dict[str, float]:
+    """Run every stage once; return the seconds each took (compile or cache load included).
+
+    Args:
+        claims: a folder shared by the processes of :func:`warm_shared`: a stage is run only by
+            the process that claims it first there (None: every stage, here)."""
     t0 = time.perf_counter()
-    todo = stages()[i::n]
+    todo = stages()
     took = {"setup (house, autotrace)": time.perf_counter() - t0}
-    for name, call in todo:
+    for i, (name, call) in enumerate(todo):
+        if claims is not None and not _claim(claims, i):
+            continue
         t = time.perf_counter()
         call()
         took[name] = time.perf_counter() - t
     return took
 
 
-def warm_shared(processes: int) -> int:
-    """:func:`warm`, its stages shared out among ``processes`` processes (this one and the others
-    it starts, ``--part i/n``) that compile into the same cache side by side.
+def _claim(claims: Path, i: int) -> bool:
+    """Claim stage ``i`` in ``claims``: True for the one process whose file is created first."""
+    try:
+        os.close(os.open(claims / f"stage-{i}", os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    except FileExistsError:
+        return False
+    return True
+
+
+def warm_shared(processes: int) -> list[list[str]]:
+    """:func:`warm`, its stages shared among ``processes`` processes (this one and the others it
+    starts, ``--claims DIR``) that each take the next stage none has taken and compile into the
+    same cache side by side.
 
     Returns:
-        The number of processes used (1: all in this one).
+        The stages each process ran (this one's first).
 
     Raises:
         RuntimeError: a process failed (its exit status and the end of its error output).
     """
     n = max(1, int(processes))
     if n == 1:
-        warm()
-        return 1
-    cmd = [sys.executable, "-m", "benchmark.commands.compile_kernels", "--part"]
-    others = [subprocess.Popen([*cmd, f"{i}/{n}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-              for i in range(1, n)]
-    try:
-        warm(part=(0, n))
-    except BaseException:  # Ctrl-C or a failed stage here: the others stop too
-        for p in others:
-            p.kill()
-            p.communicate()
-        raise
-    failed = []
-    for i, p in enumerate(others, 1):
-        _, err = p.communicate()
-        if p.returncode != 0:
-            failed.append(f"part {i}/{n} exited {p.returncode}: {err.strip()[-1500:]}")
+        return [_ran(warm())]
+    with tempfile.TemporaryDirectory(prefix="roomseg-warm-up-") as claims:
+        cmd = [sys.executable, "-m", "benchmark.commands.compile_kernels", "--claims", claims]
+        others = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                  for _ in range(1, n)]
+        try:
+            ran = [_ran(warm(Path(claims)))]
+        except BaseException:  # Ctrl-C or a failed stage here: the others stop too
+            for p in others:
+                p.kill()
+                p.communicate()
+            raise
+        failed = []
+        for i, p in enumerate(others, 1):
+            out, err = p.communicate()
+            if p.returncode != 0:
+                failed.append(f"process {i + 1} of {n} exited {p.returncode}: {err.strip()[-1500:]}")
+            else:  # its last line: the stages it ran (--claims)
+                ran.append(json.loads(out.strip().splitlines()[-1]))
     if failed:
         raise RuntimeError("the kernel warm-up failed in another process: " + "; ".join(failed))
-    return n
+    return ran
+
+
+def _ran(took: dict[str, float]) -> list[str]:
+    """The stages a :func:`warm` record holds (not its set-up)."""
+    return [k for k in took if k != "setup (house, autotrace)"]
 
 
 def _child() -> None:
@@ -264,14 +286,13 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"processes the stages are shared among (default: the cores this process may use, at most "
                          f"{MAX_PROCESSES})")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
-    ap.add_argument("--part", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--claims", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         _child()
         return 0
-    if a.part is not None:  # one share of warm_shared's stages: "i/n"
-        i, n = (int(x) for x in a.part.split("/"))
-        warm(part=(i, n))
+    if a.claims is not None:  # one of warm_shared's processes: says which stages it ran
+        print(json.dumps(_ran(warm(Path(a.claims)))))
         return 0
     if a.processes is not None and a.processes < 1:
         ap.error(f"--processes {a.processes}: expected a number of processes >= 1")
@@ -291,12 +312,14 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     t0 = time.perf_counter()
     try:
-        n = warm_shared(a.processes)
+        ran = warm_shared(a.processes)
     except RuntimeError as e:
         print(f"compile_kernels: {e}", file=sys.stderr)
         return 1
-    print(f"numba kernels compiled into the cache in {time.perf_counter() - t0:.1f} s on {n} process"
-          f"{'es' if n > 1 else ''} ({len(kernels())} kernels; a first run now loads them instead of compiling)")
+    shares = " + ".join(str(len(r)) for r in ran)
+    print(f"numba kernels compiled into the cache in {time.perf_counter() - t0:.1f} s on {len(ran)} process"
+          f"{'es' if len(ran) > 1 else ''} ({shares} stages; {len(kernels())} kernels; a first run now loads them "
+          f"instead of compiling)")
     return 0
 
 
