@@ -394,8 +394,49 @@ def test_bad_settings_and_views_off_the_route_are_one_line():
         OdometrySlam(alpha3=-1)
     with pytest.raises(ValueError, match=r"pose_error.wrong_closures = 1.5: expected an integer >= 0"):
         OdometrySlam(wrong_closures=1.5)
-    with pytest.raises(ValueError, match="view 0 at"):
+    with pytest.raises(ValueError, match=r"view 0 at \[1.0, 1.0, 1.0\] is not among the robot's route poses in order"):
         subsequence(np.zeros((2, 3)), np.ones((1, 3)))
+
+
+def _subsequence_before(route: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """The loop before: each pose compared with ``np.array_equal`` (the reference)."""
+    out = np.empty(len(poses), np.int64)
+    k = 0
+    for n, p in enumerate(poses):
+        while k < len(route) and not np.array_equal(route[k], p):
+            k += 1
+        if k == len(route):
+            raise ValueError(f"view {n} at {p.tolist()} is not among the robot's route poses in order")
+        out[n] = k
+        k += 1
+    return out
+
+
+def test_subsequence_finds_the_views_as_the_loop_before():
+    """Views kept from a route (refused ones left out), repeated poses (turning in place, the
+    same pose twice), -0.0 against 0.0, NaN (equal to nothing) and views not on the route."""
+    rng = np.random.default_rng(3)
+    for t in range(300):
+        n = int(rng.integers(1, 40))
+        route = np.round(rng.normal(size=(n, 3)), 1)
+        route[rng.random(n) < 0.3] = route[0]  # the same pose again
+        if t % 5 == 0:
+            route[rng.integers(n), 2] = np.nan
+        if t % 7 == 0:
+            route[route == 0.0] = -0.0
+        keep = np.flatnonzero(rng.random(n) < 0.7)
+        poses = route[keep].copy()
+        poses[poses == -0.0] = 0.0 if t % 2 else -0.0
+        if t % 11 == 0 and len(poses):
+            poses[int(rng.integers(len(poses)))] += 5.0  # off the route
+        try:
+            want = _subsequence_before(route, poses)
+        except ValueError as e:
+            with pytest.raises(ValueError) as got:
+                subsequence(route, poses)
+            assert str(got.value) == str(e)
+            continue
+        assert np.array_equal(subsequence(route, poses), want)
 
 
 @pytest.mark.slow

@@ -328,12 +328,14 @@ def subsequence(route: np.ndarray, poses: np.ndarray) -> np.ndarray:
         ValueError: a pose is not in ``route`` after the previous one (one line).
     """
     out = np.empty(len(poses), np.int64)
+    # rows as tuples of Python floats: equal exactly where NumPy's rows are (NaN equals nothing)
+    steps, wanted = [tuple(r) for r in np.asarray(route).tolist()], [tuple(p) for p in np.asarray(poses).tolist()]
     k = 0
-    for n, p in enumerate(poses):
-        while k < len(route) and not np.array_equal(route[k], p):
+    for n, p in enumerate(wanted):
+        while k < len(steps) and steps[k] != p:
             k += 1
-        if k == len(route):
-            raise ValueError(f"view {n} at {p.tolist()} is not among the robot's route poses in order")
+        if k == len(steps):
+            raise ValueError(f"view {n} at {list(p)} is not among the robot's route poses in order")
         out[n] = k
         k += 1
     return out
