@@ -191,3 +191,12 @@ def test_a_failed_process_fails_the_shared_warm_up_and_an_interrupt_stops_the_ot
         ck.warm_shared(3)
     assert len(started) == 2 and all(p.returncode is not None for p in started)  # stopped, not left running
     assert _time.monotonic() - t < 30
+
+
+def test_a_sharing_process_whose_launcher_is_gone_stops_at_once(tmp_path):
+    """A process of the shared warm-up dies with the process that started it: started for a
+    parent that is not its own (already gone), it exits before claiming any stage."""
+    p = subprocess.run([sys.executable, "-m", "benchmark.commands.compile_kernels", "--claims", str(tmp_path),
+                        "--parent", "1"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 1 and p.stdout == ""
+    assert list(tmp_path.iterdir()) == []

@@ -15,7 +15,8 @@ The stages are shared among as many processes as the cores this process may use 
 :data:`MAX_PROCESSES`; ``--processes N`` sets it): each takes the next stage no other has taken
 (a work queue: a file per stage, created by the first to claim it) and compiles it into the same
 cache (numba writes each kernel's files apart, by renaming them into place). A process that
-fails makes the command fail with its message; Ctrl-C stops them all.
+fails makes the command fail with its message; Ctrl-C stops them all, and the others die with
+the launching process if it is killed.
 
 ``--measure`` runs the warm-up in fresh processes and prints, per stage, the seconds with
 an empty cache (a temporary ``NUMBA_CACHE_DIR``: what a fresh clone pays) and with the
@@ -176,7 +177,8 @@ def warm_shared(processes: int) -> list[list[str]]:
     if n == 1:
         return [_ran(warm())]
     with tempfile.TemporaryDirectory(prefix="roomseg-warm-up-") as claims:
-        cmd = [sys.executable, "-m", "benchmark.commands.compile_kernels", "--claims", claims]
+        cmd = [sys.executable, "-m", "benchmark.commands.compile_kernels", "--claims", claims,
+               "--parent", str(os.getpid())]
         others = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
                   for _ in range(1, n)]
         try:
@@ -287,11 +289,16 @@ def main(argv: list[str] | None = None) -> int:
                          f"{MAX_PROCESSES})")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--claims", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--parent", type=int, default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         _child()
         return 0
     if a.claims is not None:  # one of warm_shared's processes: says which stages it ran
+        if a.parent is not None:  # it dies with the launching process, which handles Ctrl-C
+            from benchmark.harness.processes import worker_init
+
+            worker_init(a.parent)
         print(json.dumps(_ran(warm(Path(a.claims)))))
         return 0
     if a.processes is not None and a.processes < 1:
