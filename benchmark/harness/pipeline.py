@@ -114,6 +114,8 @@ def scene_cache_limit() -> int:
     if not mb >= 0:
         raise ValueError(f"ROOMSEG_SCENE_CACHE_MB={raw!r}: expected a number of MiB >= 0")
     return int(mb * 2**20)
+
+
 #: bytes of classify entries one process keeps (:data:`_CLASSIFIED_MEMO`; a house's views and
 #: their class probabilities: about 25 kB)
 CLASSIFIED_MEMO_BYTES = 32 * 2**20
