@@ -52,7 +52,7 @@ from benchmark.harness.entries import (
     check_seen,
     seen_from_render,
 )
-from benchmark.harness.robot_stages import RobotStages
+from benchmark.harness.robot_stages import RobotStages, _read_only
 from benchmark.harness.run_settings import STAGES
 from benchmark.harness.store import CacheStore
 from benchmark.interfaces import Aggregator, Classifier, PostProcessor, Segmenter, Viewpoints
@@ -139,9 +139,7 @@ def classify_arrays(path: Path) -> dict[str, np.ndarray]:
         return kept
     z = load_npz(path)
     if ident is not None:
-        for a in z.values():
-            a.setflags(write=False)
-        _CLASSIFIED_MEMO.put(key, z, sum(a.nbytes for a in z.values()) + 1024, CLASSIFIED_MEMO_BYTES)
+        _CLASSIFIED_MEMO.put(key, z, _read_only(*z.values()) + 1024, CLASSIFIED_MEMO_BYTES)
     return z
 
 
