@@ -200,3 +200,43 @@ def test_a_sharing_process_whose_launcher_is_gone_stops_at_once(tmp_path):
                         "--parent", "1"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode == 1 and p.stdout == ""
     assert list(tmp_path.iterdir()) == []
+
+
+def _sharing_processes(parent: int) -> list[int]:
+    """Pids of the shared warm-up's other processes started by ``parent`` (from /proc)."""
+    found = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                args = (d / "cmdline").read_bytes().split(b"\0")
+            except OSError:
+                continue
+            if b"--claims" in args and b"--parent" in args and args[args.index(b"--parent") + 1] == str(parent).encode():
+                found.append(int(d.name))
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_kill_9_of_the_warm_up_leaves_none_of_its_processes(tmp_path):
+    """``kill -9`` of ``roomseg compile`` while its other processes compile: none is left running."""
+    import signal
+    import time as _time
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))  # empty: seconds of compiling
+    p = subprocess.Popen([sys.executable, "-m", "benchmark.commands.compile_kernels", "--processes", "3"], env=env,
+                         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = _time.monotonic() + 60
+        while len(_sharing_processes(p.pid)) < 2 and _time.monotonic() < deadline and p.poll() is None:
+            _time.sleep(0.05)
+        assert len(_sharing_processes(p.pid)) == 2, "the other processes never started"
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait()
+        deadline = _time.monotonic() + 10
+        while _sharing_processes(p.pid) and _time.monotonic() < deadline:
+            _time.sleep(0.05)
+        assert _sharing_processes(p.pid) == []
+    finally:
+        if p.poll() is None:
+            p.kill()
