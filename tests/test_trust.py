@@ -105,6 +105,67 @@ def test_input_file_named_in_a_stage_config_is_part_of_the_entry(tmp_path, proct
     assert config_inputs(node, "h1")["path"] != got["path"]
 
 
+def _config_inputs_reference(node, house_id):
+    """config_inputs as it was written before its leaves were listed once per pipeline: one
+    walk of the tree per call (shares no code with benchmark.harness.cache)."""
+    import os
+    from pathlib import Path as P
+
+    from benchmark.harness.cache import file_fingerprint
+
+    out = {}
+
+    def walk(v, key):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(x, f"{key}.{k}" if key else str(k))
+        elif isinstance(v, list | tuple):
+            for i, x in enumerate(v):
+                walk(x, f"{key}[{i}]")
+        elif isinstance(v, str) and v not in (".", "..") and ("/" in v or os.sep in v or P(v).suffix != ""):
+            s = v.replace("{house_id}", str(house_id)) if house_id is not None else v
+            if P(s).expanduser().exists():
+                out[key] = file_fingerprint(P(s).expanduser())
+
+    walk(node, "")
+    return dict(sorted(out.items()))
+
+
+def test_a_pipeline_lists_a_config_s_paths_once_and_checks_the_files_for_every_house(tmp_path, monkeypatch):
+    """Pipeline._inputs_of (the path-like strings of a stage config listed once, the files they
+    name fingerprinted per house) gives config_inputs' answer for every house, also after a file
+    is rewritten, created or removed between houses; and config_inputs itself equals the walk
+    it replaced, on a tree with lists, tuples, {house_id} paths, folders, model ids, numbers and a
+    dotted key that repeats a nested one."""
+    from benchmark.harness import cache as cache_mod
+    from benchmark.harness.cache import config_inputs
+    from benchmark.harness.pipeline import Pipeline
+
+    d = tmp_path / "in"
+    (d / "w").mkdir(parents=True)
+    for name, text in {"h1.csv": "a", "h2.csv": "b", "shared.yaml": "s", "w/m.bin": "m"}.items():
+        (d / name).write_text(text)
+    node = {"poses": str(d / "{house_id}.csv"), "model": "facebook/dinov2-large", "k": 5, "ratio": 0.5,
+            "files": [str(d / "shared.yaml"), {"deep": (str(d / "w"), "plain", str(d / "none.txt"))}],
+            "a": {"b": str(d / "shared.yaml")}, "a.b": str(d / "h1.csv"), "dot": ".", "rel": "x.csv"}
+    pipe = Pipeline(env=None, cache_dir=tmp_path / "c", keys={}, names={}, metric_params=None,
+                    inputs={"aggregator": node, "label_noise": None})
+    walks = []
+    real = cache_mod.path_leaves
+    monkeypatch.setattr("benchmark.harness.pipeline.path_leaves", lambda n: walks.append(1) or real(n))
+    for step, hid in enumerate(["h1", "h2", "h3", "h1", "h2"]):
+        if step == 2:
+            (d / "shared.yaml").write_text("changed")
+            (d / "h3.csv").write_text("new")
+        if step == 4:
+            (d / "h2.csv").unlink()
+        want = _config_inputs_reference(node, hid)
+        assert pipe._inputs_of("aggregator", hid) == want == config_inputs(node, hid)
+    assert pipe._inputs_of("label_noise", "h1") == {} == _config_inputs_reference(None, "h1")
+    assert len(walks) == 2  # one listing per group, not one per house
+    assert set(_config_inputs_reference(node, "h1")) == {"poses", "files[0]", "files[1].deep[0]", "a.b"}
+
+
 # ---------------------------------------------------------------- checked cache reads
 @pytest.mark.slow
 def test_bad_cache_entries_are_recomputed_with_a_warning_naming_the_file(tmp_path, procthor_file, caplog):

@@ -115,7 +115,14 @@ def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
     Returns:
         {dotted config key: fingerprint}, sorted by key.
     """
-    out: dict[str, str] = {}
+    return leaf_inputs(path_leaves(node), house_id)
+
+
+def path_leaves(node: Any) -> tuple[tuple[str, str], ...]:
+    """The strings of ``node`` (a plain dict/list tree) that look like paths, with their dotted
+    config keys, sorted by key: what :func:`config_inputs` fingerprints. A job's stage configs
+    do not change, so a pipeline lists them once (:func:`leaf_inputs` checks the files per house)."""
+    out: list[tuple[str, str]] = []
 
     def walk(v: Any, key: str) -> None:
         if isinstance(v, Mapping):
@@ -125,15 +132,23 @@ def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
             for i, x in enumerate(v):
                 walk(x, f"{key}[{i}]")
         elif isinstance(v, str) and _looks_like_path(v):
-            s = v
-            if house_id is not None and "{house_id}" in s:
-                s = s.replace("{house_id}", str(house_id))
-            p = Path(s).expanduser()
-            if p.exists():
-                out[key] = file_fingerprint(p)
+            out.append((key, v))
 
     walk(node, "")
-    return dict(sorted(out.items()))
+    return tuple(sorted(out, key=lambda kv: kv[0]))  # (stable: a repeated key keeps its walk order)
+
+
+def leaf_inputs(leaves: Sequence[tuple[str, str]], house_id: str | None = None) -> dict[str, str]:
+    """{key: fingerprint} of the files ``leaves`` (:func:`path_leaves`) name that exist, with
+    ``{house_id}`` filled in: :func:`config_inputs` of the node they came from."""
+    out: dict[str, str] = {}
+    for key, s in leaves:
+        if house_id is not None and "{house_id}" in s:
+            s = s.replace("{house_id}", str(house_id))
+        p = Path(s).expanduser()
+        if p.exists():
+            out[key] = file_fingerprint(p)
+    return out
 
 
 class EntryBusy(BaseException):

@@ -35,11 +35,12 @@ import numpy as np
 from benchmark import method
 from benchmark.harness.cache import (
     atomic_save_npz,
-    config_inputs,
     content_hash,
     file_fingerprint,
+    leaf_inputs,
     load_npz,
     locked,
+    path_leaves,
     read_entry,
     write_entry,
 )
@@ -243,6 +244,7 @@ class Pipeline(RobotStages):
     env_key: str | None = None
     _stages: dict[str, Any] = field(default_factory=dict, repr=False)
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
+    _leaves: dict[str, tuple[tuple[str, str], ...]] = field(default_factory=dict, repr=False)
     _frames: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
 
     #: the stage groups whose input files feed each cached stage, in order.
@@ -314,14 +316,22 @@ class Pipeline(RobotStages):
             out, acc = {}, house
             for stage, groups in self.CONTENT_STAGES:
                 # groups that are not set (no robot map, no pose error, ...) add nothing
-                files = {g: config_inputs(self.inputs.get(g), hid) for g in groups if self.inputs.get(g) is not None}
+                files = {g: self._inputs_of(g, hid) for g in groups if self.inputs.get(g) is not None}
                 acc = content_hash([acc, stage, files])
                 out[stage] = acc
             if self.inputs.get("mapping") is not None:  # the robot's map: the house, its views, the mapping
-                files = {g: config_inputs(self.inputs.get(g), hid) for g in ("viewpoints", "mapping")}
+                files = {g: self._inputs_of(g, hid) for g in ("viewpoints", "mapping")}
                 out["map"] = content_hash([house, "map", files])
             self._contents[hid] = out
         return self._contents[hid]
+
+    def _inputs_of(self, group: str, hid: str) -> dict[str, str]:
+        """:func:`benchmark.harness.cache.config_inputs` of stage ``group``'s config for house
+        ``hid``: its path-like strings listed once per pipeline (the configs do not change), the
+        files they name checked for each house."""
+        if group not in self._leaves:
+            self._leaves[group] = path_leaves(self.inputs.get(group))
+        return leaf_inputs(self._leaves[group], hid)
 
     def scene(self, hid: str):
         """``env.scene(hid)``; with ``env_key`` set (the runner's key of a shared environment),
