@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from benchmark.paths import CONF_DIR
 
@@ -48,6 +49,67 @@ def register_resolvers() -> None:
         OmegaConf.register_new_resolver("job_dir", job_dirname)
 
 
+#: per process: the text of each YAML config Hydra read -> its parsed content (plain dicts,
+#: lists and scalars), so that composing many jobs parses each config once (:func:`parse_configs_once`)
+_PARSED_CONFIGS: dict[str, Any] = {}
+
+
+class _ConfigsParsedOnce:
+    """``OmegaConf`` as Hydra's config sources (files and packages) see it after
+    :func:`parse_configs_once`: its ``load`` parses each YAML text once per process, everything
+    else is ``OmegaConf``'s."""
+
+    def __getattr__(self, name: str) -> Any:
+        from omegaconf import OmegaConf
+
+        return getattr(OmegaConf, name)
+
+    @staticmethod
+    def load(file_: Any) -> Any:
+        """``OmegaConf.load`` of an open config file: a new config built from the parse of its
+        text (kept by text: an edited file is parsed again). A text that does not parse is
+        handed to ``OmegaConf.load`` itself, so its error is the one Hydra always gave."""
+        import copy
+        import io
+
+        import yaml
+        from omegaconf import OmegaConf
+        from omegaconf._utils import get_yaml_loader
+
+        if isinstance(file_, str | Path) or not callable(getattr(file_, "read", None)):
+            return OmegaConf.load(file_)
+        start = file_.tell()
+        text = file_.read()
+        text = text.decode("utf-8") if isinstance(text, bytes) else text
+        if text not in _PARSED_CONFIGS:
+            try:
+                obj = yaml.load(io.StringIO(text), Loader=get_yaml_loader())
+                parsed = obj is None or isinstance(obj, list | dict | str)
+            except Exception:  # noqa: BLE001 - raised again below, as OmegaConf.load words it
+                parsed = False
+            if not parsed:  # the error as Hydra always gave it (naming the file), outside this handler
+                file_.seek(start)
+                return OmegaConf.load(file_)
+            _PARSED_CONFIGS[text] = obj
+        obj = copy.deepcopy(_PARSED_CONFIGS[text])  # (OmegaConf.create keeps no reference to it)
+        return OmegaConf.create() if obj is None else OmegaConf.create(obj)
+
+
+def parse_configs_once() -> None:
+    """Make Hydra's file and package config sources parse each YAML config once per process
+    (idempotent). Every job of a sweep composes its config from the same files; Hydra parses
+    them again for each (PyYAML in pure Python: about a quarter of a job's composition). The
+    configs built are new objects each time, equal to ``OmegaConf.load``'s (Hydra's
+    composition merges into them). Hydra 1.3's sources read a config with ``OmegaConf.load``
+    of the open file; nothing else changes. Call it after Hydra's plugin scan (it runs those
+    modules again): the sweep launcher does, before each job's composition."""
+    from hydra._internal.core_plugins import file_config_source, importlib_resources_config_source
+
+    for module in (file_config_source, importlib_resources_config_source):
+        if not isinstance(getattr(module, "OmegaConf", None), _ConfigsParsedOnce):
+            module.OmegaConf = _ConfigsParsedOnce()
+
+
 def compose(config_name: str = "config", overrides: Sequence[str] = (), *, hydra: bool = False):
     """``conf/<config_name>.yaml`` composed with Hydra ``overrides`` (``key=value`` strings).
 
@@ -68,6 +130,7 @@ def compose(config_name: str = "config", overrides: Sequence[str] = (), *, hydra
     register_resolvers()
     config_dir, extra = config_location(config_name)
     with initialize_config_dir(config_dir=config_dir, version_base="1.3"):
+        parse_configs_once()  # (after Hydra's plugin scan, which runs its config sources' modules again)
         return hydra_compose(config_name=config_name, overrides=[*extra, *overrides], return_hydra_config=hydra)
 
 
@@ -288,4 +351,4 @@ def build_classifier(model: str, overrides: Sequence[str] = ()):
     return instantiate(cfg.classifier), cfg
 
 
-__all__ = ["build_method", "shapes_map", "MAP_POSE_ERRORS", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]
+__all__ = ["build_method", "shapes_map", "MAP_POSE_ERRORS", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "parse_configs_once", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]

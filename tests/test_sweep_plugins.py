@@ -37,10 +37,17 @@ def app(cfg):
     time.sleep(float(os.environ.get("JOB_SLEEP", "0")))
     out = {"a": OmegaConf.to_container(cfg.a), "b": cfg.get("b"), "n": cfg.n, "pid": os.getpid(), "num": hc.job.num,
            "overrides": sorted(hc.overrides.task), "slot": os.environ.get("ROOMSEG_JOB_SLOT")}
+    if "benchmark.config" in sys.modules:  # the project's app: its YAML parsed once per process
+        from hydra._internal.core_plugins import file_config_source
+        out["source_load"] = type(file_config_source.OmegaConf).__name__
+        out["parsed"] = len(sys.modules["benchmark.config"]._PARSED_CONFIGS)
     (Path(hc.runtime.output_dir) / "job.json").write_text(json.dumps(out))
     return cfg.n
 
 if __name__ == "__main__":
+    if os.environ.get("APP_CONFIG"):
+        sys.path.insert(0, os.environ["APP_CONFIG"])
+        import benchmark.config
     app()
 '''
 
@@ -71,9 +78,9 @@ def _app(tmp_path: Path, sweeper: str) -> Path:
     return tmp_path / "app.py"
 
 
-def _run(app: Path, *args: str) -> subprocess.CompletedProcess:
+def _run(app: Path, *args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(app), "-m", *args], capture_output=True, text=True,
-                          cwd=app.parent, timeout=300)
+                          cwd=app.parent, timeout=300, env=env)
 
 
 def _jobs(tmp_path: Path) -> dict[str, dict]:
@@ -134,6 +141,41 @@ grids:
         assert 1 <= len(pids) <= 2 and "on 2" in r.stderr + r.stdout
         # each worker has its own place among the two (its jobs start on their own houses)
         assert len({s for _, s in slots}) == len(slots) == len(pids) and {s for _, s in slots} <= {"0/2", "1/2"}
+
+
+@pytest.mark.parametrize("launcher", ["hydra.launcher.n_jobs=1", "hydra.launcher.n_jobs=2"])
+def test_the_launcher_has_the_app_s_configs_parsed_once_with_the_same_jobs(tmp_path, launcher):
+    """With the project's app loaded (benchmark.config), every job of a sweep, in the launching
+    process or a forked worker, composes with Hydra's file configs parsed once per process
+    (benchmark.config.parse_configs_once), and gets the configs it gets without: the same jobs
+    and values as the same sweep of an app that does not load it; a config that does not parse
+    fails its job with the same error."""
+    import os
+
+    sweeper = "params:\n  a: x,y,broken\n  n: 1,2\nvalidate: none"
+    runs = {}
+    for name, extra in (("plain", {}), ("app", {"APP_CONFIG": str(ROOT)})):
+        where = tmp_path / name
+        app = _app(where, sweeper)
+        r = _run(app, launcher, env={**os.environ, **extra})
+        assert r.returncode != 0  # the broken option's jobs fail
+        runs[name] = (_jobs(where), r.stderr)
+    plain, app_jobs = runs["plain"][0], runs["app"][0]
+    assert sorted(plain) == sorted(app_jobs) == ["a=x,n=1", "a=x,n=2", "a=y,n=1", "a=y,n=2"]
+    for k, job in app_jobs.items():
+        assert {f: job[f] for f in ("a", "b", "n", "overrides")} == {f: plain[k][f] for f in ("a", "b", "n", "overrides")}
+        assert job["source_load"] == "_ConfigsParsedOnce" and job["parsed"] >= 3
+        assert "source_load" not in plain[k]
+    # the broken config's error as Hydra words it (PyYAML's, naming the file), in both runs
+    import re
+
+    def errors(name):
+        found = re.findall(r'ParserError: (while parsing a flow sequence)\s+in "([^"]+)", line (\d+), column (\d+)\s+'
+                           r"(expected [^\n]+)", runs[name][1])
+        return {(what, str(Path(f).relative_to(tmp_path / name)), line, col, exp) for what, f, line, col, exp in found}
+    assert "<file>" not in runs["app"][1]  # (the once-parse's own error is not chained to it)
+    assert errors("plain") == errors("app") == {("while parsing a flow sequence", "conf/a/broken.yaml", "2", "4",
+                                                  "expected ',' or ']', but got '<stream end>'")}
 
 
 def test_a_job_that_does_not_compose_fails_alone(tmp_path):

@@ -209,6 +209,9 @@ def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
     fewer jobs than ``n_jobs`` run in this process)."""
     assert _SWEEP is not None
     hydra_context, config, task_function, _ = _SWEEP
+    app_config = sys.modules.get("benchmark.config")  # the app's: each YAML config parsed once per process
+    if app_config is not None:
+        app_config.parse_configs_once()
     try:
         cfg = hydra_context.config_loader.load_sweep_config(config, list(overrides))
     except Exception as e:  # noqa: BLE001 - reported as this job's failure
