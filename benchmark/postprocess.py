@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit
 
 from benchmark.interfaces import PostProcessor
-from benchmark.metrics import resample_nearest
+from benchmark.metrics import resample_nearest, segments
 from envs.maps.gridmap import GridMap
 from envs.ranges import Integer, NonNegative, Odd, Positive
 from envs.world.classes import PAPER_CLASSES
@@ -140,15 +140,16 @@ def mode_filter(labels: np.ndarray, walkable: np.ndarray, n_classes: int, window
 
 def remove_small_components(labels: np.ndarray, min_area_px: float, connectivity: int = 4) -> np.ndarray:
     """Step 4: 4- (or 8-) connected regions of one label with fewer than ``min_area_px``
-    pixels become -1."""
+    pixels become -1.
+
+    The regions of every label at once (:func:`benchmark.metrics.segments`, one labelling of
+    the regions of equal value) and their sizes by counting."""
     if connectivity not in (4, 8):
         raise ValueError(f"connectivity must be 4 or 8, got {connectivity}")
     lab = np.array(labels, dtype=np.int32, copy=True)
-    for k in np.unique(lab[lab >= 0]):
-        _, comp, stats, _ = cv2.connectedComponentsWithStats((lab == k).astype(np.uint8), connectivity=connectivity)
-        small = np.nonzero(stats[1:, cv2.CC_STAT_AREA] < min_area_px)[0] + 1
-        if len(small):
-            lab[np.isin(comp, small)] = -1
+    ids = segments(lab, connectivity)  # -1 on unlabelled pixels, regions 0..S-1
+    small = np.append(np.bincount(ids[ids >= 0]) < min_area_px, False)  # (ids -1 -> the last: kept)
+    lab[small[ids]] = -1
     return lab
 
 

@@ -116,6 +116,25 @@ def test_steps_match_slow_references(seed):
                               remove_small_ref(lab, min_px, EIGHT))
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_steps_match_slow_references_with_classes_absent_and_large_ids(seed):
+    """Classes that label no pixel (class 0 among them, and the highest) and fractional area
+    bounds; the small-region step labels every class's regions at once."""
+    rng = np.random.default_rng(100 + seed)
+    lab, walk = random_map(seed, shape=(29, 31), n_classes=3)
+    present = np.array([1, 4, 5]) if seed % 2 else np.array([2, 3, 6])
+    lab = np.where(lab >= 0, present[np.clip(lab, 0, 2)], -1).astype(np.int32)
+    lab[rng.random(lab.shape) < 0.1] = -1
+    for window, iters in [(3, 1), (5, 3)]:
+        assert np.array_equal(mode_filter(lab, walk, 7, window, iters), mode_filter_ref(lab, walk, 7, window, iters))
+    nothing = np.full(lab.shape, -1, np.int32)
+    assert np.array_equal(mode_filter(nothing, walk, 7, 3, 2), nothing)
+    for min_px in (2.5, 5, 12.0):
+        for conn, structure in ((4, None), (8, EIGHT)):
+            assert np.array_equal(remove_small_components(lab, min_px, conn), remove_small_ref(lab, min_px, structure))
+    assert np.array_equal(remove_small_components(nothing, 3), nothing)
+
+
 # ---------------------------------------------------------------- whole pipeline, known answers
 
 
