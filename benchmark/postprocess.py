@@ -92,30 +92,75 @@ def apply_background(labels: np.ndarray, walkable: np.ndarray) -> np.ndarray:
 
 
 def _mode_pass(lab: np.ndarray, n_classes: int, window: int) -> np.ndarray:
-    """One majority pass: per pixel the class with the most pixels in its ``window`` x ``window``
-    neighbourhood (pixels outside the map count as nothing; ties: lower index), or its own
-    label (``lab`` >= 0) when that ties the most.
+    """One majority pass: per labelled pixel (``lab`` >= 0) the class with the most pixels in
+    its ``window`` x ``window`` neighbourhood (pixels outside the map count as nothing; ties:
+    lower index), or its own label when that ties the most; -1 on unlabelled pixels.
 
-    One class at a time: a running best count and its class, and each pixel's count of its own
-    class, so the work arrays are three (H, W) ones whatever the number of classes (not a
-    (C, H, W) stack and its argmax). Counts are whole numbers in float32, exact.
+    Window counts by running sums (:func:`_mode_kernel`): per column, each class's count over
+    the window's rows, updated as the window moves down a row; along a row, their sum over the
+    window's columns, updated as it moves right. Work arrays: (W, C) and (C,) counts.
 
     Returns:
-        (H, W) int32 class indices."""
-    best = np.zeros(lab.shape, np.int32)
-    top = own = None
-    for k in range(n_classes):
-        is_k = lab == k
-        summed = cv2.boxFilter(is_k.astype(np.float32), -1, (window, window), normalize=False,
-                               borderType=cv2.BORDER_CONSTANT)
-        if top is None:
-            top, own = summed, np.zeros(lab.shape, np.float32)
-        else:
-            best[summed > top] = k  # strictly: a tie keeps the lower class
-            np.maximum(top, summed, out=top)
-        own[is_k] = summed[is_k]
-    keep = (lab >= 0) & (own >= top)
-    best[keep] = lab[keep]
+        (H, W) int32 class indices, -1 where ``lab`` < 0."""
+    lab = np.ascontiguousarray(lab, dtype=np.int32)
+    return _mode_kernel(lab, int(n_classes), int(window) // 2)
+
+
+@njit(cache=True, nogil=True)
+def _mode_kernel(lab, n_classes, r):
+    h, w = lab.shape
+    col = np.zeros((w, n_classes), np.int32)  # per column: each class's pixels in rows i - r .. i + r
+    tot = np.zeros(w, np.int32)  # per column: all of them (a column without any adds nothing)
+    cnt = np.zeros(n_classes, np.int32)  # the window's counts
+    best = np.zeros((h, w), np.int32)
+    for a in range(min(r, h - 1) + 1):
+        for j in range(w):
+            k = lab[a, j]
+            if 0 <= k < n_classes:
+                col[j, k] += 1
+                tot[j] += 1
+    for i in range(h):
+        if i > 0:
+            a = i + r
+            if a < h:
+                for j in range(w):
+                    k = lab[a, j]
+                    if 0 <= k < n_classes:
+                        col[j, k] += 1
+                        tot[j] += 1
+            a = i - r - 1
+            if a >= 0:
+                for j in range(w):
+                    k = lab[a, j]
+                    if 0 <= k < n_classes:
+                        col[j, k] -= 1
+                        tot[j] -= 1
+        cnt[:] = 0
+        for b in range(min(r, w - 1) + 1):
+            for k in range(n_classes):
+                cnt[k] += col[b, k]
+        for j in range(w):
+            if j > 0:
+                b = j + r
+                if b < w and tot[b]:
+                    for k in range(n_classes):
+                        cnt[k] += col[b, k]
+                b = j - r - 1
+                if b >= 0 and tot[b]:
+                    for k in range(n_classes):
+                        cnt[k] -= col[b, k]
+            own = lab[i, j]
+            if own < 0:  # unlabelled: not voted on
+                best[i, j] = -1
+                continue
+            top = cnt[0]
+            arg = 0
+            for k in range(1, n_classes):
+                if cnt[k] > top:  # strictly: a tie keeps the lower class
+                    top = cnt[k]
+                    arg = k
+            mine = cnt[own] if own < n_classes else 0  # (a label >= n_classes counts nothing)
+            best[i, j] = own if mine >= top else arg  # its own class when that ties the most
     return best
 
 

@@ -135,6 +135,48 @@ def test_steps_match_slow_references_with_classes_absent_and_large_ids(seed):
     assert np.array_equal(remove_small_components(nothing, 3), nothing)
 
 
+def _mode_pass_per_class(lab, n_classes, window):
+    """The mode pass as it was, one OpenCV box filter per class (written out: shares no code)."""
+    import cv2
+
+    best = np.zeros(lab.shape, np.int32)
+    top = own = None
+    for k in range(n_classes):
+        is_k = lab == k
+        summed = cv2.boxFilter(is_k.astype(np.float32), -1, (window, window), normalize=False,
+                               borderType=cv2.BORDER_CONSTANT)
+        if top is None:
+            top, own = summed, np.zeros(lab.shape, np.float32)
+        else:
+            best[summed > top] = k
+            np.maximum(top, summed, out=top)
+        own[is_k] = summed[is_k]
+    keep = (lab >= 0) & (own >= top)
+    best[keep] = lab[keep]
+    return best
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_mode_pass_equals_one_box_filter_per_class(seed):
+    """The running-sum mode pass against the per-class box filters it replaced, on maps from 1 x 1
+    to 150 x 170 px (thinner than the window too), windows 1 to 9, sparse and dense labels, and
+    labels at n_classes (outside the classes: they count nothing and keep their label only
+    where nothing is counted); unlabelled pixels are not voted on (mode_filter keeps them)."""
+    from benchmark.postprocess import _mode_pass
+
+    rng = np.random.default_rng(seed)
+    shapes = [(1, 1), (1, 9), (9, 1), (2, 3), (37, 41), (150, 170)]
+    for h, w in shapes:
+        for window in (1, 3, 5, 9):
+            for n_classes in (1, 3, 7):
+                lab = rng.integers(-1, n_classes + (1 if seed % 2 else 0), (h, w)).astype(np.int32)
+                lab[rng.random((h, w)) < (0.9 if seed == 4 else 0.2)] = -1
+                got = _mode_pass(lab, n_classes, window)
+                assert got.dtype == np.int32 and (got[lab < 0] == -1).all()  # unlabelled: not voted on
+                want = _mode_pass_per_class(lab, n_classes, window)
+                assert np.array_equal(got[lab >= 0], want[lab >= 0]), (h, w, window, n_classes)
+
+
 # ---------------------------------------------------------------- whole pipeline, known answers
 
 
