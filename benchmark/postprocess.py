@@ -106,49 +106,48 @@ def _mode_pass(lab: np.ndarray, n_classes: int, window: int) -> np.ndarray:
     return _mode_kernel(lab, int(n_classes), int(window) // 2)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _count_row(lab, a, col, tot, n_classes, d):
+    """Add ``d`` (1 or -1) to each column's count of the class of its pixel in row ``a``."""
+    for j in range(lab.shape[1]):
+        k = lab[a, j]
+        if 0 <= k < n_classes:
+            col[j, k] += d
+            tot[j] += d
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _count_column(cnt, col, tot, b, d):
+    """Add ``d`` times column ``b``'s counts to the window's (a column without any adds nothing)."""
+    if tot[b]:
+        for k in range(cnt.shape[0]):
+            cnt[k] += d * col[b, k]
+
+
 @njit(cache=True, nogil=True)
 def _mode_kernel(lab, n_classes, r):
     h, w = lab.shape
     col = np.zeros((w, n_classes), np.int32)  # per column: each class's pixels in rows i - r .. i + r
-    tot = np.zeros(w, np.int32)  # per column: all of them (a column without any adds nothing)
+    tot = np.zeros(w, np.int32)  # per column: all of them
     cnt = np.zeros(n_classes, np.int32)  # the window's counts
     best = np.zeros((h, w), np.int32)
     for a in range(min(r, h - 1) + 1):
-        for j in range(w):
-            k = lab[a, j]
-            if 0 <= k < n_classes:
-                col[j, k] += 1
-                tot[j] += 1
+        _count_row(lab, a, col, tot, n_classes, 1)
     for i in range(h):
         if i > 0:
-            a = i + r
-            if a < h:
-                for j in range(w):
-                    k = lab[a, j]
-                    if 0 <= k < n_classes:
-                        col[j, k] += 1
-                        tot[j] += 1
-            a = i - r - 1
-            if a >= 0:
-                for j in range(w):
-                    k = lab[a, j]
-                    if 0 <= k < n_classes:
-                        col[j, k] -= 1
-                        tot[j] -= 1
+            if i + r < h:
+                _count_row(lab, i + r, col, tot, n_classes, 1)
+            if i - r - 1 >= 0:
+                _count_row(lab, i - r - 1, col, tot, n_classes, -1)
         cnt[:] = 0
         for b in range(min(r, w - 1) + 1):
-            for k in range(n_classes):
-                cnt[k] += col[b, k]
+            _count_column(cnt, col, tot, b, 1)
         for j in range(w):
             if j > 0:
-                b = j + r
-                if b < w and tot[b]:
-                    for k in range(n_classes):
-                        cnt[k] += col[b, k]
-                b = j - r - 1
-                if b >= 0 and tot[b]:
-                    for k in range(n_classes):
-                        cnt[k] -= col[b, k]
+                if j + r < w:
+                    _count_column(cnt, col, tot, j + r, 1)
+                if j - r - 1 >= 0:
+                    _count_column(cnt, col, tot, j - r - 1, -1)
             own = lab[i, j]
             if own < 0:  # unlabelled: not voted on
                 best[i, j] = -1
@@ -174,12 +173,11 @@ def mode_filter(labels: np.ndarray, walkable: np.ndarray, n_classes: int, window
     if iterations < 0:
         raise ValueError(f"mode filter iterations must be >= 0, got {iterations}")
     lab = apply_background(labels, walkable)
-    m = lab >= 0
     for _ in range(iterations):
-        new = _mode_pass(lab, n_classes, window)
-        if np.array_equal(new[m], lab[m]):
+        new = _mode_pass(lab, n_classes, window)  # (-1 where lab is: the labelled pixels stay labelled)
+        if np.array_equal(new, lab):
             break
-        lab[m] = new[m]
+        lab = new
     return lab
 
 
