@@ -37,13 +37,32 @@ METHOD_WORDS = (f"95 % intervals: percentile bootstrap over houses ({N_BOOT} res
                 "differences paired by house")
 
 
+#: resamples kept per process (by ``n``, ``n_boot``, ``seed``): a table draws the same ones for
+#: every cell over the same number of houses; larger ones are drawn again each time.
+RESAMPLES_KEPT = 16
+RESAMPLE_KEEP_BYTES = 16 * 2**20
+_RESAMPLES: dict[tuple[int, int, int], np.ndarray] = {}
+
+
 def resample_indices(n: int, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray:
-    """Bootstrap resamples of ``n`` houses: int array (n_boot, n) of indices into 0..n-1.
+    """Bootstrap resamples of ``n`` houses: int array (n_boot, n) of indices into 0..n-1
+    (read-only: the same array may be returned again).
 
     They depend on ``n`` and ``seed`` only, so two cells over the same sorted houses are
-    resampled alike (a paired comparison of their intervals is consistent)."""
-    rng = np.random.default_rng(seed)
-    return rng.integers(0, n, size=(n_boot, n))
+    resampled alike (a paired comparison of their intervals is consistent). Drawn once per
+    process for each (``n``, ``n_boot``, ``seed``) up to :data:`RESAMPLE_KEEP_BYTES` each
+    (the last :data:`RESAMPLES_KEPT` kept)."""
+    key = (int(n), int(n_boot), int(seed))
+    kept = _RESAMPLES.get(key)
+    if kept is not None:
+        return kept
+    idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+    idx.flags.writeable = False
+    if idx.nbytes <= RESAMPLE_KEEP_BYTES:
+        if len(_RESAMPLES) >= RESAMPLES_KEPT:
+            _RESAMPLES.pop(next(iter(_RESAMPLES)))
+        _RESAMPLES[key] = idx
+    return idx
 
 
 def bootstrap_means(x: np.ndarray, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray:

@@ -110,3 +110,24 @@ def test_table2_ranks_the_viewpoint_strategies_of_each_configuration():
         "(sparse) by 5.0 (95 % CI +5.0 to +5.0 for autotrace - autotrace (sparse)).",
         "Ranking of oracle + vision cone on IoU (synthetic, paired over 8 houses): autotrace and autotrace (sparse) "
         "tied (+0.0, 95 % CI +0.0 to +0.0)."]
+
+
+def test_resamples_are_the_seeded_draws_every_time_and_cannot_be_changed():
+    """The resamples a process keeps are the ones the seed draws, for every (n, n_boot, seed),
+    the first call and the next ones alike, past the number kept and past the size kept; a
+    caller cannot write into them."""
+    from benchmark.stats import RESAMPLES_KEPT, resample_indices
+
+    def drawn(n: int, n_boot: int, seed: int) -> np.ndarray:  # written out: the seed's own draw
+        return np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+
+    cases = [(n, b, s) for n in (2, 3, 100) for b in (1, 50, 2000) for s in (0, 7)]
+    cases += [(n, 20, 1) for n in range(4, 4 + RESAMPLES_KEPT + 3)]  # more than are kept
+    cases.append((40_000, 60, 0))  # 19 MB: over the size kept
+    for _ in range(2):
+        for n, b, s in cases:
+            got = resample_indices(n, b, s)
+            assert got.shape == (b, n) and np.array_equal(got, drawn(n, b, s)), (n, b, s)
+            with pytest.raises(ValueError):
+                got[0, 0] = 1
+    assert not np.array_equal(resample_indices(100, 50, 0), resample_indices(100, 50, 7))

@@ -225,3 +225,55 @@ def test_a_robustness_sweep_keeps_each_severity_in_its_own_row(tmp_path, capsys)
     assert t4["iou_mean"].to_dict() == pytest.approx({"corruption=clean, severity=0": means["clean"],
                                                       "corruption=pose, severity=2": means["pose_2"]})
     assert t4["n"].tolist() == [2, 2] and "2 houses per cell" in out
+
+
+def test_each_row_configuration_and_method_name_are_those_written_out_row_by_row(tmp_path):
+    """``load_rows`` writes the settings' JSON once per file and names each distinct row once;
+    every row's ``_config`` must still be ``json.dumps({"settings": ..., "row": ...})`` of that
+    row and its ``method`` :func:`method_label` of that row. Rows that differ only by 1 / 1.0,
+    0.0 / -0.0, NaN, a number / its text, and segmenter, explicit-method and oracle rows."""
+    import json
+
+    import numpy as np
+
+    from benchmark.harness.store import read_metrics
+    from benchmark.reports.tables import ROW_KEYS_LAST, ROW_NAMES, job_configuration, method_label
+
+    runs = tmp_path / "runs"
+    oracle = [_row(f"h{i}", 0.1 * i, classifier="oracle", oracle_accuracy=acc, severity=sev, label=lab)
+              for i, (acc, sev, lab) in enumerate([(0.8, 1, "a"), (0.8, 1, "a"), (0.9, 2, "1"), (np.nan, 2, "1.0"),
+                                                   (0.0, 3, "b"), (-0.0, 3, "b")])]
+    for r in oracle:  # no empty name (NaN) in these rows: rows equal but for 0.0 / -0.0 must not share
+        r.pop("segmenter")
+    _job(runs / "x" / "oracle", {"classifier._target_": "oracle", "nested": [1, {"b": None, "a": 2.5}],
+                                 "houses": "6 houses"}, oracle)
+    floats = [_row(f"h{i}", 0.5, severity=s, postprocess=p) for i, (s, p) in enumerate([(1.0, "none"), (2.0, "default"),
+                                                                                         (1.0, "default")])]
+    _job(runs / "x" / "floats", {"aggregator._target_": "knn"}, floats)
+    seg = [_row(f"h{i}", 0.3, segmenter=s, classifier="", aggregator="") for i, s in enumerate(["voronoi", "grid"])]
+    _job(runs / "x" / "seg", {"segmenter._target_": "v", "classifier.x": 1}, seg)
+    named = [_row(f"h{i}", 0.4, method=m) for i, m in enumerate(["ROSE2", "", "SeLRoS"])]
+    (runs / "maps").mkdir(parents=True)
+    pd.DataFrame(named).to_csv(runs / "maps" / "per_map.csv", index=False)  # no job: its score_key counts
+
+    got = load_rows([runs, runs / "maps" / "per_map.csv"])
+    want_config, want_method = [], []
+    for f in sorted({*got["source"]}):
+        df = read_metrics(f)
+        settings = {}
+        if Path(f).name == "metrics.csv":
+            settings = job_configuration(json.loads((Path(f).parent / "job.json").read_text())["settings"])
+        cols = [c for c in (*ROW_NAMES, *ROW_KEYS_LAST) if c in df and not (settings and c == "score_key")]
+        for _, r in df.iterrows():
+            plain = {c: (None if isinstance(r[c], float) and np.isnan(r[c]) else
+                         r[c].item() if isinstance(r[c], np.generic) else r[c]) for c in cols}
+            want_config.append(json.dumps({"settings": settings, "row": plain}, sort_keys=True, default=str))
+        for c in ("classifier", "aggregator", "postprocess", "segmenter"):
+            df[c] = df[c].astype("string").fillna("").astype(str) if c in df else ""
+        want_method += df.apply(method_label, axis=1).tolist()
+    order = got.sort_values(["source", "_line"])
+    assert order["_config"].tolist() == want_config
+    assert order["method"].tolist() == want_method
+    assert len(set(want_config)) == 13 and {"ROSE2", "SeLRoS", "voronoi", "grid", "oracle@0.8+graph_knn +post",
+                                            "oracle@0.9+graph_knn +post", "oracle@0+graph_knn +post",
+                                            "oracle@-0+graph_knn +post"} <= set(want_method)

@@ -67,9 +67,10 @@ def test_kill9_of_the_parent_leaves_no_worker(tmp_path, mode):
 @NEEDS_PROC
 @pytest.mark.slow
 def test_kill9_of_figures_leaves_no_drawing_process(tmp_path):
-    """The drawing processes of ``figures from-run`` (its pool, busy with long tasks) die with it."""
-    code = ("import functools, time\nfrom benchmark.reports.figures import _draw\n"
-            "_draw([functools.partial(time.sleep, 60)] * 4, 2)\n")
+    """The drawing processes of ``figures from-run`` and the robustness tables (their pool,
+    busy with long tasks: ``run_forked``) die with it."""
+    code = ("import functools, time\nfrom benchmark.harness.processes import run_forked\n"
+            "run_forked([functools.partial(time.sleep, 60)] * 4, 2)\n")
     p = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL,
                          stderr=subprocess.PIPE, text=True, start_new_session=True)
     _kill_parent_when_busy(p, 2)

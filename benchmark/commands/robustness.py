@@ -23,6 +23,7 @@ The output folder is written as a whole (an interrupted command leaves the old s
 
 from __future__ import annotations
 
+import functools
 import re
 import sys
 from collections.abc import Sequence
@@ -30,6 +31,7 @@ from pathlib import Path
 
 from benchmark.commands import cli
 from benchmark.commands.errors import one_line
+from benchmark.harness.processes import run_forked
 from benchmark.paths import CONF_DIR
 from benchmark.reports import robustness as rb
 from benchmark.reports.formatting import metric_words
@@ -119,7 +121,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     rows = rows.copy()
     rows["severity"] = rows["severity"].astype(int)
     parts = rb.summarise(rows, metrics, reference, expected_severities(paths), delta=delta)
-    settings = severity_settings()
+    del rows
     labelled = [f for f in rb.LABELLED if any(f in p["table"].columns for p in parts.values())]
     ref_words = ("a method every family degrades, chosen per dataset and metric (named under each table)"
                  if reference in (None, "auto") else f"**{reference}**")
@@ -139,6 +141,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
           *[f"**Partial sweep**: {x}." for x in partial],
           *([""] if partial else [])]
     power = []
+    aside = [severity_settings]  # then the figures: run side by side on forked processes (run_forked)
     for (dataset, metric), p in parts.items():
         words = metric_words(metric)
         t = p["table"]
@@ -179,8 +182,10 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
             if metric in ("iou", "matched_iou"):
                 for family in rb.FAMILIES:  # a labelled condition's severities are no ladder: its table only
                     if family in set(p["cells"]["corruption"]) and family not in rb.LABELLED:
-                        rb.family_figure(p["cells"], family, out / "figures" / f"{stem}_{family}",
-                                         words, f"{dataset}: {rb.FAMILY_WORDS[family]}")
+                        aside.append(functools.partial(rb.family_figure, p["cells"], family,
+                                                       out / "figures" / f"{stem}_{family}", words,
+                                                       f"{dataset}: {rb.FAMILY_WORDS[family]}"))
+    settings = run_forked(aside)[0]
     if power:
         md += ["## How many houses", "", *[f"- {x}" for x in power], ""]
     md += ["## Severities", "", "What each severity's `conf/corruption` file sets, as the composed config has it (units: "

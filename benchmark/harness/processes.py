@@ -1,5 +1,6 @@
-"""Worker processes: how many cores this process may use (:func:`available_cores`), and
-workers that die with their parent (:func:`die_with_parent`). Standard library only: the
+"""Worker processes: how many cores this process may use (:func:`available_cores`),
+workers that die with their parent (:func:`die_with_parent`), and independent tasks run on
+forked ones (:func:`run_forked`). Standard library only: the
 Hydra launcher (``hydra_plugins/roomseg_sweep``, which Hydra imports whenever an app starts)
 uses it too.
 
@@ -202,5 +203,53 @@ def worker_init(parent_pid: int, workers: int | None = None) -> None:
         share_threads(workers)
 
 
+#: the tasks of the :func:`run_forked` call under way, for its forked workers (which inherit
+#: them: nothing is pickled but each task's index and result).
+_TASKS: list = []
+
+
+def _run_task(i: int):
+    return _TASKS[i]()
+
+
+def run_forked(tasks: list, workers: int | None = None) -> list:
+    """Each task's result (``tasks``: callables without arguments), in order, the tasks run on
+    ``workers`` forked processes where the platform forks (Linux), else one after the other
+    here. Each process dies with this one (``kill -9`` here leaves none blocked on a pipe).
+
+    Args:
+        tasks: the callables; their results must pickle.
+        workers: processes (None: ``ROOMSEG_JOBS`` if set, else the cores); at most one per task.
+
+    Raises:
+        The first failed task's exception (in task order); on it, or Ctrl-C, the tasks not
+        started are not run.
+    """
+    global _TASKS
+    import gc
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = workers if workers is not None else int(os.environ.get("ROOMSEG_JOBS") or os.cpu_count() or 1)
+    n = max(1, min(n, len(tasks)))
+    if n == 1 or sys.platform != "linux":
+        return [t() for t in tasks]
+    _TASKS = list(tasks)
+    # the objects made so far are frozen out of the collector's reach: a worker's collections
+    # would otherwise touch (copy) every page of the parent's heap the fork shares with it
+    gc.freeze()
+    pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"), initializer=die_with_parent,
+                               initargs=(os.getpid(),))
+    try:
+        return list(pool.map(_run_task, range(len(tasks))))
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        pool.shutdown(wait=True)
+        gc.unfreeze()
+        _TASKS = []
+
+
 __all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "share_threads",
-           "OPENCV_THREADS_ENV", "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered"]
+           "OPENCV_THREADS_ENV", "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered", "run_forked"]

@@ -378,10 +378,17 @@ def _check_fractions(path: Path, df) -> None:
     cols = fraction_columns(df.columns)
     if not cols or df.empty:
         return
-    raw = df[cols]
-    vals = np.column_stack([raw[c].to_numpy(float) if pd.api.types.is_numeric_dtype(raw[c])
-                            else pd.to_numeric(raw[c], errors="coerce").to_numpy(float) for c in cols])
-    absent = raw.isna().to_numpy()
+    vals = np.empty((len(df), len(cols)))
+    absent = np.empty((len(df), len(cols)), bool)
+    for j, c in enumerate(cols):  # column by column (no frame of the share columns is made)
+        col = df[c]
+        if isinstance(col.dtype, np.dtype) and col.dtype.kind == "f":  # NumPy floats: missing is NaN
+            vals[:, j] = col.to_numpy()
+            absent[:, j] = np.isnan(vals[:, j])
+        else:
+            vals[:, j] = (col.to_numpy(float) if pd.api.types.is_numeric_dtype(col)
+                          else pd.to_numeric(col, errors="coerce").to_numpy(float))
+            absent[:, j] = col.isna().to_numpy()
     ok = df["status"].astype(str).eq("ok").to_numpy() if "status" in df else np.zeros(len(df), bool)
     required = np.array([c in REQUIRED_IN_OK_ROWS for c in cols])
     with np.errstate(invalid="ignore"):
@@ -392,7 +399,7 @@ def _check_fractions(path: Path, df) -> None:
     if not bad.any():
         return
     i, j = (int(v) for v in np.argwhere(bad)[0])
-    value = raw.iloc[i, j]
+    value = df[cols[j]].iloc[i]
     if missing[i, j]:
         what = "missing in a row with status ok"
     elif outside[i, j]:

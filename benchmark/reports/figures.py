@@ -25,7 +25,6 @@ it wrote (``path`` with each requested format's suffix).
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from pathlib import Path
@@ -532,40 +531,8 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
             tasks.append(partial(figure_aggregators, scene_for(cfg, hid), mk["poses"], mk[which], mc[which],
                                  out / f"fig4_{safe_name(hid)}_{env}_{clf_slug}_{post}.png", mk["proba"],
                                  title=title, formats=formats))
-    return [p for paths in _draw(tasks, workers) for p in paths]
+    from benchmark.harness.processes import run_forked
+
+    return [p for paths in run_forked(tasks, workers) for p in paths]
 
 
-#: the figures of one ``from_run`` call, for its forked workers.
-_TASKS: list[Callable[[], list[Path]]] = []
-
-
-def _draw_one(i: int) -> list[Path]:
-    return _TASKS[i]()
-
-
-def _draw(tasks: list[Callable[[], list[Path]]], workers: int | None) -> list[list[Path]]:
-    """Each task's result, in order: drawn on ``workers`` forked processes where the platform
-    forks (Linux), else one after the other here."""
-    global _TASKS
-    import multiprocessing
-    import os
-    from concurrent.futures import ProcessPoolExecutor
-
-    n = workers if workers is not None else int(os.environ.get("ROOMSEG_JOBS") or os.cpu_count() or 1)
-    n = max(1, min(n, len(tasks)))
-    if n == 1 or sys.platform != "linux":
-        return [t() for t in tasks]
-    from benchmark.harness.processes import die_with_parent
-
-    _TASKS = tasks
-    # each drawing process dies with this one (kill -9 here leaves no worker blocked on a pipe)
-    pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"), initializer=die_with_parent,
-                               initargs=(os.getpid(),))
-    try:
-        return list(pool.map(_draw_one, range(len(tasks))))
-    except BaseException:  # Ctrl-C or a failed figure: the figures not started are not drawn
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    finally:
-        pool.shutdown(wait=True)
-        _TASKS = []

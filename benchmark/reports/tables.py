@@ -114,7 +114,7 @@ def find_metric_files(paths: Sequence[str | Path]) -> list[Path]:
     return out
 
 
-def method_label(row: pd.Series) -> str:
+def method_label(row: pd.Series | dict[str, Any]) -> str:
     """A row's method name: an explicit ``method``, a segmenter, or classifier+aggregator+post."""
     if isinstance(row.get("method"), str) and row.get("method"):
         return row["method"]
@@ -126,6 +126,25 @@ def method_label(row: pd.Series) -> str:
         parts[0] += f"@{acc:g}"
     post = str(row.get("postprocess", ""))
     return "+".join(p for p in parts if p) + (" +post" if post and post != "none" else "")
+
+
+#: the columns :func:`method_label` reads.
+LABEL_COLUMNS = ("method", "segmenter", "classifier", "aggregator", "oracle_accuracy", "postprocess")
+
+
+def _method_labels(df: pd.DataFrame) -> list[str]:
+    """:func:`method_label` of every row of ``df``, worked out once per distinct combination of
+    the columns it reads (told apart by their ``repr``: 1 and 1.0, 0.0 and -0.0 are not merged)."""
+    cols = [c for c in LABEL_COLUMNS if c in df]
+    made: dict[tuple[str, ...], str] = {}
+    out = []
+    for rec in df[cols].itertuples(index=False, name=None):
+        key = tuple(map(repr, rec))
+        label = made.get(key)
+        if label is None:
+            label = made[key] = method_label(dict(zip(cols, rec)))
+        out.append(label)
+    return out
 
 
 #: columns of a row that name its configuration (beside its job's settings).
@@ -166,8 +185,20 @@ def _configurations(df: pd.DataFrame, settings: dict[str, Any]) -> list[str]:
     row's ``score_key`` counts only without settings (it also follows ``run.cache_salt``,
     which changes no row)."""
     cols = [c for c in (*ROW_NAMES, *ROW_KEYS_LAST) if c in df and not (settings and c == "score_key")]
-    return [json.dumps({"settings": settings, "row": {c: _plain(v) for c, v in zip(cols, rec)}}, sort_keys=True,
-                       default=str) for rec in df[cols].itertuples(index=False, name=None)]
+    # json.dumps({"settings": ..., "row": ...}, sort_keys=True) in two parts: the settings (the
+    # same for every row of a file) written once, and the row's names once per distinct
+    # combination (told apart by their repr: 1 and 1.0 are not merged), its rows sharing one string
+    tail = ', "settings": ' + json.dumps(settings, sort_keys=True, default=str) + "}"
+    made: dict[tuple[str, ...], str] = {}
+    out = []
+    for rec in df[cols].itertuples(index=False, name=None):
+        key = tuple(map(repr, rec))
+        text = made.get(key)
+        if text is None:
+            row = json.dumps({c: _plain(v) for c, v in zip(cols, rec)}, sort_keys=True, default=str)
+            text = made[key] = '{"row": ' + row + tail
+        out.append(text)
+    return out
 
 
 def _folders(paths: Sequence[str], limit: int = 4) -> str:
@@ -243,7 +274,7 @@ def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
         df[col] = df[col].astype("string").fillna("").astype(str)
     if "status" not in df:
         df["status"] = "ok"
-    df["method"] = df.apply(method_label, axis=1)
+    df["method"] = _method_labels(df)
     df["segmenter_row"] = df["segmenter"].str.len() > 0
     df.attrs.update(n_read=n_read, set_aside=line)
     return df
