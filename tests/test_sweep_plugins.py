@@ -19,6 +19,7 @@ from hydra_plugins.roomseg_sweep.roomseg_sweep import (
     GridsSweeper,
     LocalLauncher,
     auto_jobs,
+    grouped,
     one_per_grid,
 )
 
@@ -141,6 +142,29 @@ grids:
         assert 1 <= len(pids) <= 2 and "on 2" in r.stderr + r.stdout
         # each worker has its own place among the two (its jobs start on their own houses)
         assert len({s for _, s in slots}) == len(slots) == len(pids) and {s for _, s in slots} <= {"0/2", "1/2"}
+
+
+def test_grouped_keeps_each_value_s_jobs_together_in_order():
+    jobs = [["n=1", "a=x"], ["n=2", "a=x"], ["n=1", "a=y"], ["b=u"], ["n=2", "b=u"], ["+n=1", "b=v"], ["b=v"]]
+    assert grouped(jobs, "n") == [["n=1", "a=x"], ["n=1", "a=y"], ["+n=1", "b=v"], ["n=2", "a=x"], ["n=2", "b=u"],
+                                  ["b=u"], ["b=v"]]
+    assert grouped(jobs, "zzz") == jobs and grouped([], "n") == []
+
+
+def test_group_by_runs_every_grid_s_jobs_of_one_value_together(tmp_path):
+    """hydra.sweeper.group_by: the jobs of both grids with the same n run one after the other
+    (job numbers in that order), n in the order it first comes; without it each grid's jobs
+    follow the grid before. The same jobs either way."""
+    sweeper = "params:\n  a: x,y\n  n: 2,1\ngrids:\n  - b: u,v\n    n: 2,1"
+    orders = {}
+    for name, extra in (("plain", []), ("grouped", ["hydra.sweeper.group_by=n"])):
+        app = _app(tmp_path / name, sweeper)
+        r = _run(app, "hydra.launcher.n_jobs=1", *extra)
+        assert r.returncode == 0, r.stderr[-2000:]
+        jobs = _jobs(tmp_path / name)
+        orders[name] = [k for k, _ in sorted(jobs.items(), key=lambda kv: kv[1]["num"])]
+    assert orders["plain"] == ["a=x,n=2", "a=x,n=1", "a=y,n=2", "a=y,n=1", "b=u,n=2", "b=u,n=1", "b=v,n=2", "b=v,n=1"]
+    assert orders["grouped"] == ["a=x,n=2", "a=y,n=2", "b=u,n=2", "b=v,n=2", "a=x,n=1", "a=y,n=1", "b=u,n=1", "b=v,n=1"]
 
 
 @pytest.mark.parametrize("launcher", ["hydra.launcher.n_jobs=1", "hydra.launcher.n_jobs=2"])

@@ -91,10 +91,14 @@ class GridsSweeper(BasicSweeper):
         params: the first grid, ``{key: "v1,v2"}`` as in Hydra's basic sweeper.
         grids: more grids of the same form, run after ``params``' jobs.
         validate: ``quick`` | ``all`` | ``none`` (see the module docstring).
+        group_by: a key (``corruption``): the jobs of every grid that give it the same value run
+            one after the other, the groups in the order their values first come (each group's
+            jobs in their grids' order); None: each grid's jobs after the one before.
     """
 
     def __init__(self, max_batch_size: int | None = None, params: Mapping[str, str] | None = None,
-                 grids: Sequence[Mapping[str, str]] | None = None, validate: str = "quick") -> None:
+                 grids: Sequence[Mapping[str, str]] | None = None, validate: str = "quick",
+                 group_by: str | None = None) -> None:
         # BasicSweeper's own __init__ is not called: it names its class through a module global
         # that Hydra's plugin rescans rebind (``super(BasicSweeper, self)`` then fails)
         self.overrides = None
@@ -108,6 +112,7 @@ class GridsSweeper(BasicSweeper):
             raise ValueError(f"hydra.sweeper.validate must be one of {list(VALIDATE)}, got {validate!r}")
         self.grids = [dict(g or {}) for g in (grids or [])]
         self.validate = validate
+        self.group_by = group_by or None
         self.arguments: list[str] = []
 
     def sweep(self, arguments: list[str]) -> Any:
@@ -118,17 +123,19 @@ class GridsSweeper(BasicSweeper):
         """The jobs, in batches: Hydra's basic sweeper calls this on ``params`` + the command
         line (``overrides``); each extra grid + the command line follows, a job already listed
         is not repeated."""
-        if not self.grids:
+        if not self.grids and not self.group_by:
             return BasicSweeper.split_arguments(overrides, max_batch_size)
-        assert self.hydra_context is not None
-        parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
-        grids = [overrides] + [parser.parse_overrides([f"{k}={v}" for k, v in g.items()] + self.arguments)
-                               for g in self.grids]
+        grids = [overrides]
+        if self.grids:
+            assert self.hydra_context is not None
+            parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
+            grids += [parser.parse_overrides([f"{k}={v}" for k, v in g.items()] + self.arguments) for g in self.grids]
         jobs: dict[tuple[str, ...], list[str]] = {}
         for grid in grids:
             for job in BasicSweeper.split_arguments(grid, None)[0]:
                 jobs.setdefault(tuple(sorted(job)), job)
-        return list(BasicSweeper.split_overrides_to_chunks(list(jobs.values()), max_batch_size))
+        ordered = grouped(list(jobs.values()), self.group_by) if self.group_by else list(jobs.values())
+        return list(BasicSweeper.split_overrides_to_chunks(ordered, max_batch_size))
 
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
         if self.validate == "none":
@@ -139,6 +146,23 @@ class GridsSweeper(BasicSweeper):
         loader = self.hydra_context.config_loader
         check_options(batch, loader)
         return super().validate_batch_is_legal(one_per_grid(batch))
+
+
+def grouped(jobs: Sequence[Sequence[str]], key: str) -> list[Sequence[str]]:
+    """``jobs`` with those that give ``key`` the same value (``key=value`` among their
+    overrides, or none) next to each other, the groups in the order their values first come,
+    each group's jobs in their order."""
+    def value(job: Sequence[str]) -> str | None:
+        for o in job:
+            k, eq, v = o.partition("=")
+            if eq and k.lstrip("+~") == key:
+                return v
+        return None
+
+    first: dict[str | None, int] = {}
+    for job in jobs:
+        first.setdefault(value(job), len(first))
+    return sorted(jobs, key=lambda job: first[value(job)])  # (stable)
 
 
 def one_per_grid(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
