@@ -79,6 +79,9 @@ def test_grid_writes_one_row_per_house_and_config_and_rerun_does_no_work(tmp_pat
     # the resolved config is saved beside the results, with interpolations resolved
     text = (tmp_path / "out" / "again" / "resolved_config.yaml").read_text()
     assert "${" not in text and "vision_cone" in text.lower() or "VisionCone" in text
+    from omegaconf import OmegaConf
+
+    assert text == OmegaConf.to_yaml(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
 
 
 def test_force_redoes_the_named_stage_and_after(tmp_path, procthor_file):

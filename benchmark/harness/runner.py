@@ -316,6 +316,17 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
     return config_key("job", settings, ids), settings
 
 
+def resolved_yaml(plain: dict[str, Any]) -> str:
+    """``OmegaConf.to_yaml(body, resolve=True)`` of a config body whose resolved container is
+    ``plain`` (``OmegaConf.to_container(body, resolve=True)``; the configs hold no enums), written
+    from that container instead of resolving the config again."""
+    import yaml
+    from omegaconf._utils import get_omega_conf_dumper
+
+    return yaml.dump(plain, default_flow_style=False, allow_unicode=True, sort_keys=False,
+                     Dumper=get_omega_conf_dumper())
+
+
 def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -> pd.DataFrame:
     """Run one configuration over its houses; write metrics.csv, timings.csv, summary.json and
     resolved_config.yaml.
@@ -362,7 +373,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     if note:  # a sweep's launcher says it once for all its jobs (this job's log file keeps it)
         log.log(logging.INFO if _in_multirun() else logging.WARNING, note)
     job = Job(out_dir)
-    atomic_write_text(job.config_path, OmegaConf.to_yaml(body, resolve=True))
+    atomic_write_text(job.config_path, resolved_yaml(plain))
     clf_cfg = cfg.get("classifier") if cfg.get("segmenter") is None else None
     acc = clf_cfg.get("accuracy") if clf_cfg is not None else None
     # a bar only on a terminal with no other job beside it; else the finished-job line below

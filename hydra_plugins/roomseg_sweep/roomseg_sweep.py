@@ -49,7 +49,6 @@ from pathlib import Path
 from typing import Any
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override
 from hydra.core.singleton import Singleton
@@ -247,8 +246,7 @@ def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
         cfg.hydra.job.num = idx
         if cfg.hydra.get("launcher") is not None and "n_jobs" in cfg.hydra.launcher:
             cfg.hydra.launcher.n_jobs = n_jobs
-    HydraConfig.instance().set_config(cfg)
-    try:
+    try:  # (run_job sets the job's config as Hydra's, then back to the one before it)
         ret = run_job(hydra_context=hydra_context, task_function=task_function, config=cfg,
                       job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
     except Exception as e:  # noqa: BLE001 - Hydra's own job set-up failed (e.g. a full disk): this job only
