@@ -19,6 +19,8 @@ job that did not finish, for some method or all) is left out with a line naming 
 whose jobs did not all finish is named with its missing jobs (stderr and robustness.md). A house that failed under any condition is
 left out of every cell of its dataset (one line names it), so every cell holds the same houses.
 The output folder is written as a whole (an interrupted command leaves the old set or the new).
+The figures and the severities' settings (a config composed per severity) are made side by side
+on forked processes, one per core (``ROOMSEG_JOBS=1``: one after another in this process).
 """
 
 from __future__ import annotations
