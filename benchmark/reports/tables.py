@@ -28,7 +28,7 @@ What a cell holds (:func:`load_rows`, :func:`summarise`):
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -132,19 +132,25 @@ def method_label(row: pd.Series | dict[str, Any]) -> str:
 LABEL_COLUMNS = ("method", "segmenter", "classifier", "aggregator", "oracle_accuracy", "postprocess")
 
 
+def _per_distinct_row(df: pd.DataFrame, cols: Sequence[str], make: Callable[[tuple], Any]) -> list:
+    """``make(values)`` of every row's values in ``cols``, called once per distinct combination
+    (told apart by their ``repr``: 1 and 1.0, 0.0 and -0.0 are not merged); the rows of one
+    combination share the result object."""
+    made: dict[tuple[str, ...], Any] = {}
+    out = []
+    for rec in df[list(cols)].itertuples(index=False, name=None):
+        key = tuple(map(repr, rec))
+        if key not in made:
+            made[key] = make(rec)
+        out.append(made[key])
+    return out
+
+
 def _method_labels(df: pd.DataFrame) -> list[str]:
     """:func:`method_label` of every row of ``df``, worked out once per distinct combination of
-    the columns it reads (told apart by their ``repr``: 1 and 1.0, 0.0 and -0.0 are not merged)."""
+    the columns it reads."""
     cols = [c for c in LABEL_COLUMNS if c in df]
-    made: dict[tuple[str, ...], str] = {}
-    out = []
-    for rec in df[cols].itertuples(index=False, name=None):
-        key = tuple(map(repr, rec))
-        label = made.get(key)
-        if label is None:
-            label = made[key] = method_label(dict(zip(cols, rec)))
-        out.append(label)
-    return out
+    return _per_distinct_row(df, cols, lambda rec: method_label(dict(zip(cols, rec))))
 
 
 #: columns of a row that name its configuration (beside its job's settings).
@@ -186,19 +192,10 @@ def _configurations(df: pd.DataFrame, settings: dict[str, Any]) -> list[str]:
     which changes no row)."""
     cols = [c for c in (*ROW_NAMES, *ROW_KEYS_LAST) if c in df and not (settings and c == "score_key")]
     # json.dumps({"settings": ..., "row": ...}, sort_keys=True) in two parts: the settings (the
-    # same for every row of a file) written once, and the row's names once per distinct
-    # combination (told apart by their repr: 1 and 1.0 are not merged), its rows sharing one string
+    # same for every row of a file) written once, the row's names once per distinct combination
     tail = ', "settings": ' + json.dumps(settings, sort_keys=True, default=str) + "}"
-    made: dict[tuple[str, ...], str] = {}
-    out = []
-    for rec in df[cols].itertuples(index=False, name=None):
-        key = tuple(map(repr, rec))
-        text = made.get(key)
-        if text is None:
-            row = json.dumps({c: _plain(v) for c, v in zip(cols, rec)}, sort_keys=True, default=str)
-            text = made[key] = '{"row": ' + row + tail
-        out.append(text)
-    return out
+    return _per_distinct_row(df, cols, lambda rec: '{"row": ' + json.dumps(
+        {c: _plain(v) for c, v in zip(cols, rec)}, sort_keys=True, default=str) + tail)
 
 
 def _folders(paths: Sequence[str], limit: int = 4) -> str:
