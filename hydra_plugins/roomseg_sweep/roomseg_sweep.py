@@ -4,7 +4,7 @@ Hydra finds plugins only under the ``hydra_plugins`` namespace, so these two cla
 here; the module imports Hydra, the standard library and one standard-library-only module of
 the project, :mod:`benchmark.harness.processes` (Hydra imports it at start-up).
 
-``GridsSweeper`` is Hydra's basic sweeper plus two things:
+``GridsSweeper`` is Hydra's basic sweeper plus three things:
 
 - ``grids``: more grids of ``key: values`` beside ``params``. The jobs are the cartesian
   product of ``params``, then the product of each extra grid, in that order (a job already
@@ -15,6 +15,9 @@ the project, :mod:`benchmark.harness.processes` (Hydra imports it at start-up).
   grid, instead of composing every job twice. ``validate: all`` is Hydra's own check (every
   job); ``none`` skips it. A job whose config still fails to compose fails alone, in the
   launcher, and the sweep exits non-zero naming it.
+- ``group_by: <key>``: the jobs of every grid that give the key one value run one after the
+  other, the values in the order they first come (``experiment=robustness``: a condition's
+  segmenters right after its methods, while the workers still keep its maps in memory).
 
 ``LocalLauncher`` runs the jobs on ``n_jobs`` worker processes of this machine, like
 ``hydra-joblib-launcher``, but its workers are forked from the launching process on Linux, so
