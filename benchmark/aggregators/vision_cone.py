@@ -94,7 +94,11 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     on from where the previous one stopped only where it goes further. Any other ray (no
     previous one, a farther end, or an end without a path) is walked whole. ``state`` stamps
     the view on each cell it votes for (one vote per view and cell). The vote is written out at
-    each of the three walks: as an inlined helper it made the kernel a quarter slower."""
+    each of the three walks: as an inlined helper it made the kernel a quarter slower.
+    ``votes`` is the (N, C) float32 probability votes of the views (``labels`` -1), or None for
+    whole votes: one for class ``labels[v]`` (none where it is -1). None is a type of its own
+    to numba, so the whole-vote kernel is compiled without the probability loop (about 7 %
+    faster on the shared houses)."""
     cap = int(np.ceil(max(max_range, short_px))) + 2
     # flat indices along the paths: a state cell (r + 1) * w2 + c + 1, a count cell r * w + c
     w2 = state.shape[1]
@@ -104,7 +108,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     buf_r = np.empty(cap, np.int32)
     buf_c = np.empty(cap, np.int32)
     used = 0
-    n_cls = votes.shape[1]
+    n_cls = 0 if votes is None else votes.shape[1]
     cos_off = np.cos(offsets)
     sin_off = np.sin(offsets)
     for v in range(rows.shape[0]):
@@ -140,8 +144,9 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                         break
                     if x != v:
                         state[r + 1, c + 1] = v
-                        if lab >= 0:
-                            counts[lab, r, c] += 1
+                        if votes is None:
+                            if lab >= 0:
+                                counts[lab, r, c] += 1
                         else:
                             for q in range(n_cls):
                                 counts[q, r, c] += votes[v, q]
@@ -172,8 +177,9 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                     if x != v:
                         flat_state[fs] = v
                         fc = path_index(base_c, step_c, mstep_c, j, mn)
-                        if lab >= 0:
-                            flat_counts[lab, fc] += 1
+                        if votes is None:
+                            if lab >= 0:
+                                flat_counts[lab, fc] += 1
                         else:
                             for q in range(n_cls):
                                 flat_counts[q, fc] += votes[v, q]
@@ -192,8 +198,9 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                     if x != v:
                         flat_state[fs] = v
                         fc = path_index(base_c, step_c, mstep_c, j, mn)
-                        if lab >= 0:
-                            flat_counts[lab, fc] += 1
+                        if votes is None:
+                            if lab >= 0:
+                                flat_counts[lab, fc] += 1
                         else:
                             for q in range(n_cls):
                                 flat_counts[q, fc] += votes[v, q]
@@ -242,7 +249,7 @@ def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: n
     paths = ray_paths(float(max_range), PATH_CACHE_BYTES)
     if groups is None:
         # no view votes (label -1, no classes): the walk only stamps the cells it reaches
-        _cone_votes(*args, np.full(n, -1, np.int64), np.zeros((n, 0), np.float32), np.zeros((0, h, w), np.uint8), *paths)
+        _cone_votes(*args, np.full(n, -1, np.int64), None, np.zeros((0, h, w), np.uint8), *paths)
         return state[1:-1, 1:-1] >= 0
     groups = np.asarray(groups, np.int64).ravel()
     if len(groups) != len(rows) or (len(groups) and (groups.min() < 0 or groups.max() >= n_groups)):
@@ -252,7 +259,7 @@ def cones_reach(blocked: np.ndarray, rows: np.ndarray, cols: np.ndarray, yaws: n
     most = min(n, max_votes_per_cell((h, w), rows[ok], cols[ok], reach_px(float(max_range))))
     whole = np.uint8 if most < 2**8 else np.uint16 if most < 2**16 else np.uint32
     counts = np.zeros((n_groups, h, w), whole)
-    _cone_votes(*args, groups[ok], np.zeros((n, 0), np.float32), counts, *paths)
+    _cone_votes(*args, groups[ok], None, counts, *paths)
     return counts > 0
 
 
@@ -356,9 +363,10 @@ class VisionCone(Aggregator):
         most = min(len(p), max_votes_per_cell(grid.shape, r, c, reach_px(max_px)))
         whole = np.uint8 if most < 2**8 else np.uint16 if most < 2**16 else np.uint32
         counts = np.zeros((n_cls, *grid.shape), whole if self.vote == "label" else np.float32)
+        votes = None if self.vote == "label" else p.astype(np.float32)  # None: whole votes (labels)
         self.last_used = _cone_votes(np.ascontiguousarray(~grid.walkable), ray_state(grid.walkable),
                                      r.astype(np.int64), c.astype(np.int64), np.deg2rad(yaw), offsets, float(max_px),
-                                     float(self.blocked_ray_m / grid.resolution), labels, p.astype(np.float32), counts,
+                                     float(self.blocked_ray_m / grid.resolution), labels, votes, counts,
                                      *ray_paths(float(max_px), PATH_CACHE_BYTES))
         return counts
 
