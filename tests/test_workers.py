@@ -394,3 +394,23 @@ def test_workers_above_the_cores_or_memory_are_capped_with_one_line(monkeypatch,
         assert processes.worker_cap(8) == (3, processes.worker_cap(8)[1]) and processes.worker_cap(2) == (2, None)
     finally:
         close_pool(now=True)
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs os.sched_setaffinity (Linux)")
+@pytest.mark.parametrize("cores", [1, 2])
+def test_run_forked_starts_one_process_per_core_this_process_may_use(cores):
+    """Without ``workers`` or ``ROOMSEG_JOBS``, ``run_forked`` runs as many processes as the
+    cores its process may run on (its CPU affinity), not the machine's CPU count: on one core
+    every task runs in the process itself; on two, two workers share the tasks (each sleeps
+    0.3 s, so both take some)."""
+    if len(os.sched_getaffinity(0)) < cores:
+        pytest.skip(f"needs {cores} cores")
+    code = ("import os, time\nfrom benchmark.harness.processes import run_forked\n"
+            f"os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:{cores}])\n"
+            "pids = run_forked([lambda: (time.sleep(0.3), os.getpid())[1]] * 8)\n"
+            "print(len(set(pids) - {os.getpid()}), sum(p == os.getpid() for p in pids))\n")
+    env = {k: v for k, v in ENV.items() if k != "ROOMSEG_JOBS"}
+    p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    workers, here = map(int, p.stdout.split())
+    assert (workers, here) == ((0, 8) if cores == 1 else (cores, 0))

@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--last-sweep", action="store_true",
                    help="only the jobs of the last multirun into the folder (its last_sweep.json)")
     r.add_argument("--jobs", type=int, default=None,
-                   help="figures drawn at once in worker processes (default ROOMSEG_JOBS, else the CPU count)")
+                   help="figures drawn at once in worker processes (default ROOMSEG_JOBS, else the cores this process may run on)")
     a = ap.parse_args(argv)
     try:
         formats = parse_formats(a.format) if a.format else None

@@ -219,7 +219,8 @@ def run_forked(tasks: list, workers: int | None = None) -> list:
 
     Args:
         tasks: the callables; their results must pickle.
-        workers: processes (None: ``ROOMSEG_JOBS`` if set, else the cores); at most one per task.
+        workers: processes (None: ``ROOMSEG_JOBS`` if set, else the cores this process may run
+            on, :func:`available_cores`); at most one per task.
 
     Raises:
         The first failed task's exception (in task order); on it, or Ctrl-C, the tasks not
@@ -230,7 +231,7 @@ def run_forked(tasks: list, workers: int | None = None) -> list:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    n = workers if workers is not None else int(os.environ.get("ROOMSEG_JOBS") or os.cpu_count() or 1)
+    n = workers if workers is not None else int(os.environ.get("ROOMSEG_JOBS") or available_cores())
     n = max(1, min(n, len(tasks)))
     if n == 1 or sys.platform != "linux":
         return [t() for t in tasks]

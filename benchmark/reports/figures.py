@@ -439,7 +439,7 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
     ``houses``: house ids to draw (per dataset, those the dataset has); default the first
     house every job of a dataset scored. Maps are read through the run store
     (:meth:`benchmark.harness.store.Job.maps_path`). ``workers``: figures drawn at once, in
-    forked worker processes (None: ``ROOMSEG_JOBS``, else the number of CPUs; 1: in this
+    forked worker processes (None: ``ROOMSEG_JOBS``, else the cores this process may run on; 1: in this
     process). ``last_sweep``: only the jobs of the last multirun into ``run_dir`` (its
     ``last_sweep.json``, :func:`benchmark.harness.store.sweep_scope`).
 
