@@ -83,7 +83,8 @@ def test_vision_cone_equals_per_ray_loop_beyond_neighbouring_ends(seed, fov, den
 
 def test_ray_paths_are_the_digital_lines_to_their_ends():
     """Every kept path, put back at a camera, is the cell list of trace_ray to that end; and
-    each difference list names exactly the indices where two neighbouring paths differ."""
+    each difference list names exactly the indices where two neighbouring paths differ, then
+    those where the path goes on beyond its neighbour's end (some neighbours are shorter)."""
     from envs.maps.ray_paths import ray_paths
     from envs.maps.rays import trace_ray
 
@@ -99,15 +100,22 @@ def test_ray_paths_are_the_digital_lines_to_their_ends():
         assert np.array_equal(got, np.stack([br[:n], bc[:n]], 1))
         cells[(er, ec)] = got
     assert len(cells) > 100
+    tails = 0
     for (er, ec), a in cells.items():
         for q in range(9):
             b = cells.get((er + q // 3 - 1, ec + q % 3 - 1))
             if q == 4 or b is None:
                 continue
             m = min(len(a), len(b))
-            want = np.nonzero((a[:m] != b[:m]).any(1))[0]
+            # where they differ, then where this path goes on beyond the other's end
+            want = np.concatenate([np.nonzero((a[:m] != b[:m]).any(1))[0], np.arange(m, len(a))])
             s = slot[er + k, ec + k]
-            assert np.array_equal(dj[2 * dstart[s, q]:2 * dstart[s, q + 1]:2], want)
+            got = dj[2 * dstart[s, q]:2 * dstart[s, q + 1]].reshape(-1, 2)
+            assert np.array_equal(got[:, 0], want)
+            # each with this path's minor coordinate there (relative to the camera at (20, 20))
+            assert np.array_equal(got[:, 1], (a[want, 1] if geo[s, 2] == 0 else a[want, 0]) - 20)
+            tails += len(a) > len(b)
+    assert tails > 100
 
 
 def test_knn_splits_at_the_geodesic_midpoint_not_across_the_wall():

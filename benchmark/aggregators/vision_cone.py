@@ -16,8 +16,9 @@ the map size, and nothing per ray or view: every cone shares one array of ray of
 its view's heading, and every ray of a given range one table of paths (:func:`envs.maps.ray_paths.ray_paths`,
 about 2 MB at 200 px, kept per range). Neighbouring rays of a view end on neighbouring cells
 and share most of their cells; a ray looks up only the cells where its path differs from the
-previous ray's (a precomputed list per pair of neighbouring ends) below where that ray
-stopped, and walks on only beyond it, so the lookups number about the cells seen.
+previous ray's (a precomputed list per pair of neighbouring ends, with the cells where it
+goes on beyond the previous path's end) below where that ray stopped, so the lookups number
+about the cells seen.
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ from benchmark.interfaces import Aggregator
 from envs.maps.gridmap import GridMap
 from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
-    after_differences,
-    differences,
+    after_neighbour_list,
+    neighbour_list,
     path_index,
     path_of,
     path_steps,
@@ -90,8 +91,10 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     the ray's end cell, moved to the camera; it stops before the first blocked cell or off the
     map). A ray whose end cell neighbours the previous ray's shares that ray's cells except at
     the indices the two paths' difference list names: those are looked up, and the rest of
-    the previous ray's reach (its cells were free and are voted) is skipped; the ray is walked
-    on from where the previous one stopped only where it goes further. Any other ray (no
+    the previous ray's reach (its cells were free and are voted) is skipped. After a ray that
+    saw its whole path, the list goes on with this path's cells beyond that one's end, looked
+    up the same way; after one that stopped, the ray is walked on from there only where that
+    cell is one of its differences. Any other ray (no
     previous one, a farther end, or an end without a path) is walked whole. ``state`` stamps
     the view on each cell it votes for (one vote per view and cell). The vote is written out at
     each of the three walks: as an inlined helper it made the kernel a quarter slower.
@@ -164,8 +167,9 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
             b = ec - pec
             walk_from = 0
             stop = -1
+            ls = plen[s]  # (read once: numba cannot tell that the votes written below leave it alone)
             if prev >= 0 and -1 <= a <= 1 and -1 <= b <= 1:
-                m, lim, i, e = differences(s, prev, a, b, plen, pstop, dstart)
+                whole, lim, i, e = neighbour_list(s, prev, a, b, plen, pstop, dstart)
                 while i < e and dj[np.uint64(2 * i)] < lim:
                     j = np.int64(dj[np.uint64(2 * i)])
                     mn = np.int64(dj[np.uint64(2 * i + 1)])
@@ -185,10 +189,10 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
                                 flat_counts[q, fc] += votes[v, q]
                     i += 1
                 if stop < 0:
-                    walk_from, stop = after_differences(i, e, dj, pstop, m)
+                    walk_from, stop = after_neighbour_list(whole, i, e, dj, pstop, ls)
             if stop < 0:
-                stop = plen[s]
-                for j in range(walk_from, plen[s]):
+                stop = ls
+                for j in range(walk_from, ls):
                     mn = np.int64(pm[np.uint64(s), np.uint64(j)])
                     fs = path_index(base_s, step_s, mstep_s, j, mn)
                     x = flat_state[fs]

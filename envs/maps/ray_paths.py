@@ -4,8 +4,9 @@ many rays of that range (the vision cone, view coverage, the floorplan renderer)
 A ray from a camera to the end cell of :func:`envs.maps.rays.ray_end` walks the digital line of
 :func:`envs.maps.rays.trace_ray`; that line depends only on the end's offset from the camera.
 :func:`ray_paths` lists those lines once per range, and for each pair of neighbouring ends the
-indices where their lines differ: neighbouring rays of a cone end on neighbouring cells, so a
-walk looks up only those indices (below where the ray before stopped) instead of every cell.
+indices where their lines differ, followed by the indices where one line goes on beyond the
+other's end: neighbouring rays of a cone end on neighbouring cells, so a walk looks up only
+those indices (below where the ray before stopped) instead of every cell.
 """
 
 from __future__ import annotations
@@ -45,8 +46,9 @@ def _fill_paths(ends_r, ends_c, pr, pc, plen):
 @njit(cache=True, nogil=True)
 def _fill_diffs(ends_r, ends_c, slot, k, pr, pc, plen, dstart, dj, count_only):
     """For each path and each of the 3 x 3 end cells around its own: the indices j (below both
-    lengths) where the two paths' cells differ, with this path's minor coordinate there;
-    returns their number (``count_only``: only that)."""
+    lengths) where the two paths' cells differ, then the indices of this path beyond the other's
+    length, with this path's minor coordinate there; returns their number (``count_only``:
+    only that)."""
     n = 0
     for s in range(ends_r.shape[0]):
         rmaj = abs(ends_r[s]) > abs(ends_c[s])
@@ -59,8 +61,8 @@ def _fill_diffs(ends_r, ends_c, slot, k, pr, pc, plen, dstart, dj, count_only):
             if not count_only:
                 dstart[s, q] = n
             if x >= 0:
-                for j in range(min(plen[s], plen[x])):
-                    if pr[s, j] != pr[x, j] or pc[s, j] != pc[x, j]:
+                for j in range(plen[s]):  # differences below both lengths, then this path's cells beyond x's
+                    if j >= plen[x] or pr[s, j] != pr[x, j] or pc[s, j] != pc[x, j]:
                         if not count_only:
                             dj[2 * n] = j
                             dj[2 * n + 1] = pc[s, j] if rmaj else pr[s, j]
@@ -87,8 +89,9 @@ def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
     depends only on the end's offset (er, ec) from the camera. Every offset within 1 px of that
     circle gets a path (in order of angle), its cells as a minor coordinate per index (the
     major one is the index, with the end's sign), and, for each of the 3 x 3 offsets around
-    it, the indices where the two paths differ (neighbouring rays of a cone end on
-    neighbouring cells).
+    it, the indices where the two paths differ, then those of this path beyond the other's
+    length (neighbouring rays of a cone end on neighbouring cells; a ray after one that saw its
+    whole path looks up only these).
 
     Returns:
         ``(k, slot, pm, geo, plen, dstart, dj)``: ``slot`` (2k + 1, 2k + 1) int32 path of
@@ -96,7 +99,9 @@ def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
         coordinates; ``geo`` (S, 4) int64 (row step, column step per index, row and column
         factor of the minor coordinate); ``plen`` (S,) int32 cells per path; ``dstart`` (S, 10)
         int32 where each neighbour's differences start in ``dj`` (neighbour q = 3 (da + 1) +
-        db + 1, ending at ``dstart[s, q + 1]``); ``dj`` int16 pairs (index, minor coordinate).
+        db + 1, ending at ``dstart[s, q + 1]``); ``dj`` int16 pairs (index, minor coordinate),
+        in order of index: the differences below both lengths, then the indices beyond the
+        neighbour's length.
         About 20 bytes per path cell (2 MB at 200 px, 12 MB at 500 px, when built); over
         ``budget_bytes`` (or ranges beyond int16) no paths (``k = -1``): every ray is walked.
     """
@@ -161,7 +166,8 @@ def differences(s, prev, a, b, plen, pstop, dstart):
     """Where path ``s`` differs from ``prev``, the path of the ray before (its end (a, b) cells
     from s's, each within one), that stopped at index ``pstop``: ``(m, lim, i, e)``: the
     shorter length ``m``, the limit ``lim`` below which the differences matter (the ray before
-    saw its cells up to there), and the pairs ``dj[2 i:2 e]`` to look up (index, minor)."""
+    saw its cells up to there), and the pairs ``dj[2 i:2 e]`` to look up (index, minor; those
+    at ``m`` and beyond are this path's cells past the end of ``prev``)."""
     nq = (1 - a) * 3 + (1 - b)
     m = min(plen[s], plen[prev])
     return m, min(pstop, m), dstart[s, nq], dstart[s, nq + 1]
@@ -180,4 +186,32 @@ def after_differences(i, e, dj, pstop, m):
     return m, -1
 
 
-__all__ = ["PATH_CACHE_BYTES", "after_differences", "differences", "path_index", "path_of", "path_steps", "ray_paths"]
+@njit(cache=True, nogil=True, inline="always")
+def neighbour_list(s, prev, a, b, plen, pstop, dstart):
+    """What path ``s`` looks up after ``prev``, the path of the ray before (its end (a, b)
+    cells from s's, each within one), that stopped at index ``pstop``, when the cells beyond
+    ``prev``'s end are looked up from the list too (no walk on after a whole path):
+    ``(whole, lim, i, e)``: whether the ray before saw its whole path (``pstop`` its length),
+    the limit ``lim`` below which the list's pairs ``dj[2 i:2 e]`` are looked up (s's length
+    after a whole path, else ``pstop``)."""
+    nq = (1 - a) * 3 + (1 - b)
+    whole = pstop >= plen[prev]
+    return whole, plen[s] if whole else pstop, dstart[s, nq], dstart[s, nq + 1]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def after_neighbour_list(whole, i, e, dj, pstop, n):
+    """How a ray of ``n`` cells goes on when none of its :func:`neighbour_list` pairs below
+    ``lim`` was blocked (``i``: the first pair not looked up): ``(walk_from, stop)``. After a
+    whole path, or one that stopped at or beyond this one's end, it saw its whole path
+    (``stop = n``); else the ray before stopped at ``pstop``: this one stops there too unless
+    that cell is one of its differences, then it walks on from there (``stop = -1``)."""
+    if whole or pstop >= n:
+        return 0, n
+    if i < e and dj[np.uint64(2 * i)] == pstop:
+        return pstop, -1
+    return 0, pstop
+
+
+__all__ = ["PATH_CACHE_BYTES", "after_differences", "after_neighbour_list", "differences", "neighbour_list",
+           "path_index", "path_of", "path_steps", "ray_paths"]
