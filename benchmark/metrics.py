@@ -76,9 +76,9 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from numba import njit
 from scipy.optimize import linear_sum_assignment
 
+from envs.kernel_cache import njit
 from envs.maps.ids import dense_ids
 from envs.maps.label_png import colour_int
 from envs.ranges import NonNegative, OneOf

@@ -34,10 +34,10 @@ from typing import Annotated
 
 import cv2
 import numpy as np
-from numba import njit
 
 from benchmark.interfaces import PostProcessor
 from benchmark.metrics import resample_nearest, segments
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.ranges import Integer, NonNegative, Odd, Positive
 from envs.world.classes import PAPER_CLASSES

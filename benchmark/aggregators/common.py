@@ -5,8 +5,8 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from numba import njit
 
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.render.observation import poses_array
 

@@ -21,10 +21,10 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from numba import njit
 
 from benchmark.aggregators.common import view_cells, vote_neighbours
 from benchmark.interfaces import Aggregator
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.ranges import Integer, OneOf
 

@@ -27,10 +27,10 @@ from typing import Annotated
 
 import cv2
 import numpy as np
-from numba import njit
 
 from benchmark.aggregators.common import view_cells
 from benchmark.interfaces import Aggregator
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,

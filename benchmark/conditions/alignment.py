@@ -9,7 +9,8 @@ positions. :func:`ate_rmse` is the root mean square of the position error after 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from envs.kernel_cache import njit
 
 
 def align_rigid(est: np.ndarray, true: np.ndarray) -> tuple[float, np.ndarray]:

@@ -41,10 +41,10 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from numba import njit
 
 from benchmark.classifiers.noise import text_key
 from envs.digest import arrays_key
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap, pixel_direction_to_yaw
 from envs.maps.rays import ray_end, trace_ray
 from envs.maps.scan import (

@@ -18,11 +18,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.sparse import csc_matrix
 from scipy.sparse.linalg import spsolve
 
 from benchmark.conditions.odometry import wrap
+from envs.kernel_cache import njit
 
 
 @dataclass

@@ -6,10 +6,10 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from numba import njit
 
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters.common import check_area_limits, check_room_area, finish_rooms
+from envs.kernel_cache import njit
 from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap

@@ -14,8 +14,8 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from numba import njit
 
+from envs.kernel_cache import njit
 from envs.maps.rays import line_start, line_step
 
 #: the most bytes :func:`ray_paths` keeps for one range; beyond it (ranges of several thousand

@@ -14,7 +14,8 @@ hit, for a laser's long readings). The camera's own cell is always visited. Head
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from envs.kernel_cache import njit
 
 #: values of a bordered cell state (:func:`ray_state`) besides the ids of the views that saw a
 #: cell (>= 0): a walk's one load per cell tells free, blocked or off the map, and seen

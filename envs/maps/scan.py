@@ -59,8 +59,8 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from numba import njit
 
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import ray_end, walk_beam
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map

@@ -26,8 +26,8 @@ all the same).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import line_start, line_step, ray_end, walk_beam
 from envs.maps.scan import (

@@ -22,9 +22,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from envs.digest import arrays_key
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.rays import trace_ray
 from envs.memo import ByteLRU

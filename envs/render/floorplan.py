@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from typing import Annotated
 
 import numpy as np
-from numba import njit
 
+from envs.kernel_cache import njit
 from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_differences,

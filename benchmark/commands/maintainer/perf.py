@@ -40,10 +40,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from numba import njit
 
 from benchmark.commands import cli
 from benchmark.paths import procthor_houses
+from envs.kernel_cache import njit
 
 
 def _timed(fn, *args, repeat: int = 3):
