@@ -89,15 +89,20 @@ class _AllKernelModules:
         return super().from_function(py_func, py_file)
 
 
-class UserProvidedLocator(_AllKernelModules, caching.UserProvidedCacheLocator):
+def _numba_class(name: str):
+    """numba's class ``name`` of :mod:`numba.core.caching` (``_name`` in older numba versions)."""
+    return getattr(caching, name, None) or getattr(caching, "_" + name)
+
+
+class UserProvidedLocator(_AllKernelModules, _numba_class("UserProvidedCacheLocator")):
     """``NUMBA_CACHE_DIR``, when set."""
 
 
-class InTreeLocator(_AllKernelModules, caching.InTreeCacheLocator):
+class InTreeLocator(_AllKernelModules, _numba_class("InTreeCacheLocator")):
     """``__pycache__`` beside the module."""
 
 
-class UserWideLocator(_AllKernelModules, caching.UserWideCacheLocator):
+class UserWideLocator(_AllKernelModules, _numba_class("UserWideCacheLocator")):
     """The user's cache directory, where ``__pycache__`` is not writable."""
 
 
@@ -107,8 +112,7 @@ LOCATORS = (UserProvidedLocator, InTreeLocator, UserWideLocator)
 def install() -> None:
     """Put :data:`LOCATORS` ahead of numba's own (idempotent: those of an earlier load of this
     module are taken out first)."""
-    classes = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # (numba < 0.60: _CacheImpl)
-    classes = classes._locator_classes
+    classes = _numba_class("CacheImpl")._locator_classes
     classes[:] = [c for c in classes if c.__module__ != __name__]
     classes[:0] = LOCATORS
 
