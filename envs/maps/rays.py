@@ -132,8 +132,15 @@ def walk_beam(blocked, r0, c0, r1, c1, extra, out_rows, out_cols):
 @njit(cache=True, nogil=True)
 def ray_end(r0, c0, theta, max_range):
     """Integer end cell of a ray of ``max_range`` pixels from cell (r0, c0) along ``theta``."""
-    r1 = int(np.floor(r0 + 0.5 - np.cos(theta) * max_range))
-    c1 = int(np.floor(c0 + 0.5 + np.sin(theta) * max_range))
+    return ray_end_of(r0, c0, np.cos(theta), np.sin(theta), max_range)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def ray_end_of(r0, c0, cos_theta, sin_theta, max_range):
+    """:func:`ray_end` from the heading's cosine and sine (``np.cos(theta)``, ``np.sin(theta)``),
+    for rays whose headings repeat (a scanner's fixed beams): the same cell."""
+    r1 = int(np.floor(r0 + 0.5 - cos_theta * max_range))
+    c1 = int(np.floor(c0 + 0.5 + sin_theta * max_range))
     return r1, c1
 
 

@@ -62,7 +62,7 @@ import numpy as np
 
 from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
-from envs.maps.rays import ray_end, walk_beam
+from envs.maps.rays import ray_end_of, walk_beam
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map
 from envs.maps.scene import Scene
 from envs.maps.trajectory import trajectory
@@ -411,6 +411,20 @@ def _draw_streams(seed: int):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def beam_headings(n_beams):
+    """The cosines and sines of a scanner's ``n_beams`` beam headings, ``2 pi b / n_beams`` for
+    beam ``b`` (the same in every scan, and the same values as ``np.cos`` of each heading):
+    two (n_beams,) float64 arrays."""
+    cos_b = np.empty(n_beams, np.float64)
+    sin_b = np.empty(n_beams, np.float64)
+    for b in range(n_beams):
+        theta = 2.0 * np.pi * b / n_beams
+        cos_b[b] = np.cos(theta)
+        sin_b[b] = np.sin(theta)
+    return cos_b, sin_b
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _mark(state, touched_r, touched_c, nt, r, c, s, flag):
     """Flag cell (r, c) for scan ``s`` (``state = 4 * s + flags``; flag 1 free, 2 hit); a cell
     met for the first time in this scan joins the touched list. Returns the list's length."""
@@ -504,6 +518,7 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
     lr = np.empty(cap, np.int32)
     lc = np.empty(cap, np.int32)
     two_pi = 2.0 * np.pi
+    cos_b, sin_b = beam_headings(n_beams)
     done = 0
     for m in range(rows.shape[0]):
         r0 = rows[m]
@@ -521,7 +536,7 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
             if drop[m, b]:
                 continue
             theta = two_pi * b / n_beams
-            r1, c1 = ray_end(r0, c0, theta, range_px)
+            r1, c1 = ray_end_of(r0, c0, cos_b[b], sin_b[b], range_px)
             # cells past the hit a long reading may reach: the distance from the start grows by
             # at least 1/sqrt(2) px per step of the line, less 1/8 px for its sideways wobble
             extra = 0
@@ -548,8 +563,8 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
                 elif d_m > d_true:
                     # a long reading: the same line walked through the obstacle, unless its end
                     # lies past max_range or off the map (then a max-range reading: the whole line)
-                    pr = r0 + 0.5 - np.cos(theta) * (d_m / res)
-                    pc = c0 + 0.5 + np.sin(theta) * (d_m / res)
+                    pr = r0 + 0.5 - cos_b[b] * (d_m / res)
+                    pc = c0 + 0.5 + sin_b[b] * (d_m / res)
                     if d_m <= max_range_m and pr >= 0.0 and pr < h and pc >= 0.0 and pc < w:
                         k = n - 1
                         while np.hypot(lr[k] - r0, lc[k] - c0) * res > d_m:

@@ -29,7 +29,7 @@ import numpy as np
 
 from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
-from envs.maps.rays import line_start, line_step, ray_end, walk_beam
+from envs.maps.rays import cone_end, line_start, line_step, ray_end_of, walk_beam
 from envs.maps.scan import (
     FREE,
     ScanMap,
@@ -40,6 +40,7 @@ from envs.maps.scan import (
     _grazing_draws,
     _mark,
     _range_px,
+    beam_headings,
     beam_return,
     exact_scanner,
     occupancy_from_log_odds,
@@ -64,6 +65,7 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
     seen_r = -1
     seen_c = -1
     two_pi = 2.0 * np.pi
+    cos_b, sin_b = beam_headings(n_beams)  # the same in every scan
     done = 0
     for m in range(rows.shape[0]):
         r0 = rows[m]
@@ -78,6 +80,9 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
         s = done - 1
         nt = 0
         again = exact and r0 == seen_r and c0 == seen_c
+        turn = dyaw[m]
+        cos_turn = np.cos(turn)
+        sin_turn = np.sin(turn)
         for b in range(n_beams):
             if drop[m, b]:
                 continue
@@ -88,7 +93,7 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
                 d_m = d_true
             else:
                 # measure from the true cell
-                r1, c1 = ray_end(r0, c0, theta, range_px)
+                r1, c1 = ray_end_of(r0, c0, cos_b[b], sin_b[b], range_px)
                 n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
                 k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
                                               graze_u[m, b])
@@ -104,8 +109,8 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
                 seen_d[b] = d_true
             long_reading = False
             # insert from the estimated cell
-            phi = theta + dyaw[m]
-            r1, c1 = ray_end(e0, f0, phi, range_px)
+            phi = theta + turn
+            r1, c1 = cone_end(e0, f0, turn, cos_turn, sin_turn, theta, cos_b[b], sin_b[b], range_px)  # ray_end's at phi
             if hit and d_m > d_true:
                 # a long reading (as scan.py): its end must lie within max_range and on the map
                 long_reading = True
@@ -116,10 +121,14 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             # the digital line to the end cell, within the map; a reading with a hit stops at the
             # first cell farther than its range (distances along the line grow strictly, so the
             # cells beyond play no part: the line only walks as far as the reading reaches)
+            # with a hit, its cell is the last one within the range (cell 0 is at distance 0): each
+            # cell but the last is free, marked as the walk moves past it
             dr, dc, sr, sc, err = line_start(e0, f0, r1, c1)
             r = e0
             c = f0
             n = 0
+            last_r = -1
+            last_c = -1
             beyond = False
             # cell j lies at most j sqrt(2) px from the start: below ``sure`` it is within range
             sure = int(d_m / res / 1.4142135623730951 * (1.0 - 1e-9)) - 1 if hit else 0
@@ -127,21 +136,19 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
                 if hit and n > sure and np.hypot(r - e0, c - f0) * res > d_m:
                     beyond = True
                     break
-                lr[n] = r
-                lc[n] = c
+                if n > 0:
+                    nt = _mark(state, touched_r, touched_c, nt, last_r, last_c, s, 1)
+                last_r = r
+                last_c = c
                 n += 1
                 if r == r1 and c == c1:
                     break
                 r, c, err = line_step(r, c, err, dr, dc, sr, sc)
             if hit and not beyond and not long_reading:
                 # the inserted line must reach the measured range before leaving the map
-                hit = np.hypot(lr[n - 1] - e0, lc[n - 1] - f0) * res >= d_m
-            # with a hit, its cell is the last one within the range (cell 0 is at distance 0)
-            n_free = n - 1 if hit else n
-            for j in range(n_free):
-                nt = _mark(state, touched_r, touched_c, nt, lr[j], lc[j], s, 1)
-            if hit:
-                nt = _mark(state, touched_r, touched_c, nt, lr[n_free], lc[n_free], s, 2)
+                hit = np.hypot(last_r - e0, last_c - f0) * res >= d_m
+            if n > 0:
+                nt = _mark(state, touched_r, touched_c, nt, last_r, last_c, s, 2 if hit else 1)
         _apply_scan(log_odds, state, touched_r, touched_c, nt, l_hit, l_miss, l_min, l_max)
         seen_r = r0
         seen_c = c0
