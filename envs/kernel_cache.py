@@ -46,10 +46,21 @@ def package_dirs() -> tuple[Path, ...]:
     return tuple(out)
 
 
+def _kernel_sources() -> list[tuple[str, Path, bytes]]:
+    """(path within its package, path, content) of every kernel module of :data:`KERNEL_PACKAGES`
+    (files holding :data:`MARKER`), sorted by path; each file read once."""
+    marker = MARKER.encode()
+    out = []
+    for d in package_dirs():
+        for p in d.rglob("*.py"):
+            if "__pycache__" not in p.parts and marker in (data := p.read_bytes()):
+                out.append((f"{d.name}/{p.relative_to(d).as_posix()}", p, data))
+    return sorted(out, key=lambda t: t[1])
+
+
 def kernel_modules() -> list[Path]:
     """The kernel modules of :data:`KERNEL_PACKAGES` (files holding :data:`MARKER`), sorted."""
-    return sorted(p for d in package_dirs() for p in d.rglob("*.py")
-                  if "__pycache__" not in p.parts and MARKER in p.read_text(encoding="utf-8", errors="replace"))
+    return [p for _, p, _ in _kernel_sources()]
 
 
 @functools.lru_cache(maxsize=1)
@@ -57,10 +68,9 @@ def kernel_sources_digest() -> str:
     """SHA-256 of every kernel module's path (within its package) and content, read once per
     process (when the first kernel module is imported)."""
     h = hashlib.sha256()
-    for p in kernel_modules():
-        root = next(d for d in package_dirs() if p.is_relative_to(d))
-        h.update(f"{root.name}/{p.relative_to(root).as_posix()}\0".encode())
-        h.update(p.read_bytes())
+    for name, _, data in _kernel_sources():
+        h.update(f"{name}\0".encode())
+        h.update(data)
         h.update(b"\0")
     return h.hexdigest()
 
