@@ -254,11 +254,26 @@ def test_normal_equations_are_scipys_bit_for_bit():
     assert zeros > 0  # diagonal entries SciPy leaves out (a node no edge touches) are there at 0.0
 
 
-def test_pose_graph_solve_equals_the_scipy_products_bit_for_bit():
+def test_pose_graph_solve_agrees_with_scipys_sparse_lu():
+    """The solve (a sparse Cholesky per step) against the loop written out on SciPy's products
+    and sparse LU: the same states to rounding, the same cost and as many steps."""
     for graph, states in _random_graphs()[:3] + [_square_graph()]:
         got, info = solve(graph, states)
         want, cost, it = _old_solve(graph, states)
-        assert got.tobytes() == want.tobytes() and info["chi2"] == cost and info["iterations"] == it
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+        assert info["chi2"] == pytest.approx(cost, rel=1e-9, abs=1e-12) and info["iterations"] == it
+
+
+def test_pose_graph_solve_falls_back_to_the_lu_without_a_factor(monkeypatch):
+    """A damped system the Cholesky cannot factor (not positive definite to rounding) is solved
+    by SciPy's sparse LU: the loop goes on to the same states."""
+    from benchmark.conditions import sparse_cholesky
+
+    graph, states = _random_graphs()[0]
+    want, cost, it = _old_solve(graph, states)
+    monkeypatch.setattr(sparse_cholesky, "factor", lambda *a: None)
+    got, info = solve(graph, states)
+    assert got.tobytes() == want.tobytes() and info["chi2"] == cost and info["iterations"] == it
 
 
 # ----------------------------------------------------------------------------- alignment

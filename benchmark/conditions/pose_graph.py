@@ -9,7 +9,9 @@ Cholesky factor of its information matrix (inverse covariance), so that the whit
 
 has unit covariance. :func:`solve` minimises the sum of squared whitened residuals over every
 node but the first (the map's frame: the robot's start) by Levenberg-Marquardt with the sparse
-analytic Jacobian and SciPy's sparse solver. With noisy constraints it leaves a residual: the corrected
+analytic Jacobian, each step's normal equations solved by a sparse Cholesky factorisation
+(:mod:`benchmark.conditions.sparse_cholesky`; SciPy's sparse LU where a damped system is not
+positive definite to rounding). With noisy constraints it leaves a residual: the corrected
 poses are not the true ones.
 """
 
@@ -21,6 +23,7 @@ import numpy as np
 from scipy.sparse import csc_matrix
 from scipy.sparse.linalg import spsolve
 
+from benchmark.conditions import sparse_cholesky
 from benchmark.conditions.odometry import wrap
 from envs.kernel_cache import njit
 
@@ -72,6 +75,24 @@ def _blocks(states: np.ndarray, graph: PoseGraph) -> tuple[np.ndarray, np.ndarra
     ji[:, 0, 2] = -sn * d[:, 0] + c * d[:, 1]
     ji[:, 1, 2] = -c * d[:, 0] - sn * d[:, 1]
     return np.einsum("eab,ebc->eac", graph.sqrt_info, rt), np.einsum("eab,ebc->eac", graph.sqrt_info, ji)
+
+
+def _block_pattern(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray]:
+    """Every entry the normal equations over nodes 1..n-1 may have, in CSC (both triangles):
+    the 3 x 3 blocks of each node with itself and with every node an edge joins it to."""
+    n = graph.n
+    own = np.arange(1, n)
+    a = np.concatenate([np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64), own])
+    b = np.concatenate([np.asarray(graph.j, np.int64), np.asarray(graph.i, np.int64), own])
+    keep = (a > 0) & (b > 0)
+    a, b = a[keep] - 1, b[keep] - 1
+    rows = 3 * a[:, None, None] + np.arange(3)[None, :, None]
+    cols = 3 * b[:, None, None] + np.arange(3)[None, None, :]
+    rows, cols = np.broadcast_arrays(rows, cols)
+    size = 3 * (n - 1)
+    m = csc_matrix((np.ones(rows.size, np.int8), (rows.ravel(), cols.ravel())), shape=(size, size))
+    m.sum_duplicates()
+    return m.indptr, m.indices
 
 
 def _incidence(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -201,7 +222,8 @@ def _normal_equations(bj, bi, ei, ej, r, offsets, edges, roles, n):
 
 def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> tuple[np.ndarray, dict]:
     """Least-squares node states, node 0 held at ``initial[0]``: Levenberg-Marquardt on the
-    sparse normal equations (SciPy's sparse LU), as g2o and GTSAM solve pose graphs.
+    sparse normal equations (a sparse Cholesky factorisation of each damped system, the order
+    and pattern worked out once per solve), as g2o and GTSAM solve pose graphs.
 
     Args:
         graph: the edges.
@@ -226,6 +248,7 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
     incidence = _incidence(graph)
     ei, ej = np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64)
     size = 3 * (graph.n - 1)
+    analysis = sparse_cholesky.analyse(*_block_pattern(graph), size)
     while it < max_iterations:
         it += 1
         if system is None:
@@ -234,7 +257,11 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
         indptr, indices, data, g, diag, at_diag = system
         damped = data.copy()
         damped[at_diag] += lam * np.maximum(diag, 1e-12)  # (the damping is > 0: no entry becomes 0)
-        step = spsolve(csc_matrix((damped, indices, indptr), shape=(size, size)), -g)
+        lx = sparse_cholesky.factor(analysis, indptr, indices, damped)
+        if lx is not None:
+            step = sparse_cholesky.solve(analysis, lx, -g)
+        else:  # not positive definite to rounding: the LU with pivoting copes
+            step = spsolve(csc_matrix((damped, indices, indptr), shape=(size, size)), -g)
         trial = x.copy()
         trial[1:] += step.reshape(-1, 3)
         trial[:, 2] = wrap(trial[:, 2])
