@@ -214,6 +214,28 @@ def test_euclidean_neighbours_with_lattice_ties(k):
     np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_euclidean_neighbours_of_cells_in_any_order_with_views_in_clusters(seed):
+    """Cells given in no particular order (some far from every view, some in tiles of their own)
+    and views in tight clusters: a cell's K-th view can lie far on the other side of its tile's
+    centre; the tiled kernel keeps the (distance, index) order of a full sort of every view."""
+    from benchmark.aggregators.euclidean_knn import euclidean_neighbours
+
+    rng = np.random.default_rng(seed)
+    centres = rng.integers(0, 90, size=(rng.integers(1, 5), 2))
+    which = rng.integers(0, len(centres), rng.integers(3, 40))
+    spots = centres[which] + rng.integers(-2, 3, size=(len(which), 2))
+    rows, cols = spots[:, 0].copy(), spots[:, 1].copy()
+    cells = np.argwhere(rng.random((97, 91)) < 0.4)
+    cells = cells[rng.permutation(len(cells))]
+    for k in sorted({1, 2, min(5, len(rows)), len(rows)}):
+        d2 = (cells[:, None, 0] - rows[None]) ** 2 + (cells[:, None, 1] - cols[None]) ** 2
+        ids = np.broadcast_to(np.arange(len(rows)), d2.shape)
+        want = np.take_along_axis(ids, np.lexsort((ids, d2), axis=1)[:, :k], 1)
+        np.testing.assert_array_equal(euclidean_neighbours(rows, cols, cells, k), want)
+    assert euclidean_neighbours(rows, cols, np.zeros((0, 2), np.int64), 1).shape == (0, 1)
+
+
 @pytest.mark.parametrize("k", [1, 3, 5, 9])
 def test_euclidean_neighbours_of_views_turning_in_place(k):
     """Views in runs on one cell (1 to 8 a place, as views turning in place), places revisited

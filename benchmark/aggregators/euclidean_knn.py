@@ -2,15 +2,17 @@
 ignores walls). Each walkable cell takes the vote of its K nearest viewpoints by Euclidean
 distance between cell centres in pixels, voted as in :mod:`benchmark.aggregators.graph_knn`.
 
-"Nearest" is the order (squared pixel distance, viewpoint index), exactly as graph KNN. A
-numba kernel keeps each cell's K smallest keys ``d2 * N + index`` by insertion (K is small):
-exact by construction, no tie handling needed. The views are grouped by the cell they stand on
-(views turning in place share one: :func:`view_places`) and the places sorted by row once;
-each cell visits them outwards from its own row, nearer rows first, and stops in a direction
-once the squared row distance alone puts every further view's key above its K-th (a skipped
-view could never enter). A place's views share a distance, so their keys rise with their
-index: the first that does not enter ends the place. Time O(cells x places) at worst, about
-the places within the K-th distance's rows in practice; memory (cells, K).
+"Nearest" is the order (squared pixel distance, viewpoint index), exactly as graph KNN. The
+views are grouped by the cell they stand on (views turning in place share one:
+:func:`view_places`). A numba kernel takes the cells in square tiles of :data:`TILE` x
+:data:`TILE`. For a tile's centre it finds the distance ``d`` of its K-th nearest view; no cell
+of the tile is more than ``h`` (half the tile's diagonal) from the centre, so every view among a
+cell's K nearest, ties at the K-th included, lies within ``d + 2 h`` of the centre (the
+triangle inequality twice): those places are the tile's candidates. Each cell then keeps the K
+smallest keys ``d2 * N + index`` of its candidates' views by insertion (K is small): exact by
+construction, no tie handling needed. A place's views share a distance, so their keys rise with
+their index: the first that does not enter ends the place. Time about (cells x candidates),
+memory (cells, K).
 """
 
 from __future__ import annotations
@@ -25,49 +27,103 @@ from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.ranges import Integer, OneOf
 
+#: the side of the square tiles of cells that share their candidate views, in cells (even)
+TILE = 8
+
 
 @njit(cache=True, nogil=True)
-def _k_nearest(prow, pcol, starts, members, n, cells, k):
+def _k_nearest(prow, pcol, starts, members, n, cells, k, tile):
+    m = cells.shape[0]
     places = prow.shape[0]
-    out = np.empty((cells.shape[0], k), np.int64)
+    out = np.empty((m, k), np.int64)
+    if m == 0:
+        return out
+    # the cells by tile (a counting sort; each tile's cells in their order)
+    rmin, rmax, cmin, cmax = cells[0, 0], cells[0, 0], cells[0, 1], cells[0, 1]
+    for j in range(m):
+        rmin, rmax = min(rmin, cells[j, 0]), max(rmax, cells[j, 0])
+        cmin, cmax = min(cmin, cells[j, 1]), max(cmax, cells[j, 1])
+    across = (cmax - cmin) // tile + 1
+    tiles = ((rmax - rmin) // tile + 1) * across
+    first = np.zeros(tiles + 1, np.int64)
+    which = np.empty(m, np.int64)
+    for j in range(m):
+        t = ((cells[j, 0] - rmin) // tile) * across + (cells[j, 1] - cmin) // tile
+        which[j] = t
+        first[t + 1] += 1
+    for t in range(tiles):
+        first[t + 1] += first[t]
+    order = np.empty(m, np.int64)
+    at = first[:tiles].copy()
+    for j in range(m):
+        order[at[which[j]]] = j
+        at[which[j]] += 1
+    half = tile // 2
+    reach = 2.0 * np.sqrt(2.0 * half * half)  # twice the farthest a tile's cell is from its centre
+    d2c = np.empty(places, np.int64)
+    cand = np.empty(places, np.int64)
     best = np.empty(k, np.int64)
-    for j in range(cells.shape[0]):
-        cr, cc = cells[j, 0], cells[j, 1]
+    bidx = np.empty(k, np.int64)
+    for t in range(tiles):
+        if first[t] == first[t + 1]:
+            continue
+        cr = rmin + (t // across) * tile + half
+        cc = cmin + (t % across) * tile + half
         filled = 0
-        up = np.searchsorted(prow, cr) - 1  # next place above (row < cr), going up
-        down = up + 1  # next place at or below, going down
-        while up >= 0 or down < places:
-            # the nearer row first; a direction ends when its row distance alone exceeds the K-th key
-            if down < places and (up < 0 or prow[down] - cr <= cr - prow[up]):
-                p = down
-                down += 1
-            else:
-                p = up
-                up -= 1
-            dr = prow[p] - cr
-            if filled == k and dr * dr * n > best[k - 1]:
-                if dr >= 0:
-                    down = places
-                else:
-                    up = -1
-                continue
-            dc = pcol[p] - cc
-            d2n = (dr * dr + dc * dc) * n
-            for q in range(starts[p], starts[p + 1]):  # the place's views, by index: keys rise
-                key = d2n + members[q]
+        for p in range(places):  # the centre's K smallest distances, each view of a place counted
+            dr, dc = prow[p] - cr, pcol[p] - cc
+            d = dr * dr + dc * dc
+            d2c[p] = d
+            for _ in range(starts[p], starts[p + 1]):  # (one distance per view)
                 if filled < k:
                     pos = filled
                     filled += 1
-                elif key < best[k - 1]:
+                elif d < best[k - 1]:
                     pos = k - 1
                 else:
-                    break  # nor do the place's later views enter
-                while pos > 0 and best[pos - 1] > key:  # insertion into the sorted K best
+                    break
+                while pos > 0 and best[pos - 1] > d:
                     best[pos] = best[pos - 1]
                     pos -= 1
-                best[pos] = key
-        for q in range(k):
-            out[j, q] = best[q] % n
+                best[pos] = d
+        r = np.sqrt(best[k - 1]) + reach + 1e-6
+        limit = np.int64(r * r) + 1  # (rounded up: more candidates, never fewer)
+        nc = 0
+        for p in range(places):  # the candidates, nearest the centre first
+            if d2c[p] <= limit:
+                x = nc
+                while x > 0 and d2c[cand[x - 1]] > d2c[p]:
+                    cand[x] = cand[x - 1]
+                    x -= 1
+                cand[x] = p
+                nc += 1
+        for q in range(first[t], first[t + 1]):
+            j = order[q]
+            cr, cc = cells[j, 0], cells[j, 1]
+            filled = 0
+            for x in range(nc):
+                p = cand[x]
+                dr, dc = prow[p] - cr, pcol[p] - cc
+                d2n = (dr * dr + dc * dc) * n
+                if filled == k and d2n > best[k - 1]:
+                    continue
+                for v in range(starts[p], starts[p + 1]):  # the place's views, by index: keys rise
+                    key = d2n + members[v]
+                    if filled < k:
+                        pos = filled
+                        filled += 1
+                    elif key < best[k - 1]:
+                        pos = k - 1
+                    else:
+                        break  # nor do the place's later views enter
+                    while pos > 0 and best[pos - 1] > key:  # insertion into the sorted K best
+                        best[pos] = best[pos - 1]
+                        bidx[pos] = bidx[pos - 1]
+                        pos -= 1
+                    best[pos] = key
+                    bidx[pos] = members[v]
+            for v in range(k):
+                out[j, v] = bidx[v]
     return out
 
 
@@ -104,7 +160,7 @@ def euclidean_neighbours(rows: np.ndarray, cols: np.ndarray, cells: np.ndarray, 
     if not 1 <= k <= len(rows):
         raise ValueError(f"k must be in 1..{len(rows)} (the number of views), got {k}")
     prow, pcol, starts, members = view_places(rows, cols)
-    return _k_nearest(prow, pcol, starts, members, len(rows), np.ascontiguousarray(cells, np.int64), int(k))
+    return _k_nearest(prow, pcol, starts, members, len(rows), np.ascontiguousarray(cells, np.int64), int(k), TILE)
 
 
 class EuclideanKNN(Aggregator):
