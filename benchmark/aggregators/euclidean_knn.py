@@ -31,6 +31,34 @@ from envs.ranges import Integer, OneOf
 TILE = 8
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _k_best(prow, pcol, starts, members, n, r, c, k, cand, nc, best, bidx):
+    """Into ``best``/``bidx``: the K smallest keys ``d2 * N + index`` of the views on places
+    ``cand[:nc]`` from cell (r, c), sorted, and their view indices."""
+    filled = 0
+    for x in range(nc):
+        p = cand[x]
+        dr, dc = prow[p] - r, pcol[p] - c
+        d2n = (dr * dr + dc * dc) * n
+        if filled == k and d2n > best[k - 1]:
+            continue
+        for v in range(starts[p], starts[p + 1]):  # the place's views, by index: keys rise
+            key = d2n + members[v]
+            if filled < k:
+                pos = filled
+                filled += 1
+            elif key < best[k - 1]:
+                pos = k - 1
+            else:
+                break  # nor do the place's later views enter
+            while pos > 0 and best[pos - 1] > key:  # insertion into the sorted K best
+                best[pos] = best[pos - 1]
+                bidx[pos] = bidx[pos - 1]
+                pos -= 1
+            best[pos] = key
+            bidx[pos] = members[v]
+
+
 @njit(cache=True, nogil=True)
 def _k_nearest(prow, pcol, starts, members, n, cells, k, tile):
     m = cells.shape[0]
@@ -60,6 +88,7 @@ def _k_nearest(prow, pcol, starts, members, n, cells, k, tile):
         at[which[j]] += 1
     half = tile // 2
     reach = 2.0 * np.sqrt(2.0 * half * half)  # twice the farthest a tile's cell is from its centre
+    every = np.arange(places)
     d2c = np.empty(places, np.int64)
     cand = np.empty(places, np.int64)
     best = np.empty(k, np.int64)
@@ -69,27 +98,13 @@ def _k_nearest(prow, pcol, starts, members, n, cells, k, tile):
             continue
         cr = rmin + (t // across) * tile + half
         cc = cmin + (t % across) * tile + half
-        filled = 0
-        for p in range(places):  # the centre's K smallest distances, each view of a place counted
-            dr, dc = prow[p] - cr, pcol[p] - cc
-            d = dr * dr + dc * dc
-            d2c[p] = d
-            for _ in range(starts[p], starts[p + 1]):  # (one distance per view)
-                if filled < k:
-                    pos = filled
-                    filled += 1
-                elif d < best[k - 1]:
-                    pos = k - 1
-                else:
-                    break
-                while pos > 0 and best[pos - 1] > d:
-                    best[pos] = best[pos - 1]
-                    pos -= 1
-                best[pos] = d
-        r = np.sqrt(best[k - 1]) + reach + 1e-6
+        _k_best(prow, pcol, starts, members, n, cr, cc, k, every, places, best, bidx)  # the centre's K nearest
+        r = np.sqrt(best[k - 1] // n) + reach + 1e-6
         limit = np.int64(r * r) + 1  # (rounded up: more candidates, never fewer)
         nc = 0
         for p in range(places):  # the candidates, nearest the centre first
+            dr, dc = prow[p] - cr, pcol[p] - cc
+            d2c[p] = dr * dr + dc * dc
             if d2c[p] <= limit:
                 x = nc
                 while x > 0 and d2c[cand[x - 1]] > d2c[p]:
@@ -99,29 +114,7 @@ def _k_nearest(prow, pcol, starts, members, n, cells, k, tile):
                 nc += 1
         for q in range(first[t], first[t + 1]):
             j = order[q]
-            cr, cc = cells[j, 0], cells[j, 1]
-            filled = 0
-            for x in range(nc):
-                p = cand[x]
-                dr, dc = prow[p] - cr, pcol[p] - cc
-                d2n = (dr * dr + dc * dc) * n
-                if filled == k and d2n > best[k - 1]:
-                    continue
-                for v in range(starts[p], starts[p + 1]):  # the place's views, by index: keys rise
-                    key = d2n + members[v]
-                    if filled < k:
-                        pos = filled
-                        filled += 1
-                    elif key < best[k - 1]:
-                        pos = k - 1
-                    else:
-                        break  # nor do the place's later views enter
-                    while pos > 0 and best[pos - 1] > key:  # insertion into the sorted K best
-                        best[pos] = best[pos - 1]
-                        bidx[pos] = bidx[pos - 1]
-                        pos -= 1
-                    best[pos] = key
-                    bidx[pos] = members[v]
+            _k_best(prow, pcol, starts, members, n, cells[j, 0], cells[j, 1], k, cand, nc, best, bidx)
             for v in range(k):
                 out[j, v] = bidx[v]
     return out
