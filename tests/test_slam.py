@@ -264,16 +264,30 @@ def test_pose_graph_solve_agrees_with_scipys_sparse_lu():
         assert info["chi2"] == pytest.approx(cost, rel=1e-9, abs=1e-12) and info["iterations"] == it
 
 
-def test_pose_graph_solve_falls_back_to_the_lu_without_a_factor(monkeypatch):
-    """A damped system the Cholesky cannot factor (not positive definite to rounding) is solved
-    by SciPy's sparse LU: the loop goes on to the same states."""
+@pytest.mark.parametrize("why", ["no factor", "too large"])
+def test_pose_graph_solve_falls_back_to_the_lu(why, monkeypatch):
+    """A damped system the Cholesky cannot factor (not positive definite to rounding), or a graph
+    whose factor would hold more than CHOLESKY_MAX_ENTRIES, is solved by SciPy's sparse LU: the
+    loop written out on it, bit for bit."""
+    from benchmark.conditions import pose_graph as pg
     from benchmark.conditions import sparse_cholesky
 
     graph, states = _random_graphs()[0]
     want, cost, it = _old_solve(graph, states)
-    monkeypatch.setattr(sparse_cholesky, "factor", lambda *a: None)
+    if why == "no factor":
+        monkeypatch.setattr(sparse_cholesky, "factor", lambda *a: None)
+    else:
+        entries = sparse_cholesky.analyse(*pg._block_pattern(graph), 3 * (graph.n - 1)).lp[-1]
+        monkeypatch.setattr(pg, "CHOLESKY_MAX_ENTRIES", entries - 1)
+        called = []
+        monkeypatch.setattr(sparse_cholesky, "factor", lambda *a: called.append(1))
     got, info = solve(graph, states)
     assert got.tobytes() == want.tobytes() and info["chi2"] == cost and info["iterations"] == it
+    if why == "too large":
+        assert not called
+        monkeypatch.setattr(pg, "CHOLESKY_MAX_ENTRIES", entries)  # at the limit: the Cholesky
+        got, _ = solve(graph, states)
+        assert called and np.allclose(got, want, rtol=0, atol=1e-9)
 
 
 # ----------------------------------------------------------------------------- alignment

@@ -10,8 +10,9 @@ Cholesky factor of its information matrix (inverse covariance), so that the whit
 has unit covariance. :func:`solve` minimises the sum of squared whitened residuals over every
 node but the first (the map's frame: the robot's start) by Levenberg-Marquardt with the sparse
 analytic Jacobian, each step's normal equations solved by a sparse Cholesky factorisation
-(:mod:`benchmark.conditions.sparse_cholesky`; SciPy's sparse LU where a damped system is not
-positive definite to rounding). With noisy constraints it leaves a residual: the corrected
+(:mod:`benchmark.conditions.sparse_cholesky`; SciPy's sparse LU for a graph whose factor would
+exceed :data:`CHOLESKY_MAX_ENTRIES`, or where a damped system is not positive definite to
+rounding). With noisy constraints it leaves a residual: the corrected
 poses are not the true ones.
 """
 
@@ -26,6 +27,13 @@ from scipy.sparse.linalg import spsolve
 from benchmark.conditions import sparse_cholesky
 from benchmark.conditions.odometry import wrap
 from envs.kernel_cache import njit
+
+#: the most entries the Cholesky factor of a solve's system may hold; a larger graph's solve
+#: keeps SciPy's sparse LU (SuperLU), faster there. A house's route (about 470 nodes, 1,400
+#: unknowns, 15,000 entries) factors in about a tenth of the LU's time; a robot covering a
+#: 70 x 70 lattice of nodes with closures to the row beside (14,700 unknowns, about a million
+#: entries by this order) in about 1.8 times the LU's.
+CHOLESKY_MAX_ENTRIES = 200_000
 
 
 @dataclass
@@ -249,6 +257,8 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
     ei, ej = np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64)
     size = 3 * (graph.n - 1)
     analysis = sparse_cholesky.analyse(*_block_pattern(graph), size)
+    if analysis.lp[-1] > CHOLESKY_MAX_ENTRIES:
+        analysis = None
     while it < max_iterations:
         it += 1
         if system is None:
@@ -257,10 +267,10 @@ def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> t
         indptr, indices, data, g, diag, at_diag = system
         damped = data.copy()
         damped[at_diag] += lam * np.maximum(diag, 1e-12)  # (the damping is > 0: no entry becomes 0)
-        lx = sparse_cholesky.factor(analysis, indptr, indices, damped)
+        lx = None if analysis is None else sparse_cholesky.factor(analysis, indptr, indices, damped)
         if lx is not None:
             step = sparse_cholesky.solve(analysis, lx, -g)
-        else:  # not positive definite to rounding: the LU with pivoting copes
+        else:  # a large graph, or not positive definite to rounding: the LU with pivoting copes
             step = spsolve(csc_matrix((damped, indices, indptr), shape=(size, size)), -g)
         trial = x.copy()
         trial[1:] += step.reshape(-1, 3)
