@@ -7,8 +7,9 @@ fill-reducing order (SciPy's reverse Cuthill-McKee), the elimination tree and th
 the factor ``L``. :func:`factor` then computes ``L`` for one matrix's values, and
 :func:`solve` solves with it. The solve's linear algebra this replaces was SciPy's sparse LU
 (``spsolve``, SuperLU with partial pivoting), which does the ordering and the symbolic work again
-for every matrix; it stays as the fallback for a damped system that is not positive definite to
-rounding.
+for every matrix; the solve keeps it for a damped system that is not positive definite to
+rounding, and for a graph whose factor would be large (its supernodal LU is faster there:
+:data:`benchmark.conditions.pose_graph.CHOLESKY_MAX_ENTRIES`).
 
 The algorithm is the up-looking Cholesky of Davis, *Direct Methods for Sparse Linear Systems*
 (SIAM 2006, chapter 4): row ``k`` of ``L`` solves a triangular system whose pattern is the
@@ -141,7 +142,7 @@ def _numeric(n, ap, ai, ax, perm, pinv, lp, li, rp, reach):
             j = reach[t]
             lkj = x[j] / lx[lp[j]]
             x[j] = 0.0
-            for p in range(lp[j] + 1, nxt[j]):  # the entries of column j above row k
+            for p in range(lp[j] + 1, nxt[j]):  # column j below its diagonal, rows before k
                 x[li[p]] -= lx[p] * lkj
             d -= lkj * lkj
             lx[nxt[j]] = lkj
