@@ -52,7 +52,7 @@ def test_entries_missing_from_the_analysed_pattern_count_as_zero():
     pattern serves normal equations whose entries come to exactly 0."""
     full = _spd(60, 0.05, 7)
     an = sc.analyse(full.indptr, full.indices, 60)
-    sparse = _spd(60, 0.05, 7).toarray()
+    sparse = full.toarray()
     rng = np.random.default_rng(8)
     off = [(i, j) for i, j in zip(*np.nonzero(sparse)) if i < j]
     for k in rng.choice(len(off), len(off) // 3, replace=False):  # a third of the pairs off
