@@ -67,16 +67,17 @@ def test_vision_cone_equals_per_ray_loop(seed, vote, density):
 
 @pytest.mark.parametrize("seed", range(3))
 @pytest.mark.parametrize("fov, density, paths", [(360.0, 1.0, True), (90.0, 0.4, True), (120.0, 1.0, False)])
-def test_vision_cone_equals_per_ray_loop_beyond_neighbouring_ends(seed, fov, density, paths, monkeypatch):
+@pytest.mark.parametrize("vote", ["label", "probability"])
+def test_vision_cone_equals_per_ray_loop_beyond_neighbouring_ends(seed, fov, density, paths, vote, monkeypatch):
     """A whole turn (the last ray's end next to the first's), sparse rays (ends 2-3 px apart: no
-    difference list, each ray walked whole) and no path tables at all (over the budget): the
-    same cells as the per-ray reference."""
+    difference list, each ray walked whole) and no path tables at all (over the budget: each ray
+    walks its own line), with either vote: the same cells as the per-ray reference."""
     import benchmark.aggregators.vision_cone as vc
 
     if not paths:
         monkeypatch.setattr(vc, "PATH_CACHE_BYTES", 0)
     grid, poses, proba = random_case(seed)
-    kw = dict(fov=fov, max_range_m=1.2, blocked_ray_m=0.1, window=1, ray_density=density)
+    kw = dict(fov=fov, max_range_m=1.2, blocked_ray_m=0.1, window=1, ray_density=density, vote=vote)
     assert np.array_equal(VisionCone(**kw)(grid, poses, proba), vision_cone_reference(grid, poses, proba, **kw))
     assert (vc.ray_paths(24.0, vc.PATH_CACHE_BYTES)[0] > 0) == paths
 
