@@ -9,7 +9,8 @@ The per-ray Python reference is very slow, so it runs on the first ``--cone-ref-
 views only and the fast version is timed again on exactly those views for the ratio.
 The vision cone is also set against its floor: one vote added for each visible (view, cell)
 pair, each pair once, from a precomputed list (what any cone implementation must at least
-do); ``cone / floor`` is the ratio of the two times.
+do); ``cone / floor`` is the ratio of the two times, each the best of 7 calls made in turn
+(one of each, then one of each again), so that the machine's changing speed meets both.
 Euclidean KNN (no reference) is timed alongside. Prints per-house medians, the speed-up
 ratios, and peak traced memory (tracemalloc: Python and NumPy allocations, including the
 map-sized work arrays the numba kernels fill), also as bytes per map pixel: constant across
@@ -55,6 +56,21 @@ def _timed(fn, *args, repeat: int = 3):
         out = fn(*args)
         best = min(best, time.perf_counter() - t)
     return out, best
+
+
+def _timed_together(calls, repeat: int = 7) -> list[float]:
+    """Best wall time in seconds of each ``(fn, *args)`` of ``calls`` over ``repeat`` rounds, one
+    call of each per round, in turn (forwards, then backwards in the next round): the times of
+    a ratio taken side by side, so that a change in the machine's speed meets both."""
+    best = [float("inf")] * len(calls)
+    for k in range(repeat):
+        order = range(len(calls)) if k % 2 == 0 else range(len(calls) - 1, -1, -1)
+        for i in order:
+            fn, *args = calls[i]
+            t = time.perf_counter()
+            fn(*args)
+            best[i] = min(best[i], time.perf_counter() - t)
+    return best
 
 
 def _peak(fn, *args) -> int:
@@ -133,8 +149,9 @@ def run(houses: int, synthetic: int, resolutions: list[float], cone_ref_views: i
             ref, t_knn_ref = _timed(graph_knn_reference, s.grid, poses, proba, 5, repeat=1)
             cone_lab, t_cone = _timed(cone, s.grid, poses, proba)
             flat, labs = cone_pairs(s.grid, poses, proba, cone)
-            floor_counts, t_floor = _timed(cone_floor, s.grid, flat, labs, proba.shape[1])
-            _, t_votes = _timed(cone.votes, s.grid, poses, proba)
+            floor_counts = cone_floor(s.grid, flat, labs, proba.shape[1])
+            t_votes, t_floor = _timed_together([(cone.votes, s.grid, poses, proba),
+                                                (cone_floor, s.grid, flat, labs, proba.shape[1])])
             # the floor's counts are the cone's votes: the same pairs, each once
             floor_equal = bool(np.array_equal(floor_counts.reshape(-1, *s.grid.shape), cone.votes(s.grid, poses, proba)))
             sub = slice(0, cone_ref_views)
@@ -348,7 +365,8 @@ def main(argv: list[str] | None = None) -> int:
               f"Medians over houses. Speed-ups measured in this run on the same inputs (cone: the first "
               f"{a.cone_ref_views} views). Cone / floor: the cone's voting (before the window mode) over one vote "
               f"per visible (view, cell) pair from a precomputed list, same views; floor identical: those "
-              f"votes equal the cone's. Times: best of 3 calls per house. Peak: tracemalloc (Python/NumPy "
+              f"votes equal the cone's. Times: best of 3 calls per house; cone votes and floor: best of 7, "
+              f"called in turn. Peak: tracemalloc (Python/NumPy "
               f"allocations, incl. the numba kernels' work arrays)."]
     print("\n" + "\n\n".join(parts[-2:]))
     return _write(a.out, parts, argv)
