@@ -9,8 +9,8 @@ The per-ray Python reference is very slow, so it runs on the first ``--cone-ref-
 views only and the fast version is timed again on exactly those views for the ratio.
 The vision cone is also set against its floor: one vote added for each visible (view, cell)
 pair, each pair once, from a precomputed list (what any cone implementation must at least
-do); ``cone / floor`` is the ratio of the two times, each the best of 7 calls made in turn
-(one of each, then one of each again), so that the machine's changing speed meets both.
+do); ``cone / floor`` is the ratio of the two times, each the best of 7 rounds of one call of
+each (the order reversed every other round), so that the machine's changing speed meets both.
 Euclidean KNN (no reference) is timed alongside. Prints per-house medians, the speed-up
 ratios, and peak traced memory (tracemalloc: Python and NumPy allocations, including the
 map-sized work arrays the numba kernels fill), also as bytes per map pixel: constant across
