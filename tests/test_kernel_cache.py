@@ -139,8 +139,8 @@ def test_a_change_to_an_inlined_helpers_module_alone_compiles_the_kernel_again(t
     helper = copy / "envs" / "maps" / "ray_paths.py"
     text = helper.read_text(encoding="utf-8")
     # a ray after one that saw its whole path sees nothing beyond its camera, nor do the rays after it
-    changed = text.replace("    if whole or pstop >= n:\n        return 0, n\n",
-                           "    if whole or pstop >= n:\n        return 0, 0\n")
+    changed = text.replace("return 0 if seen else (pstop if on else 0), n if seen else",
+                           "return 0 if seen else (pstop if on else 0), 0 if seen else")
     assert changed != text
     helper.write_text(changed, encoding="utf-8")
     after = _votes(copy, cache)

@@ -182,13 +182,14 @@ def test_cones_reach_equals_the_union_of_reference_rays(seed):
 
 
 def test_cone_end_is_ray_end_on_every_heading():
-    """The angle-sum end cell equals ray_end's: on random views and ranges, and on headings
-    whose end lies within rounding of a cell boundary (cos or sin times the range a half
-    integer: there the formula's last bit and the cosine's differ, and only the fallback to
-    ray_end gives the same cell), on huge and non-finite headings."""
+    """The angle-sum end cell, ray by ray (cone_end) and a view's rays at once (cone_ends),
+    equals ray_end's: on random views and ranges, and on headings whose end lies within
+    rounding of a cell boundary (cos or sin times the range a half integer: there the
+    formula's last bit and the cosine's differ, and only the fallback to ray_end gives the
+    same cell), on huge and non-finite headings."""
     from numba import njit
 
-    from envs.maps.rays import cone_end
+    from envs.maps.rays import cone_end, cone_ends
 
     @njit
     def both(r0, c0, yaw, offs, rng):
@@ -199,12 +200,19 @@ def test_cone_end_is_ray_end_on_every_heading():
             out[t, 2], out[t, 3] = ray_end(r0, c0, yaw + offs[t], rng)
         return out
 
+    def every(r0, c0, yaw, offs, rng):
+        out = both(r0, c0, yaw, offs, rng)
+        er, ec, exact = np.empty(len(offs), np.int64), np.empty(len(offs), np.int64), np.empty(len(offs), bool)
+        cone_ends(r0, c0, yaw, offs, np.cos(offs), np.sin(offs), rng, er, ec, exact)
+        assert np.array_equal(np.stack([er + r0, ec + c0], 1), out[:, 2:])
+        return out
+
     gen = np.random.default_rng(0)
     n = 0
     for _ in range(300):
         rng = float(gen.choice([gen.uniform(0.5, 400), float(gen.integers(1, 300)), gen.integers(1, 300) + 0.5]))
         offs = cone_thetas(0.0, float(gen.uniform(1, 360)), rng, float(gen.choice([0.5, 2.0, 4.0])))
-        got = both(int(gen.integers(-5, 500)), int(gen.integers(-5, 500)), float(gen.uniform(-13, 13)), offs, rng)
+        got = every(int(gen.integers(-5, 500)), int(gen.integers(-5, 500)), float(gen.uniform(-13, 13)), offs, rng)
         assert np.array_equal(got[:, :2], got[:, 2:])
         n += len(offs)
     near = 0
@@ -213,12 +221,61 @@ def test_cone_end_is_ray_end_on_every_heading():
             offs = np.linspace(-1.2, 1.2, 4001)
             yaws = target - offs  # yaw + offset lands on (or one bit off) the target heading
             for yaw in yaws[::40]:
-                got = both(10, 10, float(yaw), target - yaw + np.array([0.0, 1e-16, -1e-16]), rng)
+                got = every(10, 10, float(yaw), target - yaw + np.array([0.0, 1e-16, -1e-16]), rng)
                 assert np.array_equal(got[:, :2], got[:, 2:])
                 fr = 10.5 - np.cos(yaw + (target - yaw)) * rng
                 near += abs(fr - np.round(fr)) < 1e-9
     assert near > 100  # the boundary cases were met
     for yaw in (2e3, -5e6, 1e12, 3e15, np.inf, np.nan):  # beyond the bound: ray_end itself
-        got = both(50, 50, yaw, cone_thetas(0.0, 90.0, 400.0), 400.0)
+        got = every(50, 50, yaw, cone_thetas(0.0, 90.0, 400.0), 400.0)
         assert np.array_equal(got[:, :2], got[:, 2:])
     assert n > 50_000
+
+
+def test_path_helpers_equal_their_plain_branching_form():
+    """The ray path tables' helpers, written without a branch on their array (numba counts a
+    reference to an array a branching helper reads), against the plain if/else they replace:
+    every case of a small list, and the path of an end inside, outside and without tables."""
+    from numba import njit
+
+    from envs.maps.ray_paths import (
+        _no_paths,
+        after_differences,
+        after_neighbour_list,
+        path_of,
+        ray_paths,
+    )
+
+    @njit
+    def helpers(i, e, dj, pstop, m, whole):
+        return after_differences(i, e, dj, pstop, m), after_neighbour_list(whole, i, e, dj, pstop, m)
+
+    dj = np.array([0, 9, 2, 9, 3, 9, 5, 9], np.int16)  # pairs (index, minor): indices 0, 2, 3, 5
+    n = 0
+    for e in range(0, 5):
+        for i in range(0, e + 1):
+            for pstop in range(0, 7):
+                for m in range(0, 7):
+                    for whole in (False, True):
+                        on = i < e and dj[2 * i] == pstop
+                        want_d = ((pstop, -1) if on else (0, pstop)) if pstop < m else (m, -1)
+                        want_n = (0, m) if whole or pstop >= m else (pstop, -1) if on else (0, pstop)
+                        assert helpers(i, e, dj, pstop, m, whole) == (want_d, want_n)
+                        n += on
+    assert n > 0
+    assert helpers(0, 0, np.zeros(0, np.int16), 2, 5, False) == ((0, 2), (0, 2))  # no list at all
+
+    @njit
+    def find(er, ec, k, slot):
+        return path_of(er, ec, k, slot)
+
+    k, slot = ray_paths(6.0)[:2]
+    inside = [(er, ec) for er in range(-k, k + 1) for ec in range(-k, k + 1)]
+    assert all(find(er, ec, k, slot) == slot[er + k, ec + k] for er, ec in inside)
+    assert (slot >= 0).any() and (slot < 0).any()
+    # just outside on each side (the nearest cell inside has a path), and far outside
+    assert all(slot[er + k, ec + k] >= 0 for er, ec in ((k, 0), (0, -k), (-k, 0), (0, k)))
+    for er, ec in ((k + 1, 0), (0, -k - 1), (-k - 1, 0), (0, k + 1), (-k - 1, k), (k, k + 1), (10**6, 0)):
+        assert find(er, ec, k, slot) == -1
+    none_k, none_slot = _no_paths()[:2]
+    assert find(0, 0, none_k, none_slot) == -1 and find(1, -1, none_k, none_slot) == -1

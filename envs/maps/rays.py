@@ -31,10 +31,11 @@ def ray_state(passable: np.ndarray) -> np.ndarray:
     Args:
         passable: (H, W) bool cells a ray walks through.
     """
-    st = np.full((passable.shape[0] + 2, passable.shape[1] + 2), OUTSIDE, np.int32)
-    inner = st[1:-1, 1:-1]
-    inner[...] = BLOCKED
-    np.copyto(inner, FREE, where=passable)  # in place: no map-sized 64-bit temporary
+    st = np.empty((passable.shape[0] + 2, passable.shape[1] + 2), np.int32)
+    st[0] = st[-1] = OUTSIDE
+    st[:, 0] = st[:, -1] = OUTSIDE
+    # FREE is BLOCKED + 1: one pass, in place (no map-sized temporary, no masked copy)
+    np.add(np.asarray(passable, np.bool_), BLOCKED, out=st[1:-1, 1:-1], dtype=np.int32)
     return st
 
 
@@ -167,6 +168,46 @@ def cone_end(r0, c0, yaw, cy, sy, off, co, so, max_range):
             and CONE_END_TOL < fc - c1 < 1.0 - CONE_END_TOL):
         return int(r1), int(c1)
     return ray_end(r0, c0, yaw + off, max_range)
+
+
+@njit(cache=True, nogil=True)
+def cone_ends(r0, c0, yaw, offsets, cos_off, sin_off, max_range, ends_r, ends_c, exact):
+    """:func:`cone_end` of every ray of a view at once: ``ends_r[t], ends_c[t]`` become the end
+    cell of the ray of heading ``yaw + offsets[t]``, as an offset from the view's cell (r0, c0).
+    First every ray by the angle-sum formula, in a loop without a branch (the compiler does
+    several rays an instruction), marking in ``exact`` the ends that lie clear of a cell
+    boundary; then :func:`ray_end` for the others (none when the heading is beyond
+    ``CONE_END_YAW`` or not finite: then every ray). The same cells as :func:`cone_end` ray by
+    ray, at about half its instructions per ray.
+
+    Args:
+        r0, c0: the view's cell.
+        yaw: its heading, radians.
+        offsets, cos_off, sin_off: (R,) the rays' headings around ``yaw`` and their cosines and sines.
+        max_range: ray length, pixels.
+        ends_r, ends_c: (R,) int64, written.
+        exact: (R,) bool scratch, written.
+    """
+    cy = np.cos(yaw)
+    sy = np.sin(yaw)
+    gr = r0 + 0.5
+    gc = c0 + 0.5
+    for t in range(offsets.shape[0]):
+        fr = gr - (cy * cos_off[t] - sy * sin_off[t]) * max_range
+        fc = gc + (sy * cos_off[t] + cy * sin_off[t]) * max_range
+        r1 = np.floor(fr)
+        c1 = np.floor(fc)
+        ends_r[t] = np.int64(r1) - r0
+        ends_c[t] = np.int64(c1) - c0
+        a = fr - r1
+        b = fc - c1
+        exact[t] = (CONE_END_TOL < a) & (a < 1.0 - CONE_END_TOL) & (CONE_END_TOL < b) & (b < 1.0 - CONE_END_TOL)
+    every = not abs(yaw) <= CONE_END_YAW
+    for t in range(offsets.shape[0]):
+        if every or not exact[t]:
+            r1, c1 = ray_end(r0, c0, yaw + offsets[t], max_range)
+            ends_r[t] = r1 - r0
+            ends_c[t] = c1 - c0
 
 
 @njit(cache=True, nogil=True)
