@@ -119,6 +119,23 @@ def test_ray_paths_are_the_digital_lines_to_their_ends():
     assert tails > 100
 
 
+
+def test_the_cone_refuses_path_tables_of_a_shorter_range(monkeypatch):
+    """The kernel reads a ray's path from the tables without a bounds test (its end lies within
+    ceil(range) px of the camera): tables of a shorter range are refused, not read beyond."""
+    import benchmark.aggregators.vision_cone as vc
+    from envs.maps.ray_paths import _no_paths
+
+    grid, poses, proba = random_case(0)
+    cone = VisionCone(max_range_m=1.2)
+    want = cone.votes(grid, poses, proba).copy()
+    shorter = vc.ray_paths(3.0, vc.PATH_CACHE_BYTES)
+    monkeypatch.setattr(vc, "ray_paths", lambda max_range, budget: shorter)
+    with pytest.raises(ValueError, match="shorter range"):
+        cone.votes(grid, poses, proba)
+    monkeypatch.setattr(vc, "ray_paths", lambda max_range, budget: _no_paths())  # none: every ray walked
+    assert np.array_equal(cone.votes(grid, poses, proba), want)
+
 def test_knn_splits_at_the_geodesic_midpoint_not_across_the_wall():
     grid = two_rooms_grid(door=(2, 6))  # door at the top
     # view A in the left room near the wall's bottom, view B in the right room far away
