@@ -33,7 +33,7 @@ from envs.maps.rays import (
     FREE,
     OUTSIDE,
     cast_rays,
-    cone_end,
+    cone_ends,
     cone_thetas,
     line_start,
     line_step,
@@ -126,7 +126,9 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     objects a ray touches are kept as the object at each index of its path (``pobj``, up to
     where it stopped) and a count per object, changed where the path changes. A newly seen cell's
     counting is written out at each of the three walks: as a helper function (inlined or not),
-    it made the kernel a fifth slower."""
+    it made the kernel a fifth slower. A view's ray ends are found at once
+    (:func:`envs.maps.rays.cone_ends`): with the path helpers that read without a branch, the
+    renders of the perf houses at 0.05 m/px take about 0.9 of the time they took ray by ray."""
     h = state.shape[0] - 2
     w = state.shape[1] - 2
     n_views = rows.shape[0]
@@ -143,6 +145,9 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     n_act = 0
     cos_off = np.cos(offsets)
     sin_off = np.sin(offsets)
+    ends_r = np.empty(n_rays, np.int64)  # a view's ray ends (offsets from its cell), found at once
+    ends_c = np.empty(n_rays, np.int64)
+    exact = np.empty(n_rays, np.bool_)
     # flat indices along the paths: a state cell (r + 1) * (w + 2) + c + 1, a map cell r * w + c
     w2 = w + 2
     flat_state = state.reshape(-1)
@@ -156,8 +161,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
         base_s = (r0 + 1) * w2 + c0 + 1
         base_c = r0 * w + c0
         yaw = yaws[v]
-        cy = np.cos(yaw)
-        sy = np.sin(yaw)
+        cone_ends(r0, c0, yaw, offsets, cos_off, sin_off, max_range, ends_r, ends_c, exact)
         prev = -1  # path of the ray before (-1: none, or walked whole)
         pstop = 0  # where it stopped (its length when it did not)
         pend = -1  # the last index of pobj it holds
@@ -166,7 +170,8 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
         last_r = -(1 << 62)
         last_c = -(1 << 62)
         for t in range(n_rays):
-            r1, c1 = cone_end(r0, c0, yaw, cy, sy, offsets[t], cos_off[t], sin_off[t], max_range)
+            r1 = r0 + ends_r[t]
+            c1 = c0 + ends_c[t]
             if r1 == last_r and c1 == last_c:
                 # the same digital line as the ray before: the same cells (already counted for
                 # this view) and the same objects, each touched by one more ray
