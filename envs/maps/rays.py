@@ -178,7 +178,7 @@ def cone_ends(r0, c0, yaw, offsets, cos_off, sin_off, max_range, ends_r, ends_c,
     several rays an instruction), marking in ``exact`` the ends that lie clear of a cell
     boundary; then :func:`ray_end` for the others (none when the heading is beyond
     ``CONE_END_YAW`` or not finite: then every ray). The same cells as :func:`cone_end` ray by
-    ray, at about half its instructions per ray.
+    ray; the vision cone and the floorplan renderer find their ends here.
 
     Args:
         r0, c0: the view's cell.
