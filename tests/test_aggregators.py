@@ -119,7 +119,6 @@ def test_ray_paths_are_the_digital_lines_to_their_ends():
     assert tails > 100
 
 
-
 def test_the_cone_refuses_path_tables_of_a_shorter_range(monkeypatch):
     """The kernel reads a ray's path from the tables without a bounds test (its end lies within
     ceil(range) px of the camera): tables of a shorter range are refused, not read beyond."""
@@ -135,6 +134,7 @@ def test_the_cone_refuses_path_tables_of_a_shorter_range(monkeypatch):
         cone.votes(grid, poses, proba)
     monkeypatch.setattr(vc, "ray_paths", lambda max_range, budget: _no_paths())  # none: every ray walked
     assert np.array_equal(cone.votes(grid, poses, proba), want)
+
 
 def test_knn_splits_at_the_geodesic_midpoint_not_across_the_wall():
     grid = two_rooms_grid(door=(2, 6))  # door at the top

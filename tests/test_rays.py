@@ -235,14 +235,15 @@ def test_cone_end_is_ray_end_on_every_heading():
 def test_path_helpers_equal_their_plain_branching_form():
     """The ray path tables' helpers, written without a branch on their array (numba counts a
     reference to an array a branching helper reads), against the plain if/else they replace:
-    every case of a small list, and the path of an end inside, outside and without tables."""
+    every case of a small list; and the paths of a cone's ends, read without a bounds test once
+    the tables' reach is checked, and without tables."""
     from numba import njit
 
     from envs.maps.ray_paths import (
         _no_paths,
         after_differences,
         after_neighbour_list,
-        path_of,
+        end_paths,
         ray_paths,
     )
 
@@ -265,17 +266,17 @@ def test_path_helpers_equal_their_plain_branching_form():
     assert n > 0
     assert helpers(0, 0, np.zeros(0, np.int16), 2, 5, False) == ((0, 2), (0, 2))  # no list at all
 
-    @njit
-    def find(er, ec, k, slot):
-        return path_of(er, ec, k, slot)
-
+    # the paths of a cone's ends: every end within the tables' reach, read as the table holds it
     k, slot = ray_paths(6.0)[:2]
-    inside = [(er, ec) for er in range(-k, k + 1) for ec in range(-k, k + 1)]
-    assert all(find(er, ec, k, slot) == slot[er + k, ec + k] for er, ec in inside)
-    assert (slot >= 0).any() and (slot < 0).any()
-    # just outside on each side (the nearest cell inside has a path), and far outside
-    assert all(slot[er + k, ec + k] >= 0 for er, ec in ((k, 0), (0, -k), (-k, 0), (0, k)))
-    for er, ec in ((k + 1, 0), (0, -k - 1), (-k - 1, 0), (0, k + 1), (-k - 1, k), (k, k + 1), (10**6, 0)):
-        assert find(er, ec, k, slot) == -1
-    none_k, none_slot = _no_paths()[:2]
-    assert find(0, 0, none_k, none_slot) == -1 and find(1, -1, none_k, none_slot) == -1
+    inside = np.array([(er, ec) for er in range(-k, k + 1) for ec in range(-k, k + 1)], np.int64)
+    got = np.empty(len(inside), np.int64)
+    end_paths(inside[:, 0].copy(), inside[:, 1].copy(), 6.0, k, slot, got)
+    assert np.array_equal(got, slot[inside[:, 0] + k, inside[:, 1] + k])
+    assert (got >= 0).any() and (got < 0).any()
+    # rays of r px end within ceil(r) px: tables of reach k serve rays up to k px, not beyond
+    end_paths(inside[:1, 0].copy(), inside[:1, 1].copy(), float(k), k, slot, got)
+    with pytest.raises(ValueError, match="shorter range"):
+        end_paths(inside[:1, 0].copy(), inside[:1, 1].copy(), k + 0.5, k, slot, got)
+    none_k, none_slot = _no_paths()[:2]  # no tables: no end has a path
+    end_paths(inside[:, 0].copy(), inside[:, 1].copy(), 6.0, none_k, none_slot, got)
+    assert (got == -1).all()

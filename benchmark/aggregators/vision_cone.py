@@ -36,6 +36,7 @@ from envs.maps.gridmap import GridMap
 from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_neighbour_list,
+    end_paths,
     neighbour_list,
     path_index,
     path_steps,
@@ -101,11 +102,10 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     ``counts`` is (C, H + 2, W + 2), bordered as ``state``: a cell's count is at the state's own
     flat index, so a vote needs no second index. A view's ray ends are found first, all at once
     (:func:`envs.maps.rays.cone_ends`: a loop without a branch, then :func:`envs.maps.rays.ray_end`
-    for the rare end near a cell boundary), then their paths (read from the tables without a
-    bounds test: an end lies within ``ceil(max_range)`` px, checked against the tables' reach
-    once), then its rays are walked. A view's whole votes go to its class's plane of the
-    counts, taken once per view. The path helpers read their arrays without a branch
-    (:func:`envs.maps.ray_paths.path_of` says why). On the perf houses at 0.05 m/px, the
+    for the rare end near a cell boundary), then their paths (:func:`envs.maps.ray_paths.end_paths`:
+    read without a bounds test), then its rays are walked. A view's whole votes go to its class's
+    plane of the counts, taken once per view. The path helpers read their arrays without a branch
+    (:func:`envs.maps.ray_paths.after_differences` says why). On the perf houses at 0.05 m/px, the
     bordered counts and the ends found first made the votes about 1.2x faster, and the ends all
     at once, the branch-free helpers and the plane per view about 1.3x again (1.15x at 0.02 m/px).
     ``votes`` is the (N, C) float32 probability votes of the views (``labels`` -1), or None for
@@ -129,10 +129,6 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
     ends_c = np.empty(n_rays, np.int64)
     ends_s = np.empty(n_rays, np.int64)
     exact = np.empty(n_rays, np.bool_)
-    # a ray ends within ceil(max_range) px of its camera along both axes (ray_end's
-    # floor(0.5 +- max_range cos)): inside tables of k >= that, read below without a bounds test
-    if k >= 0 and k < np.ceil(max_range):
-        raise ValueError("the ray paths' tables are for a shorter range than the cone's")
     # the counts a view votes into (its class's plane); a view without a label votes into a
     # scratch plane no one reads (only the walk that stamps what the cones reach has those)
     junk = np.zeros(flat_state.shape[0] if votes is None and (labels < 0).any() else 0, counts.dtype)
@@ -153,8 +149,7 @@ def _cone_votes(blocked, state, rows, cols, yaws, offsets, max_range, short_px, 
         per = 0
         pec = 0
         cone_ends(r0, c0, yaw, offsets, cos_off, sin_off, max_range, ends_r, ends_c, exact)
-        for t in range(n_rays):
-            ends_s[t] = slot[np.uint64(ends_r[t] + k), np.uint64(ends_c[t] + k)] if k >= 0 else -1
+        end_paths(ends_r, ends_c, max_range, k, slot, ends_s)
         for t in range(n_rays):
             er = ends_r[t]
             ec = ends_c[t]

@@ -137,17 +137,25 @@ def ray_paths(max_range: float, budget_bytes: int = PATH_CACHE_BYTES):
     return out
 
 
-@njit(cache=True, nogil=True, inline="always")
-def path_of(er, ec, k, slot):
-    """The path (row of :func:`ray_paths`' tables) of a ray ending (er, ec) from its camera, -1
-    when that end has none. Without a branch (a clamped read, then a select), as are the other
-    helpers here that read an array: numba counts a reference to an array passed to a helper that
-    branches, an atomic increment and decrement on every call (in the vision cone's ray loop,
-    with :func:`after_neighbour_list`, about a tenth of its time)."""
-    inside = (-k <= er) & (er <= k) & (-k <= ec) & (ec <= k)
-    n = slot.shape[0] - 1  # 2 k, or -1 without paths (k is -1 then, and no end is inside)
-    s = slot[np.uint64(min(max(er + k, 0), n)), np.uint64(min(max(ec + k, 0), n))] if n >= 0 else -1
-    return s if inside else -1
+@njit(cache=True, nogil=True)
+def end_paths(ends_r, ends_c, max_range, k, slot, out):
+    """Into ``out[t]``: the path (row of :func:`ray_paths`' tables) of the ray ending
+    (``ends_r[t]``, ``ends_c[t]``) from its camera, -1 where that end has none (or there are no
+    tables). The ends are those of :func:`envs.maps.rays.cone_ends` for rays of ``max_range``
+    pixels: within ``ceil(max_range)`` px of the camera along both axes (``floor(0.5 +- max_range
+    cos)``), so the tables are read without a bounds test once their reach ``k`` is checked;
+    tables of a shorter range raise ``ValueError``.
+
+    Args:
+        ends_r, ends_c: (R,) int64 the rays' ends, offsets from the camera's cell.
+        max_range: the rays' length, pixels.
+        k, slot: :func:`ray_paths`' reach and table of paths.
+        out: (R,) int64, written.
+    """
+    if k >= 0 and k < np.ceil(max_range):
+        raise ValueError("the ray paths' tables are for a shorter range than the cone's")
+    for t in range(ends_r.shape[0]):
+        out[t] = slot[np.uint64(ends_r[t] + k), np.uint64(ends_c[t] + k)] if k >= 0 else -1
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -184,7 +192,10 @@ def after_differences(i, e, dj, pstop, m):
     pair not looked up): ``(walk_from, stop)``. The ray before stopped at ``pstop`` < ``m``: this
     one stops there too (``stop = pstop``) unless that cell is one of its differences, then it
     walks on from there; the ray before went at least ``m`` cells: this one walks on from ``m``.
-    Without a branch on the array (:func:`path_of` says why)."""
+    Without a branch on the array, as is :func:`after_neighbour_list`: numba counts a reference
+    to an array passed to a helper that branches, an atomic increment and decrement on every
+    call (in the vision cone's ray loop, with the path lookup then made the same way, about a
+    tenth of its time)."""
     on = (i < e) & (_pair_index(dj, i, e) == pstop)
     short = pstop < m
     return (pstop if on else 0) if short else m, (-1 if on else pstop) if short else -1
@@ -210,7 +221,7 @@ def after_neighbour_list(whole, i, e, dj, pstop, n):
     whole path, or one that stopped at or beyond this one's end, it saw its whole path
     (``stop = n``); else the ray before stopped at ``pstop``: this one stops there too unless
     that cell is one of its differences, then it walks on from there (``stop = -1``). Without a
-    branch on the array (:func:`path_of` says why)."""
+    branch on the array (:func:`after_differences` says why)."""
     on = (i < e) & (_pair_index(dj, i, e) == pstop)
     seen = whole | (pstop >= n)
     return 0 if seen else (pstop if on else 0), n if seen else (-1 if on else pstop)
@@ -224,4 +235,4 @@ def _pair_index(dj, i, e):
 
 
 __all__ = ["PATH_CACHE_BYTES", "after_differences", "after_neighbour_list", "differences", "neighbour_list",
-           "path_index", "path_of", "path_steps", "ray_paths"]
+           "end_paths", "path_index", "path_steps", "ray_paths"]

@@ -23,8 +23,8 @@ from envs.maps.ray_paths import (
     PATH_CACHE_BYTES,
     after_differences,
     differences,
+    end_paths,
     path_index,
-    path_of,
     path_steps,
     ray_paths,
 )
@@ -148,6 +148,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
     ends_r = np.empty(n_rays, np.int64)  # a view's ray ends (offsets from its cell), found at once
     ends_c = np.empty(n_rays, np.int64)
     exact = np.empty(n_rays, np.bool_)
+    ends_s = np.empty(n_rays, np.int64)  # and their paths
     # flat indices along the paths: a state cell (r + 1) * (w + 2) + c + 1, a map cell r * w + c
     w2 = w + 2
     flat_state = state.reshape(-1)
@@ -162,6 +163,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
         base_c = r0 * w + c0
         yaw = yaws[v]
         cone_ends(r0, c0, yaw, offsets, cos_off, sin_off, max_range, ends_r, ends_c, exact)
+        end_paths(ends_r, ends_c, max_range, k, slot, ends_s)
         prev = -1  # path of the ray before (-1: none, or walked whole)
         pstop = 0  # where it stopped (its length when it did not)
         pend = -1  # the last index of pobj it holds
@@ -182,7 +184,7 @@ def _render_views(state, rooms, room_cls, object_map, rows, cols, yaws, offsets,
             last_c = c1
             er = r1 - r0
             ec = c1 - c0
-            s = path_of(er, ec, k, slot)
+            s = ends_s[t]
             a = er - per
             b = ec - pec
             if s < 0 or prev < 0 or a < -1 or a > 1 or b < -1 or b > 1:
