@@ -3,6 +3,7 @@ the getting-started page run through it from a fresh copy of the working tree.""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -56,8 +57,8 @@ def test_blocks_are_found_in_order_with_their_lines():
 
 def test_continued_lines_are_one_command_and_skips_replace_whole_commands(tmp_path):
     assert docs._commands("a \\\n  b\nc\n") == ["a \\\n  b", "c"]
-    script = docs.session_script([docs.Block(3, "bash", "make setup\nmake test   # all of it\nmake test-fast\n")],
-                                 [("^make test( |$)", "CI runs it")], tmp_path / "status")
+    script = docs.block_script(docs.Block(3, "bash", "make setup\nmake test   # all of it\nmake test-fast\n"), 1,
+                               [("^make test( |$)", "CI runs it")])
     assert "echo 'skipped: make test (CI runs it)'" in script
     assert "\nmake setup\n" in script and "\nmake test-fast\n" in script
 
@@ -68,19 +69,39 @@ def _page(tmp_path: Path, text: str) -> Path:
     return p
 
 
-def test_blocks_run_in_one_clean_shell_in_a_fresh_copy(tmp_path, capsys, monkeypatch):
+def _fake_venv(folder: Path) -> Path:
+    """A folder laid out as a virtual environment whose ``bin`` holds a ``roomseg``; returns its ``bin``."""
+    (folder / "bin").mkdir(parents=True)
+    (folder / "pyvenv.cfg").write_text("home = /usr/bin\n")
+    tool = folder / "bin" / "roomseg"
+    tool.write_text("#!/bin/sh\necho from the venv\n")
+    tool.chmod(0o755)
+    return folder / "bin"
+
+
+def test_each_block_runs_in_a_new_clean_shell_in_a_fresh_copy(tmp_path, capsys, monkeypatch):
+    """A user opens a new shell at a section: nothing a block sets, activates or changes to
+    holds for the next (only its files), and no virtual environment is on PATH, neither the
+    active one nor a ``.venv`` or other environment's ``bin`` that PATH names without it."""
+    active, named, other = (_fake_venv(tmp_path / "active"), _fake_venv(tmp_path / "proj" / ".venv"),
+                            _fake_venv(tmp_path / "env2"))
+    monkeypatch.setenv("VIRTUAL_ENV", str(active.parent))
+    monkeypatch.setenv("PATH", os.pathsep.join([str(active), str(named), str(other) + "/", os.environ["PATH"]]))
     monkeypatch.setenv("PYTHONPATH", "/somewhere")
     page = _page(tmp_path, """
 ```bash
 test -f Makefile -a -f benchmark/commands/maintainer/docs.py   # the copy holds the tree's files
 test ! -e .venv -a ! -e results/runs                 # and nothing git ignores
 test -z "${PYTHONPATH:-}" -a -z "${VIRTUAL_ENV:-}"   # a clean shell
+! command -v roomseg                                 # no environment's tools on PATH
 test "$(pwd)" != "$ROOT_OF_TREE"
 GREETING=hello
+export FAREWELL=bye
+mkdir -p sub && cd sub
 ```
 
 ```bash
-echo "$GREETING $WHO" > greeting.txt                 # the session goes on from the block before
+echo "${GREETING:-unset} ${FAREWELL:-unset} $WHO" > greeting.txt   # a new shell, in the copy's root
 make test
 ```
 """)
@@ -89,9 +110,15 @@ make test
                          skips=[("^make test( |$)", "not here")])
     out = capsys.readouterr().out
     assert rc == 0, out
-    assert (work / "greeting.txt").read_text() == "hello world\n"
-    assert "block 1 (line 3): ok" in out and "block 2 (line 11): ok" in out and "every block ran" in out
+    assert (work / "greeting.txt").read_text() == "unset unset world\n"
+    assert "block 1 (line 3): ok" in out and "block 2 (line 14): ok" in out and "every block ran" in out
     assert (work / "README.md").read_bytes() == (ROOT / "README.md").read_bytes()
+    # a block that activates its environment has its tools; the next block, a new shell, does not
+    page = _page(tmp_path, f"```bash\nsource {active.parent}/bin/activate\nroomseg\n```\n\n```bash\nroomseg\n```\n")
+    (active / "activate").write_text(f'export PATH="{active}:$PATH"\n')
+    assert docs.run_blocks(page) == 1
+    out = capsys.readouterr().out
+    assert "block 1 (line 2): ok" in out and "block 2 (line 7): FAILED (exit status 127)" in out
 
 
 def test_a_failing_command_stops_the_session_naming_its_block(tmp_path, capsys):
@@ -171,3 +198,26 @@ def test_own_robot_data_blocks_run_and_its_results_table_is_what_they_wrote(tmp_
     assert len(jobs) == 3
     df = pd.concat(pd.read_csv(j) for j in jobs)
     assert (df["status"] == "ok").all() and len(df) == 3
+
+
+def test_a_block_that_needs_the_environment_activates_it_itself():
+    """The page check: a block runs in a new shell, so an activation in an earlier block does
+    not count; a tool anywhere in a pipeline or list needs it; ``.venv/bin/...`` needs nothing."""
+    page = ("```bash\nsource .venv/bin/activate   # in each new shell\nroomseg-segment map.yaml\n```\n\n"
+            "```bash\nroomseg tables results/runs/first --out results/first\n"
+            "cd results && python -c \"import a; print('|')\" | head\n"
+            "time roomseg-bench run.limit=1 || echo \"exit status $?\"\n"
+            ".venv/bin/roomseg report results/runs/first --out results/first/report.html\n"
+            "echo 'python is text here; roomseg too'\n```\n\n"
+            "```bash\nmake bench && source .venv/bin/activate\npytest -q\n```\n")
+    probs = docs.page_problems(page)
+    assert [p.split(":")[0] for p in probs] == ["line 7", "line 8", "line 9"], probs
+    assert all("start its block with `source .venv/bin/activate`" in p for p in probs)
+
+
+def test_every_page_and_the_readme_follow_the_convention():
+    """Every block of every docs page and of the README that runs the project's tools starts
+    with ``source .venv/bin/activate``: the page check finds nothing."""
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    problems = [f"{p.relative_to(ROOT)} {line}" for p in pages for line in docs.page_problems(p.read_text(encoding="utf-8"))]
+    assert problems == []

@@ -11,12 +11,17 @@ The reference is generated, never typed: ``commands.md`` holds the ``--help`` of
 the units). ``make docs`` writes them and builds the site (MkDocs, strict); the tests fail
 when a generated page differs from what this command writes.
 
-``run-blocks PAGE`` runs every fenced ``bash`` block of a page, in page order, in one bash
-session (as a user types them into one terminal: ``source .venv/bin/activate`` in one block
-holds for the next), stopping at the first command that fails, in a fresh copy of the
-working tree (the files git tracks or would track: a fresh clone with this tree's changes).
-The shell starts clean: no active virtual environment, no ``PYTHONPATH``. ``--env K=V`` sets
-a variable for the whole session (``BENCH_HOUSES=2`` keeps ``make bench`` small), ``--skip
+``run-blocks PAGE`` runs every fenced ``bash`` block of a page, in page order, each in a new
+bash shell (as a user who opens a terminal at a section of the page types it: nothing a block
+sets, activates or changes directory to holds for the next; only the files it writes do),
+stopping at the first command that fails, in a fresh copy of the working tree (the files git
+tracks or would track: a fresh clone with this tree's changes), each shell started in the
+copy's root. Each shell starts clean: no active virtual environment and none on ``PATH``
+(``VIRTUAL_ENV``'s ``bin``, this interpreter's, and every ``PATH`` folder of a virtual
+environment or named ``.venv``), no ``PYTHONPATH``; so a block that runs the project's tools
+starts with ``source .venv/bin/activate``, the docs' one convention, which
+:func:`page_problems` checks on every page. ``--env K=V`` sets a variable for every block
+(``BENCH_HOUSES=2`` keeps ``make bench`` small), ``--skip
 REGEX=REASON`` replaces each command line that matches by a line saying it was skipped and
 why, and ``--venv-from PYTHON`` makes the copy's ``.venv`` a light environment over that
 interpreter's installed packages (the copy's own code first, its console scripts, marked
@@ -223,8 +228,20 @@ def _commands(code: str) -> list[str]:
     return out
 
 
-#: a command that needs the project's environment: python, the console scripts, the tools it installs.
-_NEEDS_VENV = re.compile(r"^(?:[A-Z_][A-Z0-9_]*=\S*\s+)*(?:python3?|roomseg[\w-]*|mkdocs|pytest|ruff)(?:\s|$)")
+#: a command that needs the project's environment: python, the console scripts, the tools it installs
+#: (after any ``VAR=value`` and ``time`` / ``nohup`` / ``env`` in front of it).
+_NEEDS_VENV = re.compile(r"^(?:[A-Z_][A-Z0-9_]*=\S*\s+|(?:time|nohup|env)\s+)*"
+                         r"(?:python3?|pip3?|roomseg[\w-]*|ray|mkdocs|pytest|ruff)(?:\s|$)")
+#: quoted text of a command line (left out when it is cut into the commands of a pipeline or list).
+_QUOTED = re.compile(r"'[^']*'|\"(?:\\.|[^\"\\])*\"")
+#: what separates the commands of one line: pipes, lists, subshells and command substitutions.
+_SEPARATORS = re.compile(r"&&|\|\||[|;&()]|\$\(|`")
+
+
+def _simple_commands(line: str) -> list[str]:
+    """The simple commands of a command line (``a && b | c; (d)`` -> a, b, c, d), quoted text
+    emptied first, so that a ``;`` or ``|`` inside quotes cuts nothing."""
+    return [c.strip() for c in _SEPARATORS.split(_QUOTED.sub("''", line)) if c.strip()]
 #: a command that makes the project's environment the shell's (or names it: ``.venv/bin/...``).
 _ACTIVATES = re.compile(r"^(?:source|\.)\s+\S*\.venv[^/\s]*/bin/activate\b|^conda activate\s")
 #: development notes that do not belong on a user's page: issue numbers, branch names, commits.
@@ -236,30 +253,35 @@ def page_problems(text: str, tracked: Sequence[str] = ()) -> list[str]:
     """What keeps a docs page from being typed as it is in a new shell, one line each:
 
     * a command that needs the project's environment (``python``, ``roomseg-*``, ``mkdocs``,
-      ``pytest``, ``ruff``) before any ``source .venv/bin/activate`` (or ``conda activate``)
-      on the page: a new shell has no ``python`` with the project (``ModuleNotFoundError``);
+      ``pytest``, ``ruff``, ``pip``, ``ray``, anywhere in a pipeline or list) before a ``source
+      .venv/bin/activate`` (or ``conda activate``) in its own block: a user who opens a new
+      shell at a section of the page types that block only, and a new shell has no
+      ``python`` with the project (``ModuleNotFoundError``, ``roomseg: command not found``).
+      A block that needs the environment starts with ``source .venv/bin/activate``;
+      ``.venv/bin/roomseg ...`` needs nothing;
     * a command whose ``--out`` is a tracked file or folder (``tracked``: paths relative to
       the checkout): a docs command never overwrites the project's own files;
     * a development note in the page's text (an issue number, a branch, a commit of the
       project's history).
     """
     out: list[str] = []
-    activated = False
     for b in blocks(text, lang=None):
         if b.lang not in ("bash", "sh", "shell", "console", ""):  # "": a block of commands and their output
             continue
         at = b.line
+        activated = False  # each block in a new shell
         for cmd in _commands(b.code):
             where, at = at, at + cmd.count("\n") + 1
             line = cmd.split(" #", 1)[0].strip()
             if not line or line.startswith("#"):
                 continue
-            if _ACTIVATES.match(line):
+            parts = _simple_commands(line)
+            if any(_ACTIVATES.match(p) for p in parts):
                 activated = True
                 continue
-            if _NEEDS_VENV.match(line) and not activated:
-                out.append(f"line {where}: `{line[:60]}` needs the project's environment: run `source .venv/bin/activate` "
-                           f"on the page before it (a new shell has no python with the project)")
+            if not activated and any(_NEEDS_VENV.match(p) for p in parts):
+                out.append(f"line {where}: `{line[:60]}` needs the project's environment: start its block with "
+                           f"`source .venv/bin/activate` (a new shell has no python with the project)")
             m = re.search(r"--out[ =](\S+)", line)
             if m and tracked:
                 target = m.group(1).strip("'\"").rstrip("/")
@@ -281,20 +303,15 @@ def tracked_files(root: Path = ROOT) -> list[str]:
     return [p for p in r.stdout.decode("utf-8").split("\0") if p]
 
 
-def session_script(page_blocks: Sequence[Block], skips: Sequence[tuple[str, str]], status_file: Path) -> str:
-    """One bash script running the blocks in order, ``set -e``: each block first appends
-    ``<index> <time>`` to ``status_file``; a command line matching a skip pattern becomes an
-    ``echo`` saying it was skipped and why."""
-    out = ["set -eo pipefail", ""]
-    for k, b in enumerate(page_blocks):
-        out.append(f"echo {k} \"$(date +%s.%N)\" >> {shlex.quote(str(status_file))}")
-        out.append(f"echo {shlex.quote(f'--- block {k + 1} (line {b.line})')} >&2")
-        for cmd in _commands(b.code):
-            reason = next((r for pat, r in skips if re.search(pat, cmd.strip())), None)
-            shown = cmd.split(" #", 1)[0].strip()
-            out.append(f"echo {shlex.quote(f'skipped: {shown} ({reason})')}" if reason is not None else cmd)
-        out.append("")
-    out.append(f"echo done \"$(date +%s.%N)\" >> {shlex.quote(str(status_file))}")
+def block_script(block: Block, number: int, skips: Sequence[tuple[str, str]]) -> str:
+    """The bash script of one block (its ``number``, from 1, is said on stderr), ``set -e``
+    with ``pipefail``: a command line matching a skip pattern becomes an ``echo`` saying it
+    was skipped and why."""
+    out = ["set -eo pipefail", f"echo {shlex.quote(f'--- block {number} (line {block.line})')} >&2"]
+    for cmd in _commands(block.code):
+        reason = next((r for pat, r in skips if re.search(pat, cmd.strip())), None)
+        shown = cmd.split(" #", 1)[0].strip()
+        out.append(f"echo {shlex.quote(f'skipped: {shown} ({reason})')}" if reason is not None else cmd)
     return "\n".join(out) + "\n"
 
 
@@ -361,14 +378,25 @@ def light_venv(copy: Path, python: str) -> Path:
     return venv
 
 
+def _venv_bin(folder: str) -> bool:
+    """Whether a ``PATH`` folder is a virtual environment's ``bin``: inside a folder named
+    ``.venv`` (or ``.venv-*``), or beside a ``pyvenv.cfg``."""
+    path = Path(folder)
+    return any(part == ".venv" or part.startswith(".venv-") for part in path.parts) or \
+        (path.parent / "pyvenv.cfg").is_file()
+
+
 def _clean_env(extra: dict[str, str]) -> dict[str, str]:
-    """The environment of a fresh shell: no active virtual environment, no PYTHONPATH."""
+    """The environment of a new shell: no active virtual environment and none on ``PATH``
+    (``VIRTUAL_ENV``'s ``bin``, this interpreter's, any virtual environment's or ``.venv``
+    folder's), no PYTHONPATH; then ``extra``."""
     env = dict(os.environ)
     active = env.pop("VIRTUAL_ENV", None)
     for k in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV_PROMPT", "CONDA_PREFIX"):
         env.pop(k, None)
     drop = {str(Path(sys.prefix) / "bin")} | ({str(Path(active) / "bin")} if active else set())
-    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if p and p not in drop)
+    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
+                                  if p and p.rstrip("/") not in drop and not _venv_bin(p))
     env.update(extra)
     return env
 
@@ -382,10 +410,10 @@ def run_blocks(page: Path, workdir: Path | None = None, env: dict[str, str] | No
         page: the Markdown page.
         workdir: where the copy goes (an empty or new folder, kept); None: a temporary folder,
             removed afterwards.
-        env: variables for the session.
+        env: variables for every block's shell.
         skips: (regex, reason) pairs; a command line matching a regex is not run.
         venv_from: a Python whose packages the copy's ``.venv`` uses (:func:`light_venv`).
-        timeout: seconds for the whole session.
+        timeout: seconds for all the blocks together.
     Returns: 0 when every block ran, 1 when one failed. Prints a line per block.
     """
     page_blocks = blocks(page.read_text(encoding="utf-8"))
@@ -400,25 +428,27 @@ def run_blocks(page: Path, workdir: Path | None = None, env: dict[str, str] | No
         fresh_copy(work)
         if venv_from:
             light_venv(work, venv_from)
-        status, script = Path(tmp) / "status", Path(tmp) / "session.sh"
-        script.write_text(session_script(page_blocks, skips, status), encoding="utf-8")
-        print(f"run-blocks: {len(page_blocks)} block(s) of {rel} in a fresh copy at {work}", flush=True)
+        print(f"run-blocks: {len(page_blocks)} block(s) of {rel} in a fresh copy at {work}, each in a new shell",
+              flush=True)
         t0 = time.time()
-        try:
-            rc = subprocess.run(["bash", str(script)], cwd=work, env=_clean_env(env or {}), timeout=timeout).returncode
-        except subprocess.TimeoutExpired:
-            rc = None
-        marks = [ln.split() for ln in status.read_text().splitlines()] if status.exists() else []
-    times = [float(t) for _, t in marks] + [time.time()]
-    for k, (idx, _) in enumerate(marks):
-        if idx == "done":
-            break
-        b = page_blocks[int(idx)]
-        state = "ok" if k + 1 < len(marks) else ("timed out" if rc is None else f"FAILED (exit status {rc})")
-        print(f"  block {int(idx) + 1} (line {b.line}): {state}, {times[k + 1] - times[k]:.1f} s")
-    done = bool(marks) and marks[-1][0] == "done"
+        clean = _clean_env(env or {})
+        done = True
+        for k, b in enumerate(page_blocks):
+            script = Path(tmp) / f"block-{k + 1}.sh"
+            script.write_text(block_script(b, k + 1, skips), encoding="utf-8")
+            left = None if timeout is None else max(timeout - (time.time() - t0), 0.001)
+            start = time.time()
+            try:
+                rc = subprocess.run(["bash", str(script)], cwd=work, env=clean, timeout=left).returncode
+                state = "ok" if rc == 0 else f"FAILED (exit status {rc})"
+            except subprocess.TimeoutExpired:
+                rc, state = None, "timed out"
+            print(f"  block {k + 1} (line {b.line}): {state}, {time.time() - start:.1f} s", flush=True)
+            if rc != 0:
+                done = False
+                break
     print(f"run-blocks: {'every block ran' if done else 'stopped'} ({time.time() - t0:.0f} s)", flush=True)
-    return 0 if done and rc == 0 else 1
+    return 0 if done else 1
 
 
 def _pair(text: str, what: str) -> tuple[str, str]:
@@ -438,17 +468,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     sub = ap.add_subparsers(dest="action", required=True)
     sub.add_parser("reference", help="write the generated pages")
     sub.add_parser("check", help="exit 1 naming every stale generated page")
-    rb = sub.add_parser("run-blocks", help="run every bash block of a page in a fresh copy of the working tree")
+    rb = sub.add_parser("run-blocks", help="run every bash block of a page, each in a new shell, in a fresh copy "
+                                            "of the working tree")
     rb.add_argument("page", type=Path, help="the Markdown page, e.g. docs/getting-started.md")
     rb.add_argument("--workdir", type=Path, default=None,
                     help="where the fresh copy goes (new or empty; kept); default: a temporary folder, removed")
     rb.add_argument("--env", action="append", default=[], type=lambda t: _pair(t, "--env"), metavar="K=V",
-                    help="a variable for the session, e.g. BENCH_HOUSES=2 (repeat)")
+                    help="a variable for every block's shell, e.g. BENCH_HOUSES=2 (repeat)")
     rb.add_argument("--skip", action="append", default=[], type=lambda t: _pair(t, "--skip"), metavar="REGEX=REASON",
                     help="do not run command lines matching REGEX; say REASON instead (repeat)")
     rb.add_argument("--venv-from", default=None, metavar="PYTHON",
                     help="make .venv a light environment over PYTHON's installed packages (make setup is then done)")
-    rb.add_argument("--timeout", type=float, default=None, help="seconds for the whole session")
+    rb.add_argument("--timeout", type=float, default=None, help="seconds for all the blocks together")
     a = ap.parse_args(argv)
     if a.action == "run-blocks":
         if not a.page.is_file():
