@@ -106,8 +106,10 @@ def test_rank_notes_say_ahead_only_where_the_paired_interval_excludes_zero():
     t = summary_table(cells, reference="B", values=values)
     assert t.loc["B", "clean lo"] < t.loc["B", "clean"] < t.loc["B", "clean hi"]
     notes = rank_notes(t, geometric=["A"], cells=cells, values=values)
-    assert notes[0].startswith("clean: {B} > {A}; best view-based minus best geometric: view-based ahead +10.0 [")
-    pose = notes[1]
+    assert notes[0].startswith("Verdicts corrected for their number (Holm 1979")
+    assert notes[1].startswith("clean: {B} > {A}; best view-based minus best geometric (paired interval, "
+                               "Holm-corrected): view-based ahead +10.0 [")
+    pose = notes[2]
     assert pose.startswith("pose error: {B, A}")  # over the family's mean (B +0.1) they cannot be separated
     assert "3: tied +0.5 [" in pose and "1: view-based ahead +10.0 [+10.0, +10.0]" in pose
     assert "4: geometric ahead -10.0" in pose and pose.endswith("they change places at severity 4")

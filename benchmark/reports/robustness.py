@@ -360,23 +360,32 @@ def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFram
     """One sentence per condition: the ranking (groups that no paired interval separates, with
     ``values``; else who is first), and how the best view-based method and the best geometric
     one compare at each severity (paired interval: "ahead" only where it excludes zero; "change
-    places" only between two such leads); then the ranking on mCE and relative mCE."""
+    places" only between two such leads); then the ranking on mCE and relative mCE.
+
+    With ``values``, every verdict is corrected for the family it belongs to (Holm,
+    :func:`benchmark.stats.holm_verdicts`), and a line before the others names the families and
+    their sizes: a ranking's family is every pair of its methods; the view-based against
+    geometric verdicts of all the conditions form one family (:func:`view_geometric_verdicts`)."""
     notes = []
     fams = [c for c in table.columns if c in FAMILIES]
     methods = list(table.index)
     geo = [m for m in methods if m in set(geometric)]
     view = [m for m in methods if m not in set(geometric)]
+    flips = (view_geometric_verdicts(values, cells, ("clean", *fams), geo, view)
+             if values is not None and cells is not None and geo and view else None)
+    if values is not None:
+        notes.append(family_note(len(methods), flips))
     for col in ("clean", *fams):
         words = FAMILY_WORDS.get(col, col)
         if values is not None:
             per = {m: _per_house(values, m, col) for m in methods}
-            line = f"{words}: {stats.group_words(stats.groups(per))}"
+            line = f"{words}: {stats.group_words(stats.groups(per, corrected=True))}"
         else:
             first = table[col].idxmax()
             line = f"{words}: {first} first ({table.loc[first, col]:.1f})"
         if geo and view:
-            if values is not None and cells is not None:
-                line += "; " + _flip_words(values, cells, col, geo, view)
+            if flips is not None:
+                line += "; " + _flip_words(flips, col)
             else:
                 g, w = table.loc[geo, col].max(), table.loc[view, col].max()
                 line += (f"; best view-based {w:.1f}, best geometric {g:.1f} "
@@ -390,6 +399,52 @@ def rank_notes(table: pd.DataFrame, geometric: Sequence[str], cells: pd.DataFram
     return notes
 
 
+def family_note(n_methods: int, flips: Mapping | None) -> str:
+    """The line that says how the verdicts below are corrected for their number: the families
+    and their sizes, the p-value, Holm's step-down and the level each interval is read at."""
+    pairs = n_methods * (n_methods - 1) // 2
+    alpha = 1.0 - stats.LEVEL
+    line = (f"Verdicts corrected for their number (Holm 1979, family-wise error {100 * alpha:g} % per family; two-sided "
+            f"bootstrap p-value of each paired difference: twice the share of its {stats.N_BOOT} seeded resampled "
+            f"means on the far side of zero): each ranking (of a condition, on mCE, on relative mCE) is a family "
+            f"of its {pairs} method pairs ({n_methods} methods)")
+    if flips:
+        m = next(iter(flips.values()))["m"]
+        line += (f"; the best view-based minus best geometric verdicts of every condition and severity are one family "
+                 f"of {m} comparisons (clean, each condition's own severity 0 where it has one, every severity >= 1)")
+    return (line + f". The i-th smallest p-value of a family is read at {100 * alpha:g} % / (m - i + 1) until the first that Holm "
+            "keeps (whose level then holds for the rest); a pair is separated, or a side \"ahead\", only where Holm "
+            "rejects and the paired percentile interval at that level excludes zero; each verdict below shows that "
+            "interval and its level.")
+
+
+def view_geometric_verdicts(values: Mapping[tuple[str, str, int], np.ndarray], cells: pd.DataFrame,
+                            families: Sequence[str], geo: Sequence[str], view: Sequence[str]) -> dict:
+    """Best view-based minus best geometric method (by mean) under every condition of
+    ``families`` (``clean``: severity 0 only) at every severity, corrected as one family by
+    Holm (:func:`benchmark.stats.holm_verdicts`). A family's severity 0 without rows of its own
+    is the clean comparison: counted once.
+
+    Returns:
+        (family, severity) -> the verdict dict of :func:`benchmark.stats.holm_verdicts` (diff,
+        lo, hi at its level, level, p, p_holm, ahead, m)."""
+    keys, cell_of = [], {}
+    for family in families:
+        fam = cells.loc[cells["corruption"] == family, "severity"]
+        for s in [0] if family == "clean" else [0, *sorted(int(s) for s in fam.unique() if s > 0)]:
+            def key(m: str, s: int = s, family: str = family) -> tuple[str, str, int]:
+                return zero_key(values, m, family) if s == 0 else (m, family, s)
+
+            w = max(view, key=lambda m: values[key(m)].mean())
+            g = max(geo, key=lambda m: values[key(m)].mean())
+            cell = (key(w), key(g))
+            keys.append((family, s))
+            cell_of[(family, s)] = cell
+    unique = list(dict.fromkeys(cell_of.values()))
+    verdicts = dict(zip(unique, stats.holm_verdicts([(values[w], values[g]) for w, g in unique])))
+    return {k: verdicts[cell_of[k]] for k in keys}
+
+
 def _per_house(values: Mapping, m: str, col: str) -> np.ndarray:
     """A method's per-house score under a condition: clean, or the mean over a family's severities
     (1 and up: a family's own severity 0 is not one of them)."""
@@ -400,42 +455,46 @@ def _per_house(values: Mapping, m: str, col: str) -> np.ndarray:
 
 def _groups_from_draws(draws: Mapping[str, np.ndarray]) -> list[list[str]]:
     """:func:`stats.groups` for a lower-is-better number known by paired bootstrap draws
-    (index 0 the estimate): a method joins the group of the best one left while the interval of
-    their difference includes zero."""
-    left = sorted(draws, key=lambda m: (float(draws[m][0]), m))
+    (index 0 the estimate): a method joins the group of the best one left unless Holm separates
+    them, every pair of methods one family (p-value and interval from the draws of their
+    difference: :func:`benchmark.stats.bootstrap_p`, :func:`_interval` at the Holm level)."""
+    names = sorted(draws, key=lambda m: (float(draws[m][0]), m))
+    pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+    diffs = [np.asarray(draws[b], float) - np.asarray(draws[a], float) for a, b in pairs]
+    ps = np.array([stats.bootstrap_p(d[1:]) for d in diffs])
+    rejected = stats.holm(ps)[1]
+    alphas = stats.holm_levels(ps)
+    apart = {ab for ab, d, r, a in zip(pairs, diffs, rejected, alphas) if r and stats.separated(*_interval(d, 1 - a))}
     out = []
+    left = list(names)
     while left:
         lead = left[0]
-        grp = [lead] + [m for m in left[1:] if not stats.separated(*_interval(draws[m] - draws[lead]))]
+        grp = [lead] + [m for m in left[1:] if (lead, m) not in apart]
         out.append(grp)
         left = [m for m in left if m not in grp]
     return out
 
 
-def _flip_words(values: Mapping, cells: pd.DataFrame, family: str, geo: Sequence[str], view: Sequence[str]) -> str:
-    """Best view-based minus best geometric (by mean) at each severity, with its paired interval;
-    "ahead" only where the interval excludes zero, "change places at severity s" only where a
-    lead the interval supports turns into one for the other side."""
-    fam = cells.loc[cells["corruption"] == family, "severity"]
-    sev = [0] if family == "clean" else [0, *sorted(int(s) for s in fam.unique() if s > 0)]
+def _flip_words(flips: Mapping[tuple[str, int], dict], family: str) -> str:
+    """Best view-based minus best geometric at each severity of ``family``, from its verdicts
+    corrected for their number (:func:`view_geometric_verdicts`), each with its interval and the
+    level it is read at; "ahead" only where the verdict says so, "change places at severity s"
+    only where a lead so supported turns into one for the other side."""
+    sev = sorted(s for (f, s) in flips if f == family)
     parts, leads = [], []
     for s in sev:
-        def key(m: str, s: int = s) -> tuple[str, str, int]:
-            return zero_key(values, m, family) if s == 0 else (m, family, s)
-
-        w = max(view, key=lambda m: values[key(m)].mean())
-        g = max(geo, key=lambda m: values[key(m)].mean())
-        d, lo, hi = stats.paired_ci(values[key(w)], values[key(g)])
-        side = ("view-based ahead" if d > 0 else "geometric ahead") if stats.separated(lo, hi) else "tied"
+        v = flips[(family, s)]
+        side = ("view-based ahead" if v["diff"] > 0 else "geometric ahead") if v["ahead"] else "tied"
         leads.append(side)
-        parts.append(f"{s}: {side} {d:+.1f} [{lo:+.1f}, {hi:+.1f}]")
+        parts.append(f"{s}: {side} {v['diff']:+.1f} [{v['lo']:+.1f}, {v['hi']:+.1f}] at {stats.level_words(v['level'])}")
     if family == "clean":
-        return f"best view-based minus best geometric: {parts[0][3:]}"
+        return f"best view-based minus best geometric (paired interval, Holm-corrected): {parts[0][3:]}"
     sure = [(s, x) for s, x in zip(sev, leads) if x != "tied"]
-    flips = [b[0] for a, b in zip(sure, sure[1:]) if a[1] != b[1]]
-    verdict = (f"they change places at severit{'y' if len(flips) == 1 else 'ies'} {', '.join(map(str, flips))}"
-               if flips else "no change of places that the intervals support")
-    return f"best view-based minus best geometric by severity (paired 95 % interval): {'; '.join(parts)}; {verdict}"
+    changes = [b[0] for a, b in zip(sure, sure[1:]) if a[1] != b[1]]
+    verdict = (f"they change places at severit{'y' if len(changes) == 1 else 'ies'} {', '.join(map(str, changes))}"
+               if changes else "no change of places that the intervals support")
+    return (f"best view-based minus best geometric by severity (paired interval, Holm-corrected): {'; '.join(parts)}; "
+            f"{verdict}")
 
 
 def rising_curves(values: Mapping[tuple[str, str, int], np.ndarray], families: Sequence[str]) -> pd.DataFrame:
@@ -639,5 +698,5 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
 
 __all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "APART", "OWN_ZERO_WORDS", "RobustnessError", "cell_means", "complete_families",
            "drop_failed_houses", "house_values", "numbers", "pick_reference", "power_lines", "power_report",
-           "rank_notes", "rising_curves", "summarise", "summary_table", "to_markdown", "to_latex", "family_figure",
+           "rank_notes", "family_note", "view_geometric_verdicts", "rising_curves", "summarise", "summary_table", "to_markdown", "to_latex", "family_figure",
            "zero_key", "own_zero_families", "own_zero_note", "condition_columns"]
