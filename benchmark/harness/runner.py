@@ -26,7 +26,7 @@ import logging
 import os
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import datetime, timezone
 from functools import partial
 from pathlib import Path
@@ -84,9 +84,16 @@ def _plain(node: Any) -> Any:
     return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
 
 
-def stage_keys(cfg: DictConfig) -> dict[str, str]:
-    """Cache keys of the render, map, classify, aggregate and score stages for this config."""
+def stage_keys(cfg: DictConfig, names: Mapping[str, str], dataset: str) -> dict[str, str]:
+    """Cache keys of the render, map, classify, aggregate and score stages for this config.
+
+    A score entry is the row as this configuration writes it (its stage ``names``, ``env``
+    included, and its ``dataset``) and, with ``run.save_maps``, vouches for the saved label maps:
+    its key follows all three, so that two environments over the same houses (``env=synthetic``
+    and ``env=synthetic_robust``) or two save settings never share an entry (each would take the
+    other's for a bad one and recompute it)."""
     env = {k: v for k, v in (_plain(cfg.env) or {}).items() if k not in SELECTION_KEYS}
+    row = {"names": dict(names), "dataset": str(dataset), "save_maps": bool(cfg.run.get("save_maps", True))}
     salt = (CACHE_VERSION, cfg.run.get("cache_salt", ""))
     robot = robot_settings(cfg)
     render = config_key("render", salt, env, _plain(cfg.get("viewpoints")), _plain(cfg.get("renderer")))
@@ -97,10 +104,10 @@ def stage_keys(cfg: DictConfig) -> dict[str, str]:
         keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"], *slam)
     if cfg.get("segmenter") is not None:
         parts = [{"mapping": keys["map"]}] if "mapping" in robot else []
-        keys["score"] = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics), *parts)
+        keys["score"] = config_key("segment", salt, env, _plain(cfg.segmenter), _plain(cfg.metrics), *parts, row)
         return keys
     keys["aggregate"] = config_key("aggregate", classify, _plain(cfg.get("aggregator")), *([robot] if robot else []))
-    keys["score"] = config_key("score", keys["aggregate"], _plain(cfg.get("postprocess")), _plain(cfg.metrics))
+    keys["score"] = config_key("score", keys["aggregate"], _plain(cfg.get("postprocess")), _plain(cfg.metrics), row)
     return keys
 
 
@@ -215,7 +222,7 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     robot_groups = tuple(g for g in ROBOT_STAGES if g in robot and (
         seg is None or g == "mapping" or (g == "pose_error" and "mapping" in robot and shapes_map(robot))))
     common = dict(
-        env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg), names=names,
+        env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg, names, getattr(env, "name", "env")), names=names,
         metric_params=metric_params, force=expand_force(cfg.run.get("force")),
         save_maps=bool(cfg.run.get("save_maps", True)), extra=extra,
         builders={k: _builder(cfg.get(k)) for k in (*groups, *robot_groups)},
