@@ -1,12 +1,14 @@
-"""What a bag holds: its storage, time span, topics (type, count, frame) and tf tree."""
+"""What a bag holds: its storage, time span, topics (type, count, frame), tf tree, every map
+message's stamp and the bag's own class list (a ``vision_msgs/LabelInfo``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-from envs.bags.source import header_ns, open_bag, stamp_s
-from envs.bags.views import TF_TYPES
+from envs.bags.occupancy import stamps_text
+from envs.bags.source import BagError, header_ns, open_bag, stamp_s
+from envs.bags.views import LABEL_INFO_TYPES, MAP_TYPES, TF_TYPES, label_info_classes
 
 
 def storage_of(path: Path) -> str:
@@ -22,8 +24,9 @@ def storage_of(path: Path) -> str:
 
 def bag_contents(path: str | Path) -> dict[str, Any]:
     """The bag's storage, start / end (ns), and per topic: type, count, the first message's
-    frame (``header.frame_id``; for tf, the ``parent -> child`` edges). Reads the first
-    message of each topic and every tf message (no image is decoded).
+    frame (``header.frame_id``; for tf, the ``parent -> child`` edges; for a map topic, every
+    message's header stamp, ``stamps_ns``). Reads the first message of each topic and every
+    tf and map message (no image is decoded).
 
     Raises:
         BagError: an unreadable bag (one line naming it)."""
@@ -40,6 +43,12 @@ def bag_contents(path: str | Path) -> dict[str, Any]:
                         key = f"{str(ts.header.frame_id).lstrip('/')} -> {str(ts.child_frame_id).lstrip('/')}"
                         edges[key] = edges.get(key, 0) + 1
                 row["edges"] = edges
+            elif t.msgtype in MAP_TYPES:
+                row["stamps_ns"] = []
+                for _, _, rec, msg in bag.messages([name]):
+                    if row["frame"] is None:
+                        row["frame"] = str(msg.header.frame_id)
+                    row["stamps_ns"].append(header_ns(msg, rec))
             elif t.count:
                 for _, _, rec, msg in bag.messages([name]):
                     h = getattr(msg, "header", None)
@@ -64,4 +73,27 @@ def format_contents(info: dict[str, Any]) -> list[str]:
     for name, row in info["topics"].items():
         for e, n in row.get("edges", {}).items():
             lines.append(f"  tf {name}: {e} ({n})")
+    for name, row in info["topics"].items():
+        if "stamps_ns" in row:
+            lines.append(f"  map stamps {name}: {stamps_text(row['stamps_ns'])}")
     return lines
+
+
+def bag_classes(path: str | Path) -> tuple[str, tuple[str, ...]] | None:
+    """The bag's own class list: (topic, names in ``class_id`` order) of its
+    ``vision_msgs/LabelInfo`` topic (the last message), or None when it has none.
+
+    Raises:
+        BagError: two LabelInfo topics, or a class map that is not ids 0 .. n-1 (one line)."""
+    path = Path(path).expanduser()
+    with open_bag(path) as bag:
+        found = sorted(n for n, t in bag.topics.items() if t.msgtype in LABEL_INFO_TYPES and t.count)
+        if not found:
+            return None
+        if len(found) > 1:
+            raise BagError(f"{path}: {len(found)} LabelInfo topics {found}; expected one class list (or pass "
+                           f"classes=[...])")
+        last = None
+        for _, _, rec, msg in bag.messages(found):
+            last = (rec, msg)
+        return found[0], label_info_classes(last[1], f"{path} {found[0]} at {stamp_s(last[0])}")

@@ -83,6 +83,70 @@ def map_message(msg: Any, where: str, stamp_ns: int) -> MapMessage:
     return MapMessage(values, res, (float(p.x), float(p.y), 0.0), str(msg.header.frame_id).lstrip("/"), stamp_ns)
 
 
+def map_stamp_ns(value) -> int | None:
+    """``bag_options.map_stamp`` (seconds, or None) as nanoseconds.
+
+    Raises:
+        BagError: a value that is not a finite number of seconds (NaN, inf, text), one line
+            naming the option."""
+    if value is None:
+        return None
+    try:
+        s = float(value)
+    except (TypeError, ValueError):
+        s = math.nan
+    if isinstance(value, bool) or not math.isfinite(s) or s < 0:
+        raise BagError(f"bag_options.map_stamp={value!r}; expected seconds since the epoch (a finite number >= 0, "
+                       f"e.g. one of the map stamps roomseg bag-info lists), or null for the last map")
+    return int(round(s * 1e9))
+
+
+def stamps_text(stamps: list[int], most: int = 12) -> str:
+    """Stamps as ``[a s, b s, ...]`` for messages: all of them up to ``most``, else the first
+    and last few with the count left out between."""
+    text = [stamp_s(int(s)) for s in stamps]
+    if len(text) > most:
+        half = most // 2
+        text = text[:half] + [f"... ({len(text) - 2 * half} more)"] + text[-half:]
+    return "[" + ", ".join(text) + "]"
+
+
+def map_before(stamps: list[int], want_ns: int | None, where: str) -> int:
+    """The index of the map a run uses among the map messages' stamps (in bag order): the last
+    one, or the last at or before ``want_ns`` (``bag_options.map_stamp``).
+
+    Raises:
+        BagError: no map at all, or no map at or before ``want_ns`` (one line listing the map
+            stamps: a later map is never taken in its place)."""
+    if not stamps:
+        raise BagError(f"{where}: no OccupancyGrid message")
+    if want_ns is None:
+        return len(stamps) - 1
+    ok = [i for i, s in enumerate(stamps) if s <= want_ns]
+    if not ok:
+        raise BagError(f"{where}: bag_options.map_stamp={want_ns / 1e9:.9f} is before every map; the map stamps are "
+                       f"{stamps_text(stamps)}; expected a stamp at or after the first map")
+    return max(ok, key=lambda i: (stamps[i], i))
+
+
+def map_frame_of(m: MapMessage, given: str | None, where: str) -> str:
+    """The frame the views' poses are taken in: the map message's own frame.
+    ``bag_options.map_frame`` names it for a map message without a frame, or repeats it.
+
+    Raises:
+        BagError: ``given`` differs from the frame the map message names (the views would be
+            placed in another frame than the map is drawn in, off by that frame's drift, and
+            the output map relabelled), one line naming both."""
+    given = (given or "").strip().lstrip("/") or None
+    own = m.frame.strip().lstrip("/")
+    if given is not None and own and given != own:
+        raise BagError(f"{where}: bag_options.map_frame={given} but the map is in frame {own!r}; views placed in "
+                       f"{given!r} would be off the map by the transform between the two (odometry drift), so "
+                       f"expected map_frame={own} or unset (record tf {own} -> ... -> the camera, or a pose topic "
+                       f"in {own!r})")
+    return given or own or "map"
+
+
 def grid_from_map(m: MapMessage, unknown_as: str = "obstacle", free_max: int = FREE_MAX) -> GridMap:
     """The walkable grid of a map message (see the module doc)."""
     if unknown_as not in ("obstacle", "free"):

@@ -21,7 +21,15 @@ from typing import Any
 
 import numpy as np
 
-from envs.bags.occupancy import FREE_MAX, MapMessage, grid_from_map, map_message
+from envs.bags.occupancy import (
+    FREE_MAX,
+    MapMessage,
+    grid_from_map,
+    map_before,
+    map_frame_of,
+    map_message,
+    map_stamp_ns,
+)
 from envs.bags.source import Bag, BagError, Topic, header_ns, open_bag, stamp_s
 from envs.bags.transforms import TfBuffer, forward_axis, planar_pose
 from envs.bags.views import (
@@ -199,7 +207,8 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
         first_geom: tuple | None = None
         first_text = ""
         n_maps = 0
-        want_ns = None if opt.map_stamp is None else int(round(float(opt.map_stamp) * 1e9))
+        want_ns = map_stamp_ns(opt.map_stamp)
+        map_stamps: list[int] = []
         vt = topics.get("views")
         stamps, records, vframe, labels_all = [], [], None, []
         hfov = None
@@ -215,7 +224,8 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                 bar.update(1)
             if topic == map_t.name:
                 st = header_ns(msg, t)
-                if want_ns is not None and st > want_ns and chosen is not None:
+                map_stamps.append(st)
+                if want_ns is not None and st > want_ns:  # never a later map in its place
                     continue
                 m = map_message(msg, f"{path} {topic}", st)
                 n_maps += 1
@@ -257,11 +267,11 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                     labels_all.append(view_label(msg, msgtype, f"{path} {topic} at {stamp_s(st)}", opt.classes))
         if bar is not None:
             bar.close()
-    if chosen is None:
-        at = "" if want_ns is None else f" at or before {stamp_s(want_ns)}"
-        raise BagError(f"{path} {map_t.name}: no OccupancyGrid message{at}")
+    if chosen is None:  # no map, or none at or before bag_options.map_stamp: one line listing the map stamps
+        map_before(map_stamps, want_ns, f"{path} {map_t.name}")
+        raise BagError(f"{path} {map_t.name}: no OccupancyGrid message")
     grid = grid_from_map(chosen, opt.unknown_as, opt.free_max)
-    map_frame = (opt.map_frame or chosen.frame or "map").lstrip("/")
+    map_frame = map_frame_of(chosen, opt.map_frame, f"{path} {map_t.name}")
     if not need_views:
         return BagViews(path, chosen, grid, topics, "none", "", map_frame, "", np.zeros(0, np.int64),
                         np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), n_map_messages=n_maps)

@@ -27,6 +27,8 @@ FORMATS = ("ros1", "sqlite3", "mcap")
 VISION_MSGS_ROS2 = {
     "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
     "vision_msgs/msg/Classification": "std_msgs/Header header\nvision_msgs/ObjectHypothesis[] results\n",
+    "vision_msgs/msg/VisionClass": "uint16 class_id\nstring class_name\n",
+    "vision_msgs/msg/LabelInfo": "std_msgs/Header header\nvision_msgs/VisionClass[] class_map\nfloat32 threshold\n",
 }
 VISION_MSGS_ROS1 = {
     "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
@@ -59,6 +61,10 @@ class RobotRun:
         pose_topic: also publish the poses on a topic: ``pose`` (``/camera_pose``, a
             PoseStamped of the camera in ``map``, and no tf at all) or ``odometry``
             (``/odom``, Odometry ``odom -> base_link``; ``/tf`` then holds ``map -> odom`` only).
+        publish_map_to_odom: False leaves ``map -> odom`` out of ``/tf`` (no localiser recorded;
+            odom still sits at ``map_to_odom`` in the map).
+        label_info: also publish ``classes`` as a ``vision_msgs/LabelInfo`` on ``/label_info``
+            (ROS 2 bags; ``class_id`` = the index in ``classes``).
     """
 
     occupancy: np.ndarray
@@ -78,6 +84,8 @@ class RobotRun:
     map_sizes: Sequence[tuple[int, int]] | None = None
     tf_stamps_shift_ns: int = 0
     pose_topic: str | None = None
+    publish_map_to_odom: bool = True
+    label_info: bool = False
 
 
 def _quat_z(theta: float) -> tuple[float, float, float, float]:
@@ -161,7 +169,7 @@ def write_robot_bag(path: str | Path, fmt: str, run: RobotRun) -> Path:
         base = _compose(tuple(float(v) for v in pose), _inverse(cam_in_base))
         ob = _compose(o2m, base)
         tns = int(ns) + int(run.tf_stamps_shift_ns)
-        edges = [tfs(tns, "map", "odom", m2o[0], m2o[1], 0.0, _quat_z(m2o[2]))]
+        edges = [tfs(tns, "map", "odom", m2o[0], m2o[1], 0.0, _quat_z(m2o[2]))] if run.publish_map_to_odom else []
         if run.pose_topic is None:
             edges.append(tfs(tns, "odom", "base_link", ob[0], ob[1], 0.0, _quat_z(ob[2])))
         if run.pose_topic != "pose":
@@ -226,6 +234,11 @@ def write_robot_bag(path: str | Path, fmt: str, run: RobotRun) -> Path:
                     kw.update(d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=np.zeros(12))
                 msgs.append((int(ns), "/camera/camera_info", "sensor_msgs/msg/CameraInfo",
                              T["sensor_msgs/msg/CameraInfo"](**kw)))
+    if run.label_info:
+        VC = T["vision_msgs/msg/VisionClass"]
+        msgs.append((int(stamps[0]), "/label_info", "vision_msgs/msg/LabelInfo", T["vision_msgs/msg/LabelInfo"](
+            header=header(int(stamps[0]), ""), class_map=[VC(class_id=k, class_name=str(c))
+                                                       for k, c in enumerate(run.classes)], threshold=0.5)))
     msgs.sort(key=lambda m: m[0])
     _write(path, fmt, store, ser, msgs)
     return path

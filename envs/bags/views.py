@@ -8,6 +8,16 @@ Label messages (a robot that already classifies its views):
 * ``vision_msgs/Classification2D`` (ROS 1): ``results[].id`` (an index into ``classes``) and
   ``score``.
 
+The class list of label views (``roomseg-segment bag=``) never comes from the labels seen:
+it is ``classes=``, else the bag's own list (a ``vision_msgs/LabelInfo``: ``class_map`` by
+``class_id``), else the paper's seven; a view's class outside it is one line. (Classes taken from the labels seen
+would shift every later class index when one class never occurs, and an index ground truth
+would be misread without a word.)
+
+What the views are picks the aggregator (:func:`aggregator_for`): a label says which room the
+robot is in (a place label: graph KNN spreads it by path distance, as far as the next views'
+labels), an image shows what the camera sees (the vision cone puts its class where it looks).
+
 Image messages: ``sensor_msgs/Image`` (``rgb8``, ``bgr8``, ``rgba8``, ``bgra8``, ``mono8``,
 ``mono16``, ``8UC1``, ``8UC3`` (as ``bgr8``), ``16UC1``) and ``sensor_msgs/CompressedImage``
 (JPEG / PNG, decoded with Pillow), all to (H, W, 3) uint8 RGB.
@@ -32,6 +42,60 @@ TF_TYPES = ("tf2_msgs/msg/TFMessage",)
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
               "nav_msgs/msg/Odometry")
 CAMERA_INFO_TYPES = ("sensor_msgs/msg/CameraInfo",)
+#: A bag's own class list (ROS 2 vision_msgs >= 4).
+LABEL_INFO_TYPES = ("vision_msgs/msg/LabelInfo",)
+
+#: The aggregator ``roomseg-segment bag=...`` picks per kind of views (an explicit
+#: ``aggregator=`` wins), and why.
+AGGREGATOR_FOR = {
+    "labels": ("graph_knn", "the views are place labels (the room the robot is in): graph KNN spreads each "
+                            "along paths to the nearest views; the vision cone would spread it through open doors"),
+    "images": ("vision_cone", "the views are camera images (what the camera sees): the vision cone puts each "
+                              "view's class where the camera looks"),
+}
+
+
+def aggregator_for(kind: str) -> tuple[str, str]:
+    """(the aggregator option, the reason) for views of ``kind`` (``labels`` or ``images``)."""
+    return AGGREGATOR_FOR[kind]
+
+
+def label_info_classes(msg: Any, where: str) -> tuple[str, ...]:
+    """The class names of a ``vision_msgs/LabelInfo``, in ``class_id`` order.
+
+    Raises:
+        BagError: no classes, an empty name, or ids that are not 0 .. n-1 each once (a class
+            index is a position in the list; one line naming ``where``)."""
+    pairs = [(int(c.class_id), str(c.class_name).strip()) for c in msg.class_map]
+    ids = sorted(k for k, _ in pairs)
+    if not pairs or ids != list(range(len(pairs))) or any(not n for _, n in pairs):
+        raise BagError(f"{where}: LabelInfo class_map {[list(p) for p in sorted(pairs)][:10]}; expected classes "
+                       f"with ids 0 .. n-1, each once, and names (or pass classes=[...])")
+    return tuple(n for _, n in sorted(pairs))
+
+
+def check_label_names(labels: Sequence[str | dict[str, float]], classes: Sequence[str], where: str,
+                      source: str) -> None:
+    """Every class a kept view names is in ``classes`` (compared lowercase, as a labels file's
+    columns are).
+
+    Args:
+        source: where the class list came from, for the message.
+
+    Raises:
+        BagError: one line naming the topic, the names outside the list, the first view that
+            has one, and the list."""
+    known = {str(c).strip().lower() for c in classes}
+    bad: dict[str, int] = {}
+    for i, v in enumerate(labels):
+        for name in ([v] if isinstance(v, str) else list(v)):
+            if str(name).strip().lower() not in known:
+                bad.setdefault(str(name), i)
+    if bad:
+        first = min(bad.values())
+        raise BagError(f"{where}: class(es) {sorted(bad)} (first at kept view {first}) not in the class list "
+                       f"{list(classes)} ({source}); expected every view's class in it: pass classes=[...] in the "
+                       f"order of your ground truth's indices")
 
 
 def view_label(msg: Any, msgtype: str, where: str, classes: Sequence[str] | None = None) -> str | dict[str, float]:
