@@ -54,8 +54,10 @@ RESULTS ?= results
 bench: setup  ## offline benchmark (no GPU): sweep -> results/runs/bench; tables, figures, report.html -> results/bench
 	@$(if $(findstring procthor_shared,$(BENCH_ENVS)),,echo "make bench: the shared ProcTHOR houses are absent ($(SHARED)/procthor): generated houses only; get them with: $(PY) -m benchmark.commands.data fetch procthor_shared --root $(SHARED)" >&2)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=bench env=$(BENCH_ENVS) run.limit=$(BENCH_HOUSES) run.results_dir=$(RESULTS)
-	@# the figures, and the tables then the report, read the finished run side by side; any failing fails bench
+	@# the figures, and the tables then the report, read the finished run side by side; any failing fails bench.
+	@# Ctrl-C (or make killed) stops the figures too: a background job of this shell ignores SIGINT
 	$(PY) -m benchmark.commands.figures from-run $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT)/figures & fig=$$!; \
+	trap 'kill $$fig 2>/dev/null; wait $$fig 2>/dev/null; exit 130' INT TERM HUP; \
 	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT) --table table3 --table table4 --table all \
 	  && $(PY) -m benchmark.commands.report $(RESULTS)/runs/bench --last-sweep --out $(BENCH_OUT)/report.html; rep=$$?; \
 	wait $$fig && exit $$rep

@@ -54,6 +54,10 @@ def usage() -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``roomseg <command> [args]``; returns the command's exit status (2: unknown command)."""
     args = list(sys.argv[1:] if argv is None else argv)
+    if argv is None:  # the console script: Ctrl-C is one line from the start (benchmark/commands/cli.py)
+        from benchmark.commands.cli import handle_interrupts
+
+        handle_interrupts()
     if not args or args[0] in ("-h", "--help", "help"):
         print(usage())
         return 0 if args else 2

@@ -6,11 +6,14 @@ import sys as _sys
 
 # A command run by a user (``python -m benchmark.commands.<name>``: this package is imported
 # while ``sys.argv[0]`` is still ``-m``; or a ``roomseg*`` console script) prints a warning as
-# one line, ``<prog>: warning: <message>``, not Python's file, line number and source line.
+# one line, ``<prog>: warning: <message>``, not Python's file, line number and source line,
+# and Ctrl-C as one line, ``<prog>: interrupted`` (exit status 130), not a traceback.
 if _sys.argv[:1] == ["-m"] or (_sys.argv and _os.path.basename(_sys.argv[0]).startswith("roomseg")):
+    from benchmark.commands.cli import handle_interrupts as _handle_interrupts
     from benchmark.commands.cli import one_line_warnings as _one_line_warnings
 
     _one_line_warnings()
+    _handle_interrupts()  # Ctrl-C: one line and exit status 130, not a traceback
 
 def _say_what_replaced() -> None:
     """``python -m benchmark.commands.<name>`` typed on a terminal: one line on stderr naming the

@@ -219,10 +219,10 @@ def main() -> int:
     except BrokenProcessPool as e:  # a sweep worker was killed (the local launcher says which sweep)
         print(f"{PROG}: error: {_one_line(e)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; the houses already scored are cached, so the same command "
-              f"goes on from there", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt:  # the one Ctrl-C handler of every command: one line, exit 130, no worker left
+        from benchmark.commands.cli import interrupted
+
+        interrupted(PROG, "the houses already scored are cached, so the same command goes on from there")
     return _outcome()
 
 

@@ -6,6 +6,8 @@
   of the docstrings they come from (double backticks, ``:mod:`` roles).
 * :func:`one_line_warnings` prints a warning as ``<prog>: warning: <message>`` (argparse's
   style) instead of Python's two lines with the file, line number and source line.
+* :func:`handle_interrupts` / :func:`interrupted`: Ctrl-C is one line, ``<prog>: interrupted``,
+  and exit status 130, with no traceback and no worker process left.
 """
 
 from __future__ import annotations
@@ -85,6 +87,94 @@ class ArgumentParser(argparse.ArgumentParser):
         return super().parse_known_args(args, namespace)
 
 
+#: the exit status of a command stopped by Ctrl-C (128 + SIGINT, what a shell shows).
+INTERRUPTED = 130
+
+
+def interrupted(prog: str | None = None, note: str = "") -> None:
+    """Ctrl-C: the one handler of every command (:func:`handle_interrupts`, and the commands
+    that catch ``KeyboardInterrupt`` themselves, ``roomseg-bench``). Prints one line,
+    ``<prog>: interrupted`` (then ``; <note>``), and ends this process at once with exit
+    status 130: its worker processes are killed first (those that ignore SIGINT and would go
+    on), a second Ctrl-C is ignored, ``atexit`` cleanup runs (temporary folders), threads are
+    not waited for. Never returns."""
+    import atexit
+    import signal
+
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C: no traceback from the cleanup
+    except ValueError:  # not the main thread
+        pass
+    name = prog or _typed_prog()
+    try:
+        sys.stderr.write(f"{name}: interrupted{'; ' + note if note else ''}\n")
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        pass
+    stop_children()
+    try:
+        atexit._run_exitfuncs()
+    except BaseException:  # noqa: BLE001 - exiting: a failing cleanup must not print or hang
+        pass
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass
+    os._exit(INTERRUPTED)
+
+
+def stop_children() -> None:
+    """Kill this process's ``multiprocessing`` children (pool workers ignore SIGINT: the
+    driver stops them)."""
+    mp = sys.modules.get("multiprocessing")
+    if mp is None:
+        return
+    try:
+        kids = mp.active_children()
+    except Exception:  # noqa: BLE001 - nothing to stop
+        return
+    for child in kids:
+        try:
+            child.kill()
+        except Exception:  # noqa: BLE001 - already gone
+            pass
+    for child in kids:
+        try:
+            child.join(2.0)
+        except Exception:  # noqa: BLE001 - already reaped
+            pass
+
+
+def _typed_prog() -> str:
+    """The command as typed: ``roomseg <sub>`` under the ``roomseg`` tool, else :func:`prog_name`."""
+    argv = sys.argv
+    if argv and argv[0].startswith("roomseg "):  # a subcommand running (benchmark/cli.py)
+        return argv[0]
+    if argv and os.path.basename(argv[0]) == "roomseg":
+        return f"roomseg {argv[1]}" if len(argv) > 1 and not argv[1].startswith("-") else "roomseg"
+    return prog_name()
+
+
+def handle_interrupts() -> None:
+    """Install :func:`interrupted` as the handler of an uncaught ``KeyboardInterrupt`` (Ctrl-C)
+    in this process: one line and exit status 130 instead of Python's traceback. Every command
+    a user runs gets it (``benchmark/commands/__init__.py``: ``python -m
+    benchmark.commands.<name>`` and the ``roomseg*`` console scripts); other errors keep the
+    hook they had."""
+    previous = sys.excepthook
+    if getattr(previous, "_roomseg_interrupts", False):
+        return
+
+    def hook(kind, value, tb):  # noqa: ANN001 - sys.excepthook's signature
+        if issubclass(kind, KeyboardInterrupt):
+            interrupted()
+        previous(kind, value, tb)
+
+    hook._roomseg_interrupts = True  # type: ignore[attr-defined]
+    sys.excepthook = hook
+
+
 def one_line_warnings(prog: str | None = None) -> None:
     """Print warnings as one line each, ``<prog>: warning: <message>`` (the category's name
     when it is not a plain UserWarning), each message once, without Python's file, line
@@ -102,4 +192,5 @@ def one_line_warnings(prog: str | None = None) -> None:
     warnings.showwarning = show
 
 
-__all__ = ["ArgumentParser", "one_line_warnings", "plain", "prog_name"]
+__all__ = ["INTERRUPTED", "ArgumentParser", "handle_interrupts", "interrupted", "one_line_warnings", "plain", "prog_name",
+           "stop_children"]
