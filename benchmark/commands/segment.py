@@ -420,7 +420,7 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     if cfg.get("bag") is not None:  # a robot's bag instead of map= / poses= (benchmark/commands/segment_bag.py)
         from benchmark.commands.segment_bag import read_bag_inputs  # noqa: PLC0415
 
-        grid, ros_origin, map_info, bag_views = read_bag_inputs(cfg)
+        grid, ros_origin, map_info, bag_views = read_bag_inputs(cfg, argv)  # argv: an aggregator= wins
     else:
         grid, ros_origin, map_info = read_map(cfg)
     timings["t_read_map"] = time.perf_counter() - t

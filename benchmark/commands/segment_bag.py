@@ -7,6 +7,11 @@ outputs are written a bag with the segmented map and the rooms is written beside
 :func:`benchmark.classifiers.labels_file.table_probabilities` as a labels file's rows do,
 images through the configured image classifier (``benchmark.method.classify``, in chunks of
 ``bag_options.chunk`` decoded images, so memory does not grow with the number of views).
+
+Defaults that follow the bag (:func:`read_bag_inputs`): the class list of label views is
+``classes=``, else the bag's own ``vision_msgs/LabelInfo``, else the paper's seven (never the
+labels seen); the aggregator is ``graph_knn`` for place labels and ``vision_cone`` for camera
+images (:func:`envs.bags.views.aggregator_for`), unless ``aggregator=`` is given.
 """
 
 from __future__ import annotations
@@ -22,23 +27,66 @@ import numpy as np
 OUT_NAMES = {"ros1": "segmentation.bag", "mcap": "segmentation.mcap"}
 
 
-def bag_options(cfg):
-    """``cfg.bag`` -> :class:`envs.bags.read.BagOptions`."""
+def bag_options(cfg, own_classes: tuple[str, ...] | None = None):
+    """``cfg.bag`` -> :class:`envs.bags.read.BagOptions` (``classes``: the config's, else
+    ``own_classes``, the bag's LabelInfo list, which ROS 1 Classification2D ids index)."""
     from envs.bags.read import BagOptions  # noqa: PLC0415
+    from envs.maps.scene import check_max_map_pixels  # noqa: PLC0415
 
     b = cfg.bag_options
-    classes = tuple(str(c) for c in cfg.classes) if cfg.get("classes") is not None else None
+    classes = tuple(str(c) for c in cfg.classes) if cfg.get("classes") is not None else own_classes
     return BagOptions(map_topic=b.map_topic, map_stamp=b.map_stamp, view_topic=b.view_topic, pose_topic=b.pose_topic,
                       camera_info_topic=b.camera_info_topic, map_frame=b.map_frame, camera_frame=b.camera_frame,
                       camera_axis=str(b.camera_axis), min_distance_m=float(b.min_distance_m),
                       min_turn_deg=float(b.min_turn_deg), tf_tolerance_s=float(b.tf_tolerance_s),
                       tf_max_gap_s=float(b.tf_max_gap_s), max_clock_jump_s=float(b.max_clock_jump_s),
-                      free_max=int(b.free_max), unknown_as=str(cfg.unknown_as), classes=classes)
+                      free_max=int(b.free_max), unknown_as=str(cfg.unknown_as), classes=classes,
+                      max_map_pixels=check_max_map_pixels(cfg.max_map_pixels, "max_map_pixels"))
 
 
-def read_bag_inputs(cfg) -> tuple[Any, tuple[float, float, float], dict, Any]:
+def explicit(argv, group: str) -> bool:
+    """``argv`` (the command's overrides) sets ``group`` or one of its keys."""
+    for item in argv:
+        key = str(item).partition("=")[0].lstrip("+~")
+        if key == group or key.startswith(group + "."):
+            return True
+    return False
+
+
+def choose_aggregator(cfg, kind: str, argv) -> str:
+    """Set ``cfg.aggregator`` to the one for the views' ``kind`` unless ``argv`` names one;
+    returns the line that says which and why (:data:`envs.bags.views.AGGREGATOR_FOR`)."""
+    from omegaconf import OmegaConf  # noqa: PLC0415
+
+    from benchmark.config import compose  # noqa: PLC0415
+    from envs.bags.views import aggregator_for  # noqa: PLC0415
+
+    if explicit(argv, "aggregator"):
+        return f"{cfg.aggregator._target_.rsplit('.', 1)[-1]} (aggregator= given)"
+    name, why = aggregator_for(kind)
+    node = compose("segment", [f"aggregator={name}"]).aggregator
+    if str(node._target_) != str(cfg.aggregator._target_):
+        OmegaConf.update(cfg, "aggregator", node, merge=False)
+    return f"{name}: {why} (aggregator=... to choose another)"
+
+
+def label_classes(cfg, own) -> tuple[tuple[str, ...], str]:
+    """The class list of label views and where it came from: ``classes=``, else the bag's
+    LabelInfo ``own`` (topic, names), else the paper's seven; never the labels seen."""
+    from envs.world.classes import PAPER_CLASSES  # noqa: PLC0415
+
+    if cfg.get("classes") is not None:
+        return tuple(str(c) for c in cfg.classes), "classes="
+    if own is not None:
+        return tuple(own[1]), f"the bag's LabelInfo on {own[0]}"
+    return tuple(PAPER_CLASSES), "the paper's seven, the default"
+
+
+def read_bag_inputs(cfg, argv=()) -> tuple[Any, tuple[float, float, float], dict, Any]:
     """The bag's map and views -> (GridMap cut to the reachable area, ROS origin, description,
-    :class:`envs.bags.read.BagViews`)."""
+    :class:`envs.bags.read.BagViews`). Sets ``cfg.classes`` for label views and the aggregator
+    for the views (see the module doc; ``argv``: the command's overrides, an ``aggregator=``
+    among them wins)."""
     from omegaconf import OmegaConf  # noqa: PLC0415
 
     from envs.bags.read import read_bag  # noqa: PLC0415
@@ -52,7 +100,13 @@ def read_bag_inputs(cfg) -> tuple[Any, tuple[float, float, float], dict, Any]:
         raise ValueError(f"bag={path} and map={cfg.map}: the bag gives the map; drop map=")
     OmegaConf.update(cfg, "map", str(path))
     geometry = cfg.get("segmenter") is not None
-    views = read_bag(path, bag_options(cfg), need_views=not geometry, progress=bool(cfg.bag_options.progress))
+    own = None
+    if not geometry and cfg.get("classes") is None:
+        from envs.bags.info import bag_classes  # noqa: PLC0415
+
+        own = bag_classes(path)
+    views = read_bag(path, bag_options(cfg, None if own is None else own[1]), need_views=not geometry,
+                     progress=bool(cfg.bag_options.progress))
     grid = views.grid
     rule = check_rule(cfg.reachable, "reachable")
     reach = grid
@@ -73,6 +127,15 @@ def read_bag_inputs(cfg) -> tuple[Any, tuple[float, float, float], dict, Any]:
                      "subsample": {"min_distance_m": float(cfg.bag_options.min_distance_m),
                                    "min_turn_deg": float(cfg.bag_options.min_turn_deg)},
                      "camera_hfov_deg": views.hfov_deg})
+        if views.kind == "labels":
+            from envs.bags.views import check_label_names  # noqa: PLC0415
+
+            classes, source = label_classes(cfg, own)
+            check_label_names(views.labels, classes, f"{path} {t['views'].name}", source)
+            OmegaConf.update(cfg, "classes", list(classes), force_add=True)
+            info["classes_from"] = source
+        info["aggregator_choice"] = choose_aggregator(cfg, views.kind, argv)
+        print(f"aggregator {info['aggregator_choice']}")
     return reach, views.map.ros_origin, info, views
 
 
