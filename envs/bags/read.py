@@ -14,6 +14,8 @@ each type, the map's frame from the map message, the camera frame from the views
 
 from __future__ import annotations
 
+import math
+import unicodedata
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +32,7 @@ from envs.bags.occupancy import (
     map_message,
     map_stamp_ns,
 )
-from envs.bags.source import Bag, BagError, Topic, header_ns, open_bag, stamp_s
+from envs.bags.source import MAX_MESSAGE_BYTES, Bag, BagError, Topic, header_ns, open_bag, stamp_s
 from envs.bags.transforms import TfBuffer, forward_axis, planar_pose
 from envs.bags.views import (
     CAMERA_INFO_TYPES,
@@ -47,6 +49,12 @@ from envs.bags.views import (
 )
 from envs.maps.frames import ros_to_world
 from envs.maps.gridmap import GridMap
+from envs.maps.scene import MAX_MAP_PIXELS
+
+#: The longest class name a label message may carry, in UTF-8 bytes.
+MAX_LABEL_BYTES = 128
+#: What a class name may hold besides letters, digits and combining marks (of any script).
+NAME_PUNCTUATION = " _-.,'()/&+:"
 
 
 @dataclass(frozen=True)
@@ -69,6 +77,20 @@ class BagOptions:
     free_max: int = FREE_MAX
     unknown_as: str = "obstacle"
     classes: tuple[str, ...] | None = None  # names indexed by ROS 1 Classification2D ids
+    max_map_pixels: int | None = MAX_MAP_PIXELS  # the largest OccupancyGrid (width x height cells); None: no limit
+    max_message_bytes: int = MAX_MESSAGE_BYTES   # the largest serialised message decoded
+
+    def __post_init__(self):
+        """Each number in its range: one line naming the option, the value and the range."""
+        for key in ("min_distance_m", "min_turn_deg", "tf_tolerance_s", "tf_max_gap_s", "max_clock_jump_s"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"bag_options.{key}={v!r}; expected a finite number >= 0")
+        for key in ("max_map_pixels", "max_message_bytes"):
+            v = getattr(self, key)
+            if (v is not None or key == "max_message_bytes") and (isinstance(v, bool) or not isinstance(v, int)
+                                                                   or v <= 0):
+                raise ValueError(f"{key}={v!r}; expected a positive integer")
 
 
 @dataclass
@@ -160,6 +182,67 @@ def choose_topics(bag: Bag, opt: BagOptions, need_views: bool = True) -> dict[st
     return out
 
 
+def _shown(name: str, most: int = 40) -> str:
+    """A class name for a message: quoted and escaped (a NUL, a direction override show as
+    ``\\x00``, ``\\u202e``), cut to ``most`` characters."""
+    return repr(name[:most]) + ("..." if len(name) > most else "")
+
+
+def class_name_problem(name: str) -> str | None:
+    """Why ``name`` cannot be a class name, or None: over :data:`MAX_LABEL_BYTES` UTF-8 bytes,
+    or a character that is not a letter, digit, combining mark or one of
+    :data:`NAME_PUNCTUATION` (a control or format character such as NUL or U+202E, ``<``)."""
+    n = len(name.encode("utf-8", "replace"))
+    if n > MAX_LABEL_BYTES:
+        return f"is {n} bytes, over the limit of {MAX_LABEL_BYTES} bytes a class name"
+    for ch in name:
+        if not (unicodedata.category(ch)[0] in "LMN" or ch in NAME_PUNCTUATION):
+            return (f"holds {ch!r} (U+{ord(ch):04X}); expected letters, digits, spaces and "
+                    f"{NAME_PUNCTUATION.strip()!r}")
+    return None
+
+
+def check_label(label: str | dict[str, float], classes: Sequence[str] | None, where: str) -> str | dict[str, float]:
+    """A view's label (a class name, or class scores) bounded before it is kept: each name is
+    one of ``classes`` (class scores by name, case and spaces aside, as a labels file's
+    columns), or a class name (:func:`class_name_problem`). Whether a name is in the class list
+    is checked once all labels are read (``envs.bags.views.check_label_names``).
+
+    Raises:
+        BagError: one line naming ``where`` (topic and stamp), the name (cut short) and what
+            was expected."""
+    names = [label] if isinstance(label, str) else list(label)
+    known = set() if classes is None else set(classes) | {c.strip().lower() for c in classes}
+    for name in names:
+        if name in known or name.strip().lower() in known:
+            continue
+        why = class_name_problem(name)
+        if why is not None:
+            raise BagError(f"{where}: class name {_shown(name)} {why}")
+    return label
+
+
+def _check_map_size(msg: Any, limit: int | None, where: str) -> None:
+    """An OccupancyGrid's declared width x height against the map-size limit (the limit of
+    image maps, ``max_map_pixels``, 20 M cells), before its cells are read.
+
+    Raises:
+        BagError: over the limit (one line naming the message, the size and the limit)."""
+    w, h = int(msg.info.width), int(msg.info.height)
+    if limit is not None and w * h > limit:
+        raise BagError(f"{where}: OccupancyGrid of {w} x {h} = {w * h} cells, over the map-size limit of {limit} "
+                       f"pixels (max_map_pixels); expected a smaller map, or raise max_map_pixels")
+
+
+def _tf_add(tf: TfBuffer, path: Path, *sample) -> None:
+    """:meth:`TfBuffer.add` with the bag named in its error (a non-finite transform, a frame
+    with two parents: the topic, edge and stamp are in the message)."""
+    try:
+        tf.add(*sample)
+    except BagError as e:
+        raise BagError(f"{path} {e}") from None
+
+
 def _pose_of(msg: Any, msgtype: str) -> tuple[Any, str | None]:
     if msgtype == "geometry_msgs/msg/PoseStamped":
         return msg.pose, None
@@ -193,7 +276,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
             view's stamp, an unreadable file, an unknown type, a map that changes size, a
             clock that jumps)."""
     path = Path(path).expanduser()
-    with open_bag(path) as bag:
+    with open_bag(path, opt.max_message_bytes) as bag:
         topics = choose_topics(bag, opt, need_views)
         topics_all = bag.topics
         map_t: Topic = topics["map"]
@@ -227,6 +310,7 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                 map_stamps.append(st)
                 if want_ns is not None and st > want_ns:  # never a later map in its place
                     continue
+                _check_map_size(msg, opt.max_map_pixels, f"{path} {topic} at {stamp_s(st)}")
                 m = map_message(msg, f"{path} {topic}", st)
                 n_maps += 1
                 if first_geom is None:
@@ -246,13 +330,15 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                     if not static:
                         clock.check(f"{topic} {ts.header.frame_id} -> {child}", st, t, path)
                     tr, q = ts.transform.translation, ts.transform.rotation
-                    tf.add(str(ts.header.frame_id), child, st, (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w), static, topic)
+                    _tf_add(tf, path, str(ts.header.frame_id), child, st, (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w),
+                            static, topic)
             elif topics.get("poses") is not None and topic == topics["poses"].name:
                 st = header_ns(msg, t)
                 clock.check(topic, st, t, path)
                 pose, _ = _pose_of(msg, msgtype)
                 p, q = pose.position, pose.orientation
-                tf.add(str(msg.header.frame_id), pose_child, st, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), False, topic)
+                _tf_add(tf, path, str(msg.header.frame_id), pose_child, st, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w),
+                        False, topic)
             elif topics.get("camera_info") is not None and topic == topics["camera_info"].name:
                 if hfov is None:
                     hfov = horizontal_fov_deg(msg, f"{path} {topic} at {stamp_s(t)}")
@@ -264,7 +350,8 @@ def read_bag(path: str | Path, opt: BagOptions = BagOptions(), need_views: bool 
                 stamps.append(st)
                 records.append(t)
                 if msgtype in LABEL_TYPES:
-                    labels_all.append(view_label(msg, msgtype, f"{path} {topic} at {stamp_s(st)}", opt.classes))
+                    where = f"{path} {topic} at {stamp_s(st)}"
+                    labels_all.append(check_label(view_label(msg, msgtype, where, opt.classes), opt.classes, where))
         if bar is not None:
             bar.close()
     if chosen is None:  # no map, or none at or before bag_options.map_stamp: one line listing the map stamps

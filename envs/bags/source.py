@@ -3,11 +3,17 @@
 A bag is a ROS 1 ``.bag`` file, a ROS 2 bag folder (``metadata.yaml`` + ``.db3`` or
 ``.mcap``) or a lone ``.mcap`` / ``.db3`` file. Messages are streamed (one in memory at a
 time); stamps are integers in nanoseconds.
+
+Bounds: every file read is a regular file (:func:`regular_file`, checked with ``stat`` before
+anything opens it: a FIFO would block the reader forever, ``/dev/zero`` would feed it without
+end), and no message is decoded whose serialised size is over :data:`MAX_MESSAGE_BYTES`.
 """
 
 from __future__ import annotations
 
+import os
 import sqlite3
+import stat
 import struct
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -15,12 +21,56 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+#: The largest serialised message decoded (bytes): 128 MiB holds a 20 M cell OccupancyGrid (20 MB)
+#: or an 8K raw RGB image (100 MB); a message over it is one line naming it, never decoded.
+MAX_MESSAGE_BYTES = 128 * 1024 * 1024
+#: The storage files of a ROS 2 bag folder that ``rosbags`` reads (beside ``metadata.yaml``).
+STORAGE_SUFFIXES = (".db3", ".mcap", ".zstd")
+
 #: What to install when ``rosbags`` is missing.
 INSTALL_HINT = "reading ROS bags needs rosbags: pip install 'roomseg-bench[bags]' (or pip install rosbags)"
 
 
 class BagError(ValueError):
     """A bag that cannot be used: the message is one line naming the file, topic or stamp."""
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def regular_file(path: str | Path, what: str, error: type[Exception] = ValueError) -> Path:
+    """``path`` (``~`` expanded) when it is a regular file, or a symbolic link to one: checked
+    with ``stat``, never opened, so that a FIFO (which blocks whoever opens it) or a device
+    (``/dev/zero`` reads without end) is refused before any reader touches it. The one check of
+    the input files of ``roomseg-segment`` and of every file a bag is read from.
+
+    Args:
+        path: the file.
+        what: how the user named it, for the message (``bag``, ``map``, ``labels``).
+        error: the exception raised for a file that is not regular.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist (one line naming it).
+        error: ``path`` is a folder, FIFO, device or socket (one line naming it, and the link's
+            target when it is a symbolic link).
+    """
+    p = Path(path).expanduser()
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{what}={p} does not exist; expected a regular file") from None
+    except OSError as e:
+        raise error(f"{what}={p}: cannot stat it ({e.strerror}); expected a regular file") from None
+    if not stat.S_ISREG(st.st_mode):
+        link = f" (a symbolic link to {os.path.realpath(p)})" if p.is_symlink() else ""
+        raise error(f"{what}={p}{link} is {_kind(st.st_mode)}; expected a regular file")
+    return p
 
 
 def require_rosbags():
@@ -76,8 +126,8 @@ class Topic:
 class Bag:
     """An open bag (use :func:`open_bag`): its topics and a message stream."""
 
-    def __init__(self, path: Path, reader: Any):
-        self.path, self.reader = path, reader
+    def __init__(self, path: Path, reader: Any, max_message_bytes: int = MAX_MESSAGE_BYTES):
+        self.path, self.reader, self.max_message_bytes = path, reader, int(max_message_bytes)
 
     @property
     def topics(self) -> dict[str, Topic]:
@@ -101,8 +151,9 @@ class Bag:
         order, deserialising one message at a time.
 
         Raises:
-            BagError: a message that cannot be read (truncated file, unknown type), naming
-                the file, topic and record time.
+            BagError: a message that cannot be read (truncated file, unknown type) or whose
+                serialised size is over ``max_message_bytes``, naming the file, topic and
+                record time.
         """
         errors = _reader_errors()
         conns = [c for c in self.reader.connections if c.topic in set(topics)]
@@ -120,6 +171,10 @@ class Bag:
                 raise BagError(f"{self.path}: cannot read on{where}: {_what(e)} (a truncated or damaged bag?)") from None
             conn, t, raw = item
             last = (conn.topic, t)
+            if len(raw) > self.max_message_bytes:
+                raise BagError(f"{self.path}: topic {conn.topic} at {stamp_s(t)}: a {conn.msgtype} message of "
+                               f"{len(raw)} bytes, over the limit of {self.max_message_bytes} bytes a message; "
+                               f"expected a smaller message")
             try:
                 msg = self.reader.deserialize(raw, conn.msgtype)
             except errors as e:
@@ -129,18 +184,32 @@ class Bag:
 
 
 def _bag_paths(path: Path) -> list[Path]:
+    """``[path]``, once ``path`` and every file of it that ``rosbags`` reads are regular files
+    (:func:`regular_file`): a ``.bag`` / ``.mcap`` / ``.db3`` file, or a folder's
+    ``metadata.yaml`` and storage files."""
     if not path.exists():
         raise BagError(f"bag={path} does not exist; expected a ROS 1 .bag file, a ROS 2 bag folder or an .mcap file")
+    if not path.is_dir():
+        regular_file(path, "bag", BagError)
+        return [path]
+    for p in sorted(path.iterdir()):
+        if p.name == "metadata.yaml" or p.name.endswith(STORAGE_SUFFIXES):
+            regular_file(p, "bag", BagError)
     return [path]
 
 
 @contextmanager
-def open_bag(path: str | Path) -> Iterator[Bag]:
+def open_bag(path: str | Path, max_message_bytes: int = MAX_MESSAGE_BYTES) -> Iterator[Bag]:
     """Open ``path`` for reading (a context manager yielding a :class:`Bag`).
+
+    Args:
+        path: the bag (see the module doc).
+        max_message_bytes: the largest serialised message :meth:`Bag.messages` decodes.
 
     Raises:
         ImportError: ``rosbags`` is not installed (the message says what to install).
-        BagError: the file is missing, unindexed, truncated, or not a bag (one line naming it).
+        BagError: the file is missing, not a regular file (a FIFO, a device), unindexed,
+            truncated, or not a bag (one line naming it).
     """
     highlevel = require_rosbags()
     path = Path(path).expanduser()
@@ -155,7 +224,7 @@ def open_bag(path: str | Path) -> Iterator[Bag]:
     except OSError as e:
         raise BagError(f"{path}: cannot open: {_what(e)}") from None
     try:
-        yield Bag(path, reader)
+        yield Bag(path, reader, max_message_bytes)
     finally:
         try:
             reader.close()

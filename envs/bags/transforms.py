@@ -94,8 +94,15 @@ class TfBuffer:
 
     def add(self, parent: str, child: str, stamp_ns: int, trans, rot, static: bool, source: str) -> None:
         """Add one sample of ``parent -> child`` (a frame has one parent: a second parent is
-        an error naming both)."""
+        an error naming both; a translation or rotation that is not finite, or a rotation of
+        norm 0, is an error naming the topic, the edge and the stamp: it would place no view,
+        or every view through it, nowhere)."""
         parent, child = parent.lstrip("/"), child.lstrip("/")
+        trans, rot = [float(v) for v in trans], [float(v) for v in rot]
+        norm2 = sum(v * v for v in rot)
+        if not (all(math.isfinite(v) for v in trans) and math.isfinite(norm2) and norm2 >= 1e-12):
+            raise BagError(f"{source} at {stamp_s(stamp_ns)}: transform {parent} -> {child} has translation {trans} "
+                           f"and rotation (x, y, z, w) {rot}; expected finite numbers and a unit quaternion")
         e = self.edges.get(child)
         if e is None:
             e = self.edges[child] = Edge(parent, child, source, static)
@@ -108,8 +115,8 @@ class TfBuffer:
             e._arrays = None
             return
         e.stamps.append(int(stamp_ns))
-        e.trans.extend(float(v) for v in trans)
-        e.rots.extend(float(v) for v in rot)
+        e.trans.extend(trans)
+        e.rots.extend(rot)
 
     @property
     def frames(self) -> set[str]:

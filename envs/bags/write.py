@@ -12,7 +12,7 @@ Topics (all stamped with the map's stamp, in the map's frame):
 
 Formats: a ROS 1 ``.bag`` (``ros1``) or one MCAP file (``mcap``: ROS 2 CDR messages,
 ``ros2 bag play`` / Foxglove open it). The file is written beside its final name and renamed
-when complete.
+when complete; a write that fails (a full disk) is an ``OSError`` naming that file.
 """
 
 from __future__ import annotations
@@ -163,6 +163,11 @@ def write_segmentation_bag(path: str | Path, fmt: str, frame: str, stamp_ns: int
                 raise RuntimeError(f"{path}: the MCAP writer made {len(found)} files; expected one")
             tmp = found[0]
         os.replace(tmp, path)
+    except OSError as e:
+        if e.filename:
+            raise
+        # a failed write (a full disk) names no file: name the one being written
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from e
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return path
