@@ -18,7 +18,8 @@ made). Three modes:
   map's free space; rooms without classes.
 
 Outputs in ``out`` (written in a temporary folder beside it, then renamed, so ``out`` holds
-a complete set or nothing):
+a complete set or nothing; ``overwrite=true`` replaces only a folder this command wrote, the
+one with a ``.roomseg-segment`` file, and never one that is or holds an input):
 
 * ``labels.png``: index PNG, pixel = class index (``summary.json`` lists the classes), 255 =
   no class (unlabelled or not walkable); 16-bit with 65535 beyond 255 classes (labels/images);
@@ -65,6 +66,12 @@ POSE_FRAMES = {"ros": "frame=ros (x, y metres, theta radians CCW from +x)",
                "pixel": "frame=pixel (row, col, yaw degrees)"}
 #: The frame GeoJSON coordinates are in.
 GEOJSON_FRAME = "map: x right, y up, metres (ROS map frame; project world x, z)"
+#: The file that marks an output folder this command wrote: ``overwrite=true`` replaces only
+#: a folder that holds it, and never one that holds or is an input.
+MARKER = ".roomseg-segment"
+#: The inputs that are files (each must be a regular file: a FIFO or a device is refused
+#: before it is opened), and those that are folders or either.
+INPUT_FILES, INPUT_FOLDERS = ("map", "poses", "labels", "gt"), ("images", "bag")
 
 
 def compose_config(overrides: Sequence[str]):
@@ -366,11 +373,54 @@ def _scores(cfg, grid, labels: np.ndarray | None, segs: np.ndarray, classes: Seq
     return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
 
 
-def _check_out(out: Path, overwrite: bool) -> None:
+def _inputs(cfg, map_info: dict | None = None) -> list[tuple[str, Path]]:
+    """Every input path of the run as ``(key, path)``: ``map`` (and the image its YAML names,
+    once read: ``map_info``), ``poses``, ``labels``, ``images``, ``gt`` (and its ``.json``
+    class sidecar), ``bag``."""
+    from omegaconf import OmegaConf  # noqa: PLC0415
+
+    out = []
+    for key in INPUT_FILES + INPUT_FOLDERS:
+        if key in cfg and not OmegaConf.is_missing(cfg, key) and cfg.get(key) is not None:
+            out.append((key, Path(str(cfg.get(key))).expanduser()))
+    if cfg.get("gt") is not None and Path(str(cfg.gt)).expanduser().with_suffix(".json").exists():
+        out.append(("gt", Path(str(cfg.gt)).expanduser().with_suffix(".json")))
+    if map_info and map_info.get("map_image"):
+        out.append(("map", Path(str(map_info["map_image"]))))
+    return out
+
+
+def _check_inputs(inputs: list[tuple[str, Path]]) -> None:
+    """Each existing input that must be a file is a regular file (or a link to one), checked
+    without opening it (:func:`envs.bags.source.regular_file`); a missing one is left to its
+    reader, which names it."""
+    from envs.bags.source import regular_file  # noqa: PLC0415
+
+    for key, p in inputs:
+        if key in INPUT_FILES and p.exists():
+            regular_file(p, key)
+
+
+def _check_out(out: Path, overwrite: bool, inputs: Sequence[tuple[str, Path]] = ()) -> None:
+    """``out`` (resolved) can take the output set: not a file, neither an input nor a folder
+    holding one, and, when it exists and is not empty, ``overwrite=true`` and written by this
+    command (its :data:`MARKER` file).
+
+    Raises:
+        ValueError: one line naming ``out``, the input or the missing marker."""
     if out.exists() and not out.is_dir():
         raise ValueError(f"out={out} is a file; expected a folder to create")
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise ValueError(f"out={out} exists and is not empty; choose a new folder or pass overwrite=true")
+    for key, p in inputs:
+        for q in (Path(os.path.abspath(p)), p.resolve()):
+            if q == out or out in q.parents:
+                raise ValueError(f"out={out} {'is' if q == out else 'holds'} the input {key}={p}; expected an output "
+                                 f"folder apart from the inputs (replacing it would delete them)")
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise ValueError(f"out={out} exists and is not empty; choose a new folder or pass overwrite=true")
+        if not (out / MARKER).is_file():
+            raise ValueError(f"out={out} exists and was not written by roomseg-segment (it has no {MARKER} file); "
+                             f"overwrite=true replaces only an output folder of this command: choose a new folder")
 
 
 def _readable(folder: Path) -> None:
@@ -406,13 +456,15 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     from omegaconf import OmegaConf  # noqa: PLC0415
 
     from benchmark.metrics import segments  # noqa: PLC0415
-    from envs.atomic import clean_leftovers, leftover_prefix  # noqa: PLC0415
+    from envs.atomic import atomic_write_text, clean_leftovers, leftover_prefix  # noqa: PLC0415
     from envs.maps.segmentation_io import COUNT_BAND_ROWS, value_counts  # noqa: PLC0415
 
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
     out = Path(str(cfg.out)).expanduser().resolve()
-    _check_out(out, bool(cfg.overwrite))
+    inputs = _inputs(cfg)
+    _check_out(out, bool(cfg.overwrite), inputs)
+    _check_inputs(inputs)
     if cfg.off_map not in ("error", "drop"):
         raise ValueError(f"off_map={cfg.off_map!r}; expected error or drop")
     t = time.perf_counter()
@@ -494,6 +546,8 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
     tmp = Path(tempfile.mkdtemp(prefix=leftover_prefix(out, "tmp"), dir=out.parent))
     try:
         t = time.perf_counter()
+        # every write names its file when it fails (a full disk): the atomic writers do
+        atomic_write_text(tmp / MARKER, "roomseg-segment output folder: overwrite=true may replace it\n")
         summary.update(write_outputs(tmp, cfg, grid, ros_origin, labels, segs, seg_classes, classes, poses, title))
         if bag_views is not None:  # the output bag: map + rooms as MarkerArray (benchmark/commands/segment_bag.py)
             from benchmark.commands.segment_bag import write_bag_output  # noqa: PLC0415
@@ -504,16 +558,16 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
             t = time.perf_counter()
             scores = _scores(cfg, grid, labels, segs, classes, metric_params)
             timings["t_score"] = time.perf_counter() - t
-            (tmp / "scores.json").write_text(json.dumps(scores, indent=1))
+            atomic_write_text(tmp / "scores.json", json.dumps(scores, indent=1))
             summary["scores"] = {k: scores[k] for k in ("iou", "precision", "recall", "accuracy") if k in scores}
-        (tmp / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
+        atomic_write_text(tmp / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
         timings["t_total"] = time.perf_counter() - t_all
         summary["timings_s"] = {k: round(v, 4) for k, v in timings.items()}
         summary["out"] = str(out)
         summary["files"] = sorted(p.name for p in tmp.iterdir()) + ["summary.json"]
-        (tmp / "summary.json").write_text(json.dumps(summary, indent=1))
+        atomic_write_text(tmp / "summary.json", json.dumps(summary, indent=1))
         _readable(tmp)
-        _check_out(out, bool(cfg.overwrite))
+        _check_out(out, bool(cfg.overwrite), _inputs(cfg, map_info))
         _publish(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
