@@ -208,9 +208,8 @@ def main() -> int:
     except ValueError as e:  # raised by Hydra's defaults list (corruption=pose_3 pose_error=null), not ours
         if isinstance(e, ConfigError) or _finished_jobs()[1]:
             return _report_sweep(e) if _finished_jobs()[1] else _report_error(e)
-        print(f"{PROG}: config error: {_one_line(e)} (a corruption= option chooses that group's option; "
-              f"drop the group=null override)" if "Config group override" in str(e)
-              else f"{PROG}: config error: {_one_line(e)}", file=sys.stderr)
+        group_line = _group_value_line(sys.argv[1:]) if "Config group override" in str(e) else ""
+        print(f"{PROG}: config error: {group_line or _one_line(e)}", file=sys.stderr)
         return 2
     except (ConfigError, StageError, HydraException, OmegaConfBaseException, OSError) as e:
         if _finished_jobs()[1]:  # a multirun whose jobs ran: report every failed job, count the finished
@@ -238,10 +237,82 @@ def _report_error(e: BaseException) -> int:
         print(f"{PROG}: error: {_one_line(_refused_input(e))}", file=sys.stderr)
         return 2
     if isinstance(e, (HydraException, OmegaConfBaseException)):
-        print(f"{PROG}: config error: {_unknown_key_line(e) or _one_line(e).split(' full_key:')[0]}", file=sys.stderr)
+        line = _unknown_key_line(e) or _missing_option_line(e) or _one_line(e).split(' full_key:')[0]
+        print(f"{PROG}: config error: {line}", file=sys.stderr)
         return 2
     print(f"{PROG}: error: {_write_error(e)}", file=sys.stderr)
     return 2
+
+
+def _group_options(group: str) -> list[str]:
+    """The options of config group ``group`` in ``conf/`` (nested ones as ``sub/name``)."""
+    folder = Path(CONF_DIR) / group
+    return sorted(p.relative_to(folder).with_suffix("").as_posix() for p in folder.rglob("*.yaml"))
+
+
+def _group_defaults() -> dict[str, str | None]:
+    """group -> its default option (None: unset) in ``conf/config.yaml``'s defaults list."""
+    from omegaconf import OmegaConf
+
+    out: dict[str, str | None] = {}
+    for item in OmegaConf.to_container(OmegaConf.load(Path(CONF_DIR) / "config.yaml")).get("defaults", []):
+        if isinstance(item, dict):
+            out.update({str(k): (None if v is None else str(v)) for k, v in item.items()})
+    return out
+
+
+def _group_value_line(args: list[str]) -> str:
+    """Hydra's "Config group override must be a string or a list. Got NoneType" names no key:
+    the first override of a config group whose value is not an option's name
+    (``pose_error=null``, ``env=5``), with the group's options and what to do; "" when no such
+    override is found."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from benchmark.harness.typed import nearest
+
+    parser = OverridesParser.create()
+    defaults = _group_defaults()
+    corruption = ""
+    found = None
+    for a in args:
+        try:
+            o = parser.parse_override(a)
+        except Exception:  # noqa: BLE001 - Hydra's own error names it
+            continue
+        key = o.key_or_group
+        if key == "corruption" and isinstance(o.value(), str):
+            corruption = str(o.value())
+        if found is None and not o.is_sweep_override() and not isinstance(o.value(), str) and (Path(CONF_DIR) / key).is_dir():
+            found = (key, a.split("=", 1)[1] if "=" in a else "", o.value())
+    if found is None:
+        return ""
+    key, raw, value = found
+    opts = _group_options(key)
+    listed = f"{key}'s options: {', '.join(opts)}"
+    if value is None and key in defaults and defaults[key] is None:
+        set_by = f"; corruption={corruption} chooses its own {key} option" if corruption else ""
+        return (f"{key}={raw}: a config group takes one of its options, not null; {key} is unset by default, so "
+                f"leave the override out{set_by} ({listed})")
+    return f"{key}={raw}: expected one of {listed}{nearest(str(raw), opts)}"
+
+
+def _missing_option_line(e: BaseException) -> str:
+    """Hydra's "Could not find 'aggregator/vision_cones' Available options in 'aggregator': ...
+    Config search path: ..." as one line: the override, the group's options (those Hydra
+    found, a plug-in's search path included) and the nearest one; "" for other errors."""
+    import re
+
+    from benchmark.harness.typed import nearest
+
+    text = str(e)
+    m = re.search(r"Could not find '([^']+)/([^'/]+)'", text)
+    if not m:
+        return ""
+    group, option = m.group(1), m.group(2)
+    listed = re.search(r"Available options in '[^']*':\s*(.*?)\s*(?:Config search path:|$)", text, re.S)
+    opts = listed.group(1).split() if listed else _group_options(group)
+    return (f"{group}={option}: unknown option; expected one of {group}'s options: {', '.join(opts)}"
+            f"{nearest(option, opts)}")
 
 
 def _unknown_key_line(e: BaseException) -> str:
