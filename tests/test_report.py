@@ -72,7 +72,7 @@ def test_report_holds_configurations_failures_and_maps(sweep, tmp_path, capsys):
     for v in ious:  # the mean, and its 95 % interval over houses beside it
         assert f">{v.mean():.2f}" in body
         if len(v) == 2 and v.iloc[0] != v.iloc[1]:  # two houses: the interval is [lower, higher]
-            assert f">{v.mean():.2f}<br><small class=\"muted\">[{v.min():.1f}, {v.max():.1f}]</small></td>" in body
+            assert f">{v.mean():.2f}<br><small class=\"muted ci\">[{v.min():.1f},<wbr> {v.max():.1f}]</small></td>" in body
     # failures, escaped
     assert "HouseError: wall 3 has no points" in page and "empty map &lt;b&gt;" in page and "<b>" not in page
     # maps: per configuration group (2 aggregators): ground truth, raw, post-processed; then the
@@ -138,6 +138,17 @@ def test_report_in_headless_chromium(sweep, tmp_path):
     assert dom.count('data-sortable="ready"') == 2  # the inline script ran (configs, failures)
     width = int(re.search(r'data-scroll-width="(\d+)"', dom).group(1))
     assert 0 < width <= 1400  # the configuration table needs no horizontal scrolling at 1400 px
+    # measured by the test itself, not by the page: the table's right edge and its box's hidden
+    # overflow (a box with overflow-x:auto scrolls inside, so the page's own width would not show it)
+    measure = ("<script>var t = document.getElementById('configs'), w = t.parentElement;"
+               "document.body.setAttribute('data-table-right', String(Math.ceil(t.getBoundingClientRect().right)));"
+               "document.body.setAttribute('data-hidden', String(w.scrollWidth - w.clientWidth));</script></body>")
+    measured = tmp_path / "measured.html"
+    measured.write_text(out.read_text().replace("</body>", measure))
+    dom = _chromium(exe, tmp_path, measured.resolve().as_uri(), "--dump-dom", "--window-size=1400,900").stdout
+    right = int(re.search(r'data-table-right="(\d+)"', dom).group(1))
+    hidden = int(re.search(r'data-hidden="(-?\d+)"', dom).group(1))
+    assert 0 < right <= 1400 and hidden == 0, (right, hidden)  # every column shows at 1400 px
     # the sorting code sorts: IoU (column 4) descending, as a click on its header twice does
     p = _chromium(exe, tmp_path, url + "#sort=4,desc", "--dump-dom")
     assert _console_lines(p.stderr) == []

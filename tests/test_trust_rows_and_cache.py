@@ -58,3 +58,55 @@ def test_bench_and_robustness_settings_into_one_results_folder_keep_their_own_sc
     # the maps the bench keeps are vouched for by its own entry; the others keep none
     maps = sorted((results / "cache" / "maps").rglob("*.npz"))
     assert [p.parent.name for p in maps] == [keys["bench"]]
+
+
+# ------------------------------------------------------------------ item 4: one loader for rows
+def _duplicated_job(tmp_path: Path) -> tuple[Path, Path]:
+    """A real 2-house job whose metrics.csv then holds house 0 twice (house 1's row replaced by a
+    copy of house 0's, so that the row count still matches the summary's): (run folder, file)."""
+    results = tmp_path / "R"
+    cfg, ch = compose_job([*FAST, "run.limit=2", f"run.results_dir={results}", "run.name=dup"])
+    df = run(cfg, results / "runs" / "dup", ch)
+    assert len(df) == 2 and (df["status"] == "ok").all()
+    f = Path(df.attrs["job_dir"]) / "metrics.csv"
+    lines = f.read_text().splitlines(keepends=True)
+    f.write_text("".join([lines[0], lines[1], lines[1]]))
+    return results / "runs" / "dup", f
+
+
+def test_report_figures_and_tables_refuse_a_house_twice_in_one_file_alike(tmp_path, capsys):
+    """Issue 61 item 4: ``report`` showed a mean over "2 / 2" houses of a file holding one house
+    twice, which ``tables`` refuses; ``figures from-run`` drew from it. All three now read rows
+    through one loader and refuse the file with the same line, exit 2."""
+    from benchmark.commands.figures import main as figures
+    from benchmark.commands.report import main as report
+    from benchmark.commands.tables import main as tables
+
+    run_dir, f = _duplicated_job(tmp_path)
+    want = (f"error: {f}: house synthetic-s000000 is on lines 2 and 3 with the same configuration; "
+            f"expected one row per house and configuration")
+    for name, main, args in (
+            ("tables", tables, [str(run_dir), "--table", "table4", "--out", str(tmp_path / "t")]),
+            ("report", report, [str(run_dir), "--out", str(tmp_path / "r.html")]),
+            ("figures", figures, ["from-run", str(run_dir), "--out", str(tmp_path / "f"), "--jobs", "1"])):
+        assert main(args) == 2, name
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1] == want, (name, err)
+    assert not (tmp_path / "r.html").exists() and not (tmp_path / "f").exists()
+
+
+def test_every_reader_of_metrics_files_goes_through_the_one_loader():
+    """No module but the loader (benchmark/reports/tables.py: read_rows, on the run store's
+    read_metrics) reads a metrics.csv: the places that read rows call read_rows or load_rows."""
+    import re
+
+    readers = []
+    for p in sorted((ROOT / "benchmark").rglob("*.py")):
+        text = p.read_text(encoding="utf-8")
+        rel = p.relative_to(ROOT).as_posix()
+        if rel in ("benchmark/reports/tables.py", "benchmark/harness/store.py"):
+            continue
+        # a CSV read of a job's metrics file, or the store's reader called directly
+        if re.search(r"read_csv\([^)]*metrics", text) or re.search(r"\bread_metrics\(", text):
+            readers.append(rel)
+    assert readers == []

@@ -453,19 +453,14 @@ def from_run(run_dir: Path, out: Path, houses: Sequence[str] | str | None = None
     from omegaconf import OmegaConf
 
     from benchmark.harness.cache import load_npz
-    from benchmark.harness.store import (
-        RUN_SUMMARY_MAPPINGS,
-        find_jobs,
-        read_metrics,
-        safe_name,
-        sweep_scope,
-    )
+    from benchmark.harness.store import RUN_SUMMARY_MAPPINGS, find_jobs, safe_name, sweep_scope
+    from benchmark.reports.tables import read_rows
 
     if isinstance(houses, str):
         houses = [houses]
     jobs = []
     for job in find_jobs(sweep_scope([run_dir], True).files if last_sweep else [run_dir]):
-        df = read_metrics(job.metrics_path)  # checked whole: one line naming the file
+        df = read_rows(job.metrics_path)  # the checks of every reader of rows: one line naming the file
         df["house_id"] = df["house_id"].astype(str)
         jobs.append((job, job.config(), job.summary(RUN_SUMMARY_MAPPINGS), df))
     scenes: dict[tuple, Scene] = {}

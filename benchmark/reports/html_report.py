@@ -54,7 +54,7 @@ h1{font-size:22px;margin:0 0 4px}h2{font-size:18px;margin:28px 0 8px;border-bott
 h3{font-size:15px;margin:18px 0 6px}.muted{color:#666;font-size:13px}
 table{border-collapse:collapse;font-size:13px}th,td{padding:3px 6px;border-bottom:1px solid #e4e4e4}
 th{background:#f3f3f3;text-align:left;vertical-align:bottom}td.num{white-space:nowrap}
-#configs td:not(.num){max-width:22ch}.robust img{max-width:640px;width:100%}td.num,th.num{text-align:right;font-variant-numeric:tabular-nums}
+#configs td:not(.num){max-width:22ch}#configs th,#configs td{padding:3px 4px}#configs small.ci{white-space:normal}.robust img{max-width:640px;width:100%}td.num,th.num{text-align:right;font-variant-numeric:tabular-nums}
 table.sortable th{cursor:pointer;user-select:none}table.sortable th[data-dir=asc]::after{content:' \\25B2'}
 table.sortable th[data-dir=desc]::after{content:' \\25BC'}
 .maps{display:grid;gap:6px 10px;align-items:start}.maps figure{margin:0}
@@ -222,7 +222,7 @@ def _ci_words(ci: tuple[float, float] | None, scale: float) -> str:
     its width), or "" without one (one house)."""
     if ci is None or not all(np.isfinite(ci)):
         return ""
-    return f'<br><small class="muted">[{scale * ci[0]:.1f}, {scale * ci[1]:.1f}]</small>'
+    return f'<br><small class="muted ci">[{scale * ci[0]:.1f},<wbr> {scale * ci[1]:.1f}]</small>'
 
 
 def _partial_lines(run_dirs) -> list[str]:
@@ -536,12 +536,13 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         FileNotFoundError: no finished job under ``run_dirs``.
         ValueError: a requested house no job scored.
     """
-    from benchmark.harness.store import RUN_SUMMARY_MAPPINGS, find_jobs, read_metrics, sweep_scope
+    from benchmark.harness.store import RUN_SUMMARY_MAPPINGS, find_jobs, sweep_scope
+    from benchmark.reports.tables import read_rows
 
     scope = sweep_scope(list(run_dirs), last_sweep)
     jobs = []
     for job in find_jobs(scope.files):
-        df = read_metrics(job.metrics_path)  # checked whole: one line naming the file
+        df = read_rows(job.metrics_path)  # the checks of every reader of rows: one line naming the file
         df["house_id"] = df["house_id"].astype(str)
         jobs.append((job, job.summary(RUN_SUMMARY_MAPPINGS), df))
     cols, rows = _config_rows(jobs)
@@ -571,7 +572,8 @@ def build_report(run_dirs: Sequence[str | Path], houses: Sequence[str] | None = 
         # which runs the page holds, when it is more than one sweep's (make bench reads its own sweep alone)
         f'<p class="scope" id="scope"><strong>Runs read:</strong> {_esc(scope.note)}.</p>' if scope.note else "",
         robust,  # a robustness run leads with its summary; its configurations filter by condition and severity
-        "<h2 id=\"configurations\">Configurations</h2>", '<div style="overflow-x:auto">', _configs_table(cols, rows),
+        "<h2 id=\"configurations\">Configurations</h2>", '<div id="configs-wrap" style="overflow-x:auto">',
+        _configs_table(cols, rows),
         "</div>", "<h2>Failures</h2>", _failures(jobs),
         "<h2>Maps</h2>",
         f'<p class="muted">Per house and configuration: the ground truth, the raw label map and the '

@@ -133,10 +133,12 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
 
     Raises:
         FileNotFoundError: no finished job under ``run_dir``.
-        ValueError: an unreadable ``time_file``.
+        ValueError: an unreadable ``time_file``, or a job's rows that fail the checks of
+            :func:`benchmark.reports.tables.read_rows` (one line naming the file).
     """
     from benchmark.harness.cache import atomic_write_json
     from benchmark.harness.store import find_jobs
+    from benchmark.reports.tables import ROW_SOURCE_COLUMNS, read_rows
 
     run_dir, root = Path(run_dir), Path(root)
     jobs = find_jobs([run_dir])
@@ -145,7 +147,7 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
     shutil.rmtree(tmp, ignore_errors=True)
     frames = []
     for job in jobs:
-        df = pd.read_csv(job.metrics_path, keep_default_na=True)
+        df = read_rows(job.metrics_path).drop(columns=list(ROW_SOURCE_COLUMNS))  # checked as every reader checks
         df = df[[c for c in df.columns if not c.startswith("t_")]]
         if columns is not None:
             frames.append(df.reindex(columns=list(columns)))

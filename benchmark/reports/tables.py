@@ -3,8 +3,9 @@
 ``python -m benchmark.commands.tables RUN_DIR [RUN_DIR ...] [--table table4] [--out DIR]``
 
 Reads every ``metrics.csv`` under the given folders (runs of :mod:`benchmark.harness.runner`, or
-per-map tables of the baselines), each checked by :func:`benchmark.harness.store.read_metrics`,
-keeps successful rows, and reports mean and standard deviation over houses per table cell, with
+per-map tables of the baselines), each through :func:`read_rows`, the one loader every reader of
+rows uses (checked by :func:`benchmark.harness.store.read_metrics`, and each (configuration, house)
+once in a file), keeps successful rows, and reports mean and standard deviation over houses per table cell, with
 the number of houses and of failed houses.
 
 What a cell holds (:func:`load_rows`, :func:`summarise`):
@@ -204,24 +205,32 @@ def _folders(paths: Sequence[str], limit: int = 4) -> str:
     return ", ".join(parts[:limit]) + (f" and {len(parts) - limit} more" if len(parts) > limit else "")
 
 
-def _newest_only(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
-    """``df`` with each (configuration, house) once, the newest job's row; and one line saying
-    how many older rows were set aside and from which folders ("" when none).
+def _once_per_file(df: pd.DataFrame) -> None:
+    """Check that one file's rows (:func:`read_rows`) hold each (configuration, house) once.
 
     Raises:
-        ValueError: one file holding the same house twice for one configuration."""
+        ValueError: the file holds the same house twice for one configuration (one line naming
+            the file, the house and both lines)."""
+    if "house_id" not in df:
+        return
+    key = ["_config", "house_id"]
+    twice = df["house_id"].notna() & df.duplicated(key, keep=False)
+    if twice.any():
+        rows = df[twice]
+        first = rows.iloc[0]
+        lines = rows[(rows["house_id"] == first["house_id"]) & (rows["_config"] == first["_config"])]["_line"].tolist()
+        raise ValueError(f"{first['source']}: house {first['house_id']} is on lines {lines[0]} and {lines[1]} with "
+                         f"the same configuration; expected one row per house and configuration")
+
+
+def _newest_only(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """``df`` (rows of :func:`read_rows`, each file checked) with each (configuration, house)
+    once, the newest job's row; and one line saying how many older rows were set aside and from
+    which folders ("" when none)."""
     if "house_id" not in df:
         return df, ""
     has = df["house_id"].notna()
     key = ["_config", "house_id"]
-    twice = has & df.duplicated(["source", *key], keep=False)
-    if twice.any():
-        rows = df[twice]
-        first = rows.iloc[0]
-        lines = rows[(rows["source"] == first["source"]) & (rows["house_id"] == first["house_id"])
-                     & (rows["_config"] == first["_config"])]["_line"].tolist()
-        raise ValueError(f"{first['source']}: house {first['house_id']} is on lines {lines[0]} and {lines[1]} with "
-                         f"the same configuration; expected one row per house and configuration")
     older = df.sort_values(["_finished", "source"], kind="stable").duplicated(key, keep="last")
     older = older.reindex(df.index) & has
     if not older.any():
@@ -235,35 +244,54 @@ def _newest_only(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     return df[~older], line
 
 
-def load_rows(paths: Sequence[str | Path]) -> pd.DataFrame:
-    """All rows of the metrics files at or under ``paths``, each file checked by
-    :func:`benchmark.harness.store.read_metrics`, each (configuration, house) once (the newest
-    job's row; see the module doc).
+#: the columns :func:`read_rows` adds to a file's own.
+ROW_SOURCE_COLUMNS = ("source", "_config", "_finished", "_line")
+
+
+def read_rows(path: str | Path) -> pd.DataFrame:
+    """One metrics file's rows, with the checks every reader of rows applies (``tables``,
+    ``report``, ``figures``, ``robustness``, the published runs): the file's own
+    (:func:`benchmark.harness.store.read_metrics`: whole, parsed, shares in [0, 1], as many rows
+    as its job's summary says) and each (configuration, house) once in it.
 
     Returns:
-        The rows, with ``method`` and ``segmenter_row`` columns, ``source`` (the file),
-        ``_config`` (the configuration as JSON), ``_finished`` (the job's finish time, POSIX s)
-        and ``_line`` (the row's line in its file); ``attrs["n_read"]`` is the number of rows
-        read and ``attrs["set_aside"]`` one line about the older rows set aside ("" if none).
+        The file's rows as written, and :data:`ROW_SOURCE_COLUMNS`: ``source`` (the file),
+        ``_config`` (each row's configuration as JSON: its job's settings and its own names),
+        ``_finished`` (the job's finish time, POSIX s) and ``_line`` (the row's line in the file).
+
+    Raises:
+        ValueError: a malformed file or value, or the file holding a house twice for one
+            configuration (one line naming the file)."""
+    f = Path(path)
+    df = read_metrics(f)
+    job = Job(f.parent)
+    is_job = f.name == METRICS
+    df["source"] = str(f)
+    df["_config"] = _configurations(df, job_configuration(job.settings() if is_job else None))
+    df["_finished"] = job.finished_at() if is_job else f.stat().st_mtime
+    df["_line"] = np.arange(len(df)) + 2
+    _once_per_file(df)
+    return df
+
+
+def load_rows(paths: Sequence[str | Path], newest: bool = True) -> pd.DataFrame:
+    """All rows of the metrics files at or under ``paths``, each file read by :func:`read_rows`
+    (its checks), and (``newest``) each (configuration, house) once: the newest job's row (see
+    the module doc). ``newest=False`` keeps every job's rows (the report lists each job).
+
+    Returns:
+        The rows, with ``method`` and ``segmenter_row`` columns and :data:`ROW_SOURCE_COLUMNS`;
+        ``attrs["n_read"]`` is the number of rows read and ``attrs["set_aside"]`` one line about
+        the older rows set aside ("" if none).
 
     Raises:
         FileNotFoundError: no metrics file.
         ValueError: a malformed file or value, or one file holding a house twice for one
             configuration (one line naming the file).
     """
-    frames = []
-    for f in find_metric_files(paths):
-        df = read_metrics(f)
-        job = Job(f.parent)
-        is_job = f.name == METRICS
-        df["source"] = str(f)
-        df["_config"] = _configurations(df, job_configuration(job.settings() if is_job else None))
-        df["_finished"] = job.finished_at() if is_job else f.stat().st_mtime
-        df["_line"] = np.arange(len(df)) + 2
-        frames.append(df)
-    df = pd.concat(frames, ignore_index=True)
+    df = pd.concat([read_rows(f) for f in find_metric_files(paths)], ignore_index=True)
     n_read = len(df)
-    df, line = _newest_only(df)
+    df, line = _newest_only(df) if newest else (df, "")
     df = df.reset_index(drop=True)
     for col in ("classifier", "aggregator", "postprocess", "viewpoints", "segmenter", "dataset"):
         if col not in df:
