@@ -14,11 +14,13 @@ help:  ## list the targets
 # Two steps: `setup` is what the offline bench and the core need (no torch, no simulators, no
 # transformers); `setup-test` adds what the whole test suite needs on top (torch pinned, the
 # models and thor extras, pytest and ruff). `make test` runs it first, so CI runs every test.
-setup: $(VENV)/.installed  ## create .venv with the core (offline bench, tables, figures, report)
+setup: $(VENV)/.installed  ## create .venv with the core (offline bench, tables, figures, report, ROS bags)
 
+# rosbags (the `bags` extra: pure Python, small) comes with the core, so that a robot user's first
+# `roomseg-segment bag=...` works from `make setup` (the extra's name is not on PyPI)
 $(VENV)/.installed: pyproject.toml
 	python3 -m venv $(VENV)
-	$(PIP) install -q -e .
+	$(PIP) install -q -e ".[bags]"
 	@# numba's kernels compiled once here, into its cache, so no run waits for them (docs/sweeps-and-clusters.md)
 	$(PY) -m benchmark.commands.compile_kernels
 	touch $@

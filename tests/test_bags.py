@@ -264,7 +264,7 @@ def test_missing_rosbags_hint(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", fake)
     from envs.bags.source import require_rosbags
 
-    with pytest.raises(ImportError, match=r"pip install 'roomseg-bench\[bags\]'"):
+    with pytest.raises(ImportError, match=r"needs rosbags: make setup installs it \(or pip install rosbags\)"):
         require_rosbags()
 
 

@@ -12,7 +12,8 @@ import numpy as np
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
-INSTALL_HINT = "pip install 'roomseg-bench[models]' (or make setup)"
+INSTALL_HINT = ("pip install -e '.[models]' in the checkout (the roomseg-bench[models] extra; make setup-test "
+                "installs it with torch pinned, make setup installs no torch)")
 
 
 def require_torch():

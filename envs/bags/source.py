@@ -28,7 +28,7 @@ MAX_MESSAGE_BYTES = 128 * 1024 * 1024
 STORAGE_SUFFIXES = (".db3", ".mcap", ".zstd")
 
 #: What to install when ``rosbags`` is missing.
-INSTALL_HINT = "reading ROS bags needs rosbags: pip install 'roomseg-bench[bags]' (or pip install rosbags)"
+INSTALL_HINT = "reading ROS bags needs rosbags: make setup installs it (or pip install rosbags)"
 
 
 class BagError(ValueError):
@@ -219,8 +219,10 @@ def open_bag(path: str | Path, max_message_bytes: int = MAX_MESSAGE_BYTES) -> It
         reader = highlevel.AnyReader(paths)
         reader.open()
     except errors as e:
-        raise BagError(f"{path}: not a readable bag: {_what(e)} (truncated, unindexed or not a bag: ROS 1 bags "
-                       f"can be reindexed with `rosbag reindex`, ROS 2 ones with `ros2 bag reindex`)") from None
+        fix = {".bag": "a ROS 1 bag can be reindexed with `rosbag reindex`",
+               ".mcap": "an MCAP file can be recovered with `mcap recover` (the mcap CLI)"}.get(
+            path.suffix.lower() if path.is_file() else "", "a ROS 2 bag folder can be reindexed with `ros2 bag reindex`")
+        raise BagError(f"{path}: not a readable bag: {_what(e)} (truncated, unindexed or not a bag: {fix})") from None
     except OSError as e:
         raise BagError(f"{path}: cannot open: {_what(e)}") from None
     try:
