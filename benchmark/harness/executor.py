@@ -401,11 +401,15 @@ def local_pool(workers: int) -> LocalPool:
 
 
 def close_pool(now: bool = False) -> None:
-    """Close this process's pool, if any (the end of a single run, or of the process)."""
+    """Close this process's workers, if any (the end of a single run, or of the process): its
+    pool, and the local Ray instance it started (:func:`close_ray`)."""
     global _POOL
     pool, _POOL = _POOL, None
-    if pool is not None:
-        pool.close(now=now)
+    try:
+        if pool is not None:
+            pool.close(now=now)
+    finally:
+        close_ray()
 
 
 atexit.register(close_pool)
@@ -444,6 +448,52 @@ def unreachable(address: str, timeout: float) -> str | None:
         return f"no answer within {timeout:g} s"
     except (OSError, ValueError) as e:
         return getattr(e, "strerror", None) or str(e)
+
+
+#: ``{"pid": ...}``: the process that started a local Ray instance (:func:`_start_local`); empty when none runs.
+_LOCAL_RAY: dict[str, int] = {}
+
+
+def _start_local(ray, kwargs: dict[str, Any]) -> None:
+    """Start a local Ray instance (``ray.init(address="local", ...)``) in this thread.
+
+    Ray starts its GCS server and raylet with a parent-death signal (``PR_SET_PDEATHSIG``),
+    which Linux sends when the *thread* that started them exits: started from a thread that then
+    ends (as a cluster's address is reached: :meth:`RayExecutor._init`), they die at once, the
+    driver exits with status 1 and no line, and the raylet's dashboard and runtime-env agents
+    stay behind under PID 1. So the instance is started in the calling thread (the run's), and
+    :func:`close_ray` stops it at the end of a single run, or when the process ends: at exit, and
+    in a launcher's worker process (which ends without running ``atexit``) by a multiprocessing
+    finalizer.
+
+    Raises:
+        ConfigError: Ray could not start (one line with Ray's reason)."""
+    from benchmark.harness.checks import ConfigError  # noqa: PLC0415
+
+    try:
+        ray.init(**kwargs)
+    except (ConnectionError, RuntimeError, ValueError, TimeoutError) as e:
+        raise ConfigError(f"run.executor=ray: cannot start a local Ray instance "
+                          f"({' '.join(str(e).split())[:200]})") from None
+    _LOCAL_RAY["pid"] = os.getpid()
+    from multiprocessing import util  # noqa: PLC0415
+
+    util.Finalize(None, close_ray, exitpriority=10)  # (run at the end of a multiprocessing child too)
+
+
+def close_ray() -> None:
+    """Stop the local Ray instance this process started (:func:`_start_local`), with every
+    process of it (``ray.shutdown``: workers, raylet, agents, GCS server); a cluster this process
+    only connected to is left running, and so is an instance a forked child inherited the
+    record of."""
+    if _LOCAL_RAY.pop("pid", None) != os.getpid():
+        return
+    import ray  # noqa: PLC0415
+
+    if ray.is_initialized():
+        ray.shutdown()
+
+
 def _ray_task(key: str, box: list, hid: str) -> HouseResult:
     """A Ray task: ``box`` holds the ObjectRef of the job's spec, fetched only by a worker that
     has not built the job's pipeline yet. The task holds one CPU, so OpenCV gets one thread, a
@@ -480,7 +530,9 @@ class RayExecutor:
         """Ray, connected (once per process).
 
         A cluster's address is first reached with TCP, then ``ray.init`` gets what is left of
-        ``connect_timeout`` seconds (Ray itself retries for many minutes).
+        ``connect_timeout`` seconds (Ray itself retries for many minutes). Without an address,
+        a local instance is started in this thread (:func:`_start_local`) and stopped by
+        :func:`close_ray`.
 
         Raises:
             ConfigError: Ray is not installed, or the cluster cannot be reached in time (one line)."""
@@ -492,19 +544,24 @@ class RayExecutor:
             if self.address is None:
                 kwargs.update(address="local", num_cpus=self.workers, include_dashboard=False)
             where = f"run.ray.address={self.address}: cannot connect to Ray"
-            t0 = time.monotonic()
-            if self.address not in (None, "auto"):
-                why = unreachable(self.address, self.connect_timeout)
-                if why:
-                    raise ConfigError(f"{where} ({why}; run.ray.connect_timeout={self.connect_timeout:g})")
-            self._init(ray, kwargs, None if self.address is None else
-                       max(self.connect_timeout - (time.monotonic() - t0), 1.0), where)
+            if self.address is None:
+                _start_local(ray, kwargs)
+            else:
+                t0 = time.monotonic()
+                if self.address != "auto":
+                    why = unreachable(self.address, self.connect_timeout)
+                    if why:
+                        raise ConfigError(f"{where} ({why}; run.ray.connect_timeout={self.connect_timeout:g})")
+                self._init(ray, kwargs, max(self.connect_timeout - (time.monotonic() - t0), 1.0), where)
         if self._remote is None:
             self._remote = ray.remote(num_cpus=1)(_ray_task)
         return ray
 
-    def _init(self, ray, kwargs: dict[str, Any], timeout: float | None, where: str) -> None:
-        """``ray.init(**kwargs)`` in a daemon thread, waited for ``timeout`` seconds (None: for ever)."""
+    def _init(self, ray, kwargs: dict[str, Any], timeout: float, where: str) -> None:
+        """``ray.init(**kwargs)`` of a cluster's address in a daemon thread, waited for ``timeout``
+        seconds. Only to connect: a local instance started in a thread that ends would end with it
+        (its processes are started with a parent-death signal, which Linux sends when the
+        starting thread exits: :func:`_start_local`)."""
         from benchmark.harness.checks import ConfigError  # noqa: PLC0415
 
         box: list[BaseException | None] = []
@@ -589,4 +646,4 @@ def _ray_completed(ray, refs: list) -> Iterator[Any]:
 
 
 __all__ = ["Executor", "HouseResult", "JobSpec", "LocalPool", "RayExecutor", "SerialExecutor", "WorkerDied",
-           "close_pool", "import_ray", "local_pool", "pipeline_for", "run_house"]
+           "close_pool", "close_ray", "import_ray", "local_pool", "pipeline_for", "run_house"]
