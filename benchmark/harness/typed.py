@@ -66,10 +66,15 @@ def overrides(args: Any) -> list[tuple[str, str | None]]:
 
 
 def unknown_keys_line(path: str, unknown: Sequence[str], valid: Sequence[str]) -> str:
-    """``run.limt, run.foo: unknown keys (with or without +); valid keys under run: name, ...``."""
+    """``run.limt: unknown key (with or without +); valid keys under run: name, ...; did you mean
+    'run.limit'?`` (the nearest valid key of each unknown one that has one, by
+    :func:`difflib.get_close_matches`)."""
     names = ", ".join(f"{path}.{k}" for k in unknown)
+    close = [f"{path}.{m[0]}" for k in unknown if (m := difflib.get_close_matches(str(k), [str(v) for v in valid],
+                                                                                 n=1, cutoff=0.6))]
+    hint = f"; did you mean {' / '.join(repr(c) for c in close)}?" if close else ""
     return (f"{names}: unknown key{'s' if len(unknown) > 1 else ''} (with or without +); valid keys "
-            f"under {path}: {', '.join(valid)}")
+            f"under {path}: {', '.join(valid)}{hint}")
 
 
 #: keys of a ``_target_`` node that Hydra reads itself.
