@@ -47,7 +47,10 @@ def test_the_shipped_configs_pass(experiment):
 
 #: (run node, the line) for every kind of key: the words a user reads.
 BAD = [
-    ({"name": True}, "run.name=True: expected a string or a number (read as text)"),
+    ({"name": True}, "run.name=True: expected one folder name (a string or a number; no / or \\, not starting "
+                     "with a dot, at most 120 characters)"),
+    ({"name": "../../x"}, "run.name='../../x': expected one folder name (a string or a number; no / or \\, not "
+                          "starting with a dot, at most 120 characters)"),
     ({"label": [1]}, "run.label=[1]: expected a string or a number (read as text)"),
     ({"houses": []}, "run.houses=[]: expected a non-empty list of house ids, or null"),
     ({"houses": "h1"}, "run.houses='h1': expected a non-empty list of house ids, or null"),

@@ -109,14 +109,33 @@ def _override_value(text: str) -> Any:
     return _UNCHECKED if "${" in repr(value) else value
 
 
+#: run keys whose every swept value is checked on the command line: they name the folder Hydra
+#: creates for a job before the job can check its own config (``run.name=a,../../x``).
+CHECKED_WHEN_SWEPT = ("run.name",)
+
+
+def _swept_values(text: str) -> list[Any]:
+    """The values of a choice or range sweep ``text`` (``a,b``, ``range(1,3)``) as Hydra makes
+    them, without interpolations; [] for anything else."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        override = OverridesParser.create().parse_override(f"key={text}")
+        values = list(override.sweep_iterator()) if override.is_sweep_override() else []
+    except Exception:  # noqa: BLE001 - not an enumerable sweep: Hydra says what is wrong with it
+        return []
+    return [v for v in values if "${" not in repr(v)]
+
+
 def check_run_overrides(args: Any) -> None:
     """:func:`check_run` on the command line, before Hydra composes or creates anything: the
     ``run.<key>`` of every ``[+|++|~]run.<key>[=value]`` override in ``args`` must be a key of
     ``RunSettings`` (:func:`check_run_keys`, a nested one such as ``run.ray.<key>`` too), and
     its value, as Hydra reads it, of the key's type and range: a value every job of a sweep
     would refuse (``run.limit=0`` in a sweep of 624 jobs) is refused once, before the sweep
-    starts. Swept values (``a,b,c``) and interpolations are left to each job; other arguments
-    are left to Hydra.
+    starts. Swept values (``a,b,c``) and interpolations are left to each job, but for the keys
+    of :data:`CHECKED_WHEN_SWEPT` (``run.name``: each job's folder is made before the job runs)
+    every value of a choice or range sweep is checked here too; other arguments are left to Hydra.
 
     Raises:
         ConfigError: as :func:`check_run_keys`, or a value its field refuses (one line)."""
@@ -130,6 +149,8 @@ def check_run_overrides(args: Any) -> None:
         return
     check_run_keys(keys)
     for key, text in values:
+        for value in _swept_values(text) if key in CHECKED_WHEN_SWEPT else ():
+            check_fields({key.split(".")[-1]: value}, settings_params(RunSettings), "run")
         value = _override_value(text)
         if value is _UNCHECKED:
             continue

@@ -40,6 +40,28 @@ class RayAddress(Range):
         return bool(colon and host and port.isdigit())
 
 
+#: the longest ``run.name`` (a folder name; a sweep's job folders and ``~<key>`` siblings add to it).
+MAX_RUN_NAME = 120
+
+
+class RunName(Text):
+    """``run.name``: one folder name under ``<results_dir>/runs`` (a string, or a number read as
+    text): not empty, no ``/`` or ``\\``, not starting with a dot (``.`` and ``..`` would name the
+    runs folder or the results root, ``../x`` a folder outside it), no control characters, at
+    most :data:`MAX_RUN_NAME` characters. A sweep's job folders under it follow their own rule
+    (``benchmark.config.job_dirname``)."""
+
+    what = (f"one folder name (a string or a number; no / or \\, not starting with a dot, at most "
+            f"{MAX_RUN_NAME} characters)")
+
+    def __call__(self, value: Any) -> bool:
+        if not super().__call__(value):
+            return False
+        name = str(value)
+        return (0 < len(name) <= MAX_RUN_NAME and not name.startswith(".") and "/" not in name
+                and "\\" not in name and name.isprintable())
+
+
 class StageNames(Range):
     """``run.force``: a list of stage names (or one name), ``all`` for every stage.
 
@@ -89,7 +111,7 @@ class RunSettings:
     ``limit`` and ``label`` reaches a row, and none reaches a cache key but ``cache_salt``).
 
     Attributes:
-        name: the run's folder, ``<results_dir>/runs/<name>``.
+        name: the run's folder, ``<results_dir>/runs/<name>``: one folder name (:class:`RunName`).
         label: free text copied into every row.
         houses: house ids to run (each a string or an integer), or None for all houses.
         limit: the first N houses only (after ``houses``), or None for all.
@@ -106,7 +128,7 @@ class RunSettings:
         ray: :class:`RaySettings`.
     """
 
-    name: Annotated[str | int | float, Text()] = "default"
+    name: Annotated[str | int | float, RunName()] = "default"
     label: Annotated[str | int | float, Text()] = ""
     houses: Annotated[list[str | int] | None, NonEmpty("house ids")] = None
     limit: Annotated[int | None, Integer(1)] = None
@@ -123,4 +145,4 @@ class RunSettings:
     ray: RaySettings = field(default_factory=RaySettings)
 
 
-__all__ = ["STAGES", "RayAddress", "RaySettings", "RunSettings", "StageNames"]
+__all__ = ["MAX_RUN_NAME", "STAGES", "RayAddress", "RaySettings", "RunName", "RunSettings", "StageNames"]
