@@ -251,8 +251,8 @@ class OnMapRule:
             bad = int(np.argmax(~ok))
             name = views.ids[bad] if views.ids is not None and views.ids[bad] is not None else bad
             raise ValueError(f"{self.source}: {int((~ok).sum())} of {len(poses)} poses are off the walkable map, first "
-                             f"view {name} at x={poses[bad, 0]:.3f}, z={poses[bad, 1]:.3f} "
-                             f"(world); pass off_map=drop to leave them out")
+                             f"view {name} at x={poses[bad, 0]:.3f}, y={poses[bad, 1]:.3f} m in the map frame "
+                             f"(ROS x, y; world x, z); pass off_map=drop to leave them out")
         ids = None if views.ids is None else [i for i, k in zip(views.ids, ok) if k]
         kept = Views(poses[ok], views.proba[ok], views.true_poses[ok], ids)
         return kept, {"n_off_map": int((~ok).sum())}
