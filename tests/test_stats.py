@@ -85,8 +85,8 @@ def test_tables_rank_rows_in_groups_and_state_a_single_difference_with_its_inter
                   "status": "ok", "iou": x, "matched_iou": x, "pq": x} for i, x in enumerate(v)]
     summ = summarise(pd.DataFrame(rows), TABLES["table5"])
     lines = [n for n in summ.attrs["notes"] if n.startswith("Ranking on matched IoU")]
-    assert lines == ["Ranking on matched IoU (synthetic, paired over 10 houses; braces hold rows no paired 95 % "
-                     "interval separates): {a, b} > {c}."]
+    assert lines == ["Ranking on matched IoU (synthetic, paired over 10 houses; braces hold rows no paired "
+                     "interval separates, Holm-corrected over the ranking's 3 pairs): {a, b} > {c}."]
     assert summ.set_index("method").loc["a", "matched_iou_lo"] < 0.6 < summ.set_index("method").loc["a", "matched_iou_hi"]
     two = pd.DataFrame([r for r in rows if r["method"] != "b"])
     line = next(n for n in summarise(two, TABLES["table5"]).attrs["notes"] if n.startswith("Ranking on PQ"))

@@ -135,7 +135,8 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
           f"method's clean error, so clean accuracy cancels. Error = 100 - metric; drop = clean - mean over "
           f"the family's severities. Metrics in percent, mean over houses with its 95 % interval "
           f"[lo, hi] ({METHOD_WORDS}); every cell of a dataset holds the same houses. Rankings: braces hold "
-          f"methods that no paired interval separates."
+          f"methods that no paired interval separates; every verdict is corrected for its family (Holm: the "
+          f"first line under each table names the families and their sizes)."
           + (f" Runs read: {scope.note}." if scope.note else "")
           + (" The labelled conditions (" + ", ".join(f"`{f}`" for f in labelled) + ": each severity a situation of "
              "its own, not a step of one ladder) are reported apart too, each condition in a column of a table of "

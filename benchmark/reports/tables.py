@@ -467,8 +467,9 @@ def summarise(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
 
 def rank_lines(ok: pd.DataFrame, keys: Sequence[str], metrics: Sequence[str]) -> list[str]:
     """Per dataset and metric, one line ranking the table's rows (grouped by ``keys``) in groups
-    that cannot be separated (:func:`benchmark.stats.groups`: paired by house, 95 %
-    bootstrap interval of the difference against the group's best), over the houses every row
+    that cannot be separated (:func:`benchmark.stats.groups`: paired by house, bootstrap interval
+    of the difference against the group's best, the ranking's k (k - 1) / 2 pairs one family
+    corrected by Holm: :func:`benchmark.stats.holm_verdicts`), over the houses every row
     holds (a house's mean where a pooled table holds several configurations per house); rows of
     the sanity segmenters are left out (they are checks, not methods)."""
     out = []
@@ -503,9 +504,10 @@ def rank_lines(ok: pd.DataFrame, keys: Sequence[str], metrics: Sequence[str]) ->
                 out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses"
                            f"{lost}): {stats.verdict(a, b, *stats.paired_ci(va, vb))}.")
                 continue
+            pairs = len(values) * (len(values) - 1) // 2
             out.append(f"Ranking on {formatting.metric_words(metric)} ({where}paired over {len(wide)} houses{lost}; "
-                       f"braces hold rows no paired 95 % interval separates): "
-                       f"{stats.group_words(stats.groups(values))}.")
+                       f"braces hold rows no paired interval separates, Holm-corrected over the ranking's {pairs} "
+                       f"pairs): {stats.group_words(stats.groups(values, corrected=True))}.")
     return out
 
 
