@@ -90,10 +90,12 @@ def app(cfg: DictConfig) -> float:
     except (ConfigError, StageError) as e:  # nothing ran: one line, and exit status 2 at the end
         if HydraConfig.get().mode == RunMode.MULTIRUN:
             raise  # the job fails; the launching process reports it with the others (main)
-        # the folder this run claimed (a `~<key>` sibling when out_dir holds another run's results)
+        # nothing ran (exit status 2): the reason is the one line at the end, and the folders this
+        # run made (Hydra's .hydra/, the job folder it claimed) go, those of other runs stay
         from benchmark.harness.runner import LAST_RUN
 
-        sweep.record_error(_one_line(e), Path(LAST_RUN.get("dir") or out_dir))
+        sweep.OUTCOME["errors"].append(_one_line(e))
+        _remove_refused(out_dir, LAST_RUN.get("dir"))
         return float("nan")
     except WorkerDied as e:  # a house worker died: one line, exit status 1 (a multirun's launcher ends the sweep)
         if HydraConfig.get().mode == RunMode.MULTIRUN:
@@ -103,6 +105,31 @@ def app(cfg: DictConfig) -> float:
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
     ok = df[df["status"] == "ok"] if "status" in df else df
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
+
+
+#: what a single run writes into its folder before any house runs: a folder holding nothing
+#: else holds no results (Hydra's ``.hydra/``, the log, the claim, the resolved config).
+_BEFORE_WORK = frozenset({".hydra", "bench.log", "job.json", "resolved_config.yaml", sweep.JOB_ERROR})
+
+
+def _remove_refused(out_dir: Path, claimed: str | None) -> None:
+    """A single run refused before any house ran (a bad setting, a stage that cannot be built):
+    remove its folder (``out_dir``, and the ``~<key>`` sibling it claimed) where that folder
+    holds nothing but what a run writes before its work (:data:`_BEFORE_WORK`); a folder with
+    another run's results keeps them. Then the ``runs/`` folder above, if that left it empty."""
+    import shutil
+
+    for folder in dict.fromkeys(Path(d) for d in (out_dir, claimed) if d):
+        try:
+            names = {p.name for p in folder.iterdir()}
+        except OSError:
+            continue
+        if names <= _BEFORE_WORK:
+            shutil.rmtree(folder, ignore_errors=True)
+    try:
+        Path(out_dir).parent.rmdir()  # only when empty (runs/ of a results folder this run made)
+    except OSError:
+        pass
 
 
 class _OncePerProcess:

@@ -376,6 +376,34 @@ def _check_value(value: Any, param: Param, dotted: str, owner: str | None) -> No
             raise ConfigError(f"{dotted}={value!r}: {rule.explain(value, param.nullable)}")
 
 
+def locate_problem(target: str) -> str | None:
+    """Why ``target`` (a ``_target_``: ``module.name``, or ``module.Class.attr``) cannot be
+    found, in words: a module that is not on Python's path (a plug-in's folder that is not
+    there), or a module without that name; None when it is found, or when its module exists
+    but fails to import (a dependency it imports is missing: the stage's own build says what to
+    install)."""
+    parts = str(target).split(".")
+    if len(parts) < 2 or not all(parts):
+        return "not a dotted path, module.name"
+    for i in range(len(parts) - 1, 0, -1):
+        module = ".".join(parts[:i])
+        try:
+            obj = importlib.import_module(module)
+        except ModuleNotFoundError as e:
+            if e.name and (module == e.name or module.startswith(e.name + ".")):
+                continue  # no such module: a shorter prefix may be one
+            return None
+        except Exception:  # noqa: BLE001 - the module is there; its build reports its own error
+            return None
+        for k, attr in enumerate(parts[i:]):
+            if not hasattr(obj, attr):
+                owner = ".".join(parts[: i + k])
+                return f"{owner} has no {attr!r}"
+            obj = getattr(obj, attr)
+        return None
+    return f"no module named {parts[0]!r} on Python's path"
+
+
 def check_targets(node: Any, path: str = "") -> None:
     """Check every ``_target_`` node under ``node`` (a plain config) against its signature
     (:func:`check_fields`, with the target as owner).
@@ -391,6 +419,13 @@ def check_targets(node: Any, path: str = "") -> None:
             sig = _signature(target)
             if sig is not None:
                 check_fields(node, sig[0], path, owner=target, var_kw=sig[1])
+            else:
+                problem = locate_problem(target)
+                if problem is not None:
+                    where = f"{path}._target_" if path else "_target_"
+                    raise ConfigError(f"{where}={target!r}: {problem}; expected an importable class or function "
+                                      f"(a plug-in: put the folder that holds its package on PYTHONPATH, "
+                                      f"docs/plugins.md)")
         for key, value in node.items():
             if key != "_target_":
                 check_targets(value, f"{path}.{key}" if path else str(key))
@@ -411,4 +446,4 @@ def check_typed(plain: Mapping[str, Any], config_name: str = "config") -> None:
 
 
 __all__ = ["ConfigError", "Param", "overrides", "unknown_keys_line", "RobotLabel", "check_fields", "check_typed", "check_targets", "check_top_keys", "settings_class", "settings_params", "check_top_overrides", "known_top_keys",
-           "nearest", "MAX_SEVERITY"]
+           "nearest", "locate_problem", "MAX_SEVERITY"]
