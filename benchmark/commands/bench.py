@@ -103,6 +103,10 @@ def app(cfg: DictConfig) -> float:
         sweep.record_died(_one_line(e))
         return float("nan")
     sweep.record(df.attrs.get("n_failed", 0), bool(cfg.run.get("allow_failures", False)))
+    failed = df[df["status"] != "ok"] if "status" in df else df.iloc[:0]
+    if len(failed) and "first_failure" not in sweep.OUTCOME:  # the last line names it (a missing file's path)
+        row = failed.iloc[0]
+        sweep.OUTCOME["first_failure"] = f"{row.get('house_id', '?')}: {' '.join(str(row.get('error') or 'no reason recorded').split())}"
     ok = df[df["status"] == "ok"] if "status" in df else df
     return float(ok["iou"].mean()) if "iou" in ok and len(ok) else float("nan")
 
@@ -413,8 +417,9 @@ def _outcome() -> int:
             print(f"{PROG}: error: {msg}", file=sys.stderr)
         return 2
     if out["n_failed"] and not out["allow_failures"]:
-        print(f"{PROG}: {out['n_failed']} house(s) failed in {out['jobs']} job(s) (see the failed rows of "
-              f"metrics.csv); run.allow_failures=true exits 0", file=sys.stderr)
+        first = f"; first {out['first_failure']}" if out.get("first_failure") else ""
+        print(f"{PROG}: {out['n_failed']} house(s) failed in {out['jobs']} job(s){first} (the failed rows of "
+              f"metrics.csv say why); run.allow_failures=true exits 0", file=sys.stderr)
         return 1
     return 0
 

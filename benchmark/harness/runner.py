@@ -417,13 +417,26 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
         if m in ok and len(ok):
             summary[f"mean_{m}"] = float(ok[m].mean())
     atomic_write_json(job.summary_path, summary)
-    log.info("%s: %d houses, %d ok, %d failed%s; mean IoU %.4f; %.1f s", out_dir, len(rows), summary["n_ok"],
-             len(failed), (" (" + ", ".join(f"{k}: {v}" for k, v in reasons.items()) + ")") if failed else "",
-             summary.get("mean_iou", float("nan")), summary["wall_time_s"])
+    log.info("%s: %s", out_dir, finished_line(summary, failed, reasons))
     df.attrs["job_dir"] = str(out_dir)
     df.attrs["n_failed"] = len(failed)
     LAST_RUN["houses"] = len(rows)
     return df
+
+
+def finished_line(summary: dict[str, Any], failed: Sequence[dict[str, Any]], reasons: Counter) -> str:
+    """The line a finished job logs: houses, ok, failed (by reason, and the first failure's own
+    line, which names the file a missing input is), the mean IoU in percent (as every table
+    prints it; none when no house succeeded) and the wall time."""
+    n = summary["n_houses"]
+    text = f"{n} house{'' if n == 1 else 's'}, {summary['n_ok']} ok, {len(failed)} failed"
+    if failed:
+        first = failed[0]
+        why = " ".join(str(first.get("error") or "no reason recorded").split())
+        text += f" ({', '.join(f'{k}: {v}' for k, v in reasons.items())}; first {first.get('house_id')}: {why})"
+    iou = summary.get("mean_iou")
+    text += f"; mean IoU {100 * iou:.2f} %" if iou is not None and iou == iou else "; no mean IoU (no house succeeded)"
+    return f"{text}; {summary['wall_time_s']:.1f} s"
 
 
 def split_timings(rows: list[dict[str, Any]], results: Sequence[HouseResult]) -> tuple[pd.DataFrame, pd.DataFrame]:
