@@ -216,9 +216,8 @@ def write_bag_output(tmp: Path, cfg, views, labels: np.ndarray | None, segs: np.
                      classes) -> dict[str, Any]:
     """The output bag into ``tmp`` (``segmentation.bag`` for a ROS 1 input, ``segmentation.mcap``
     for a ROS 2 one, or ``bag_options.out_format``); returns what the summary records."""
-    from envs.bags.write import write_segmentation_bag  # noqa: PLC0415
+    from envs.bags.write import rviz_colors, write_segmentation_bag  # noqa: PLC0415
     from envs.maps.segmentation_io import ROS_MAX_VALUES  # noqa: PLC0415
-    from envs.world.classes import class_colors  # noqa: PLC0415
 
     fmt = str(cfg.bag_options.out_format)
     if fmt == "none":
@@ -228,9 +227,11 @@ def write_bag_output(tmp: Path, cfg, views, labels: np.ndarray | None, segs: np.
     values = labels if labels is not None else segs
     n_values = len(classes) if labels is not None else (int(segs.max()) + 1 if (segs >= 0).any() else 0)
     rooms = json.loads((tmp / "rooms.geojson").read_text())
-    colors = dict(zip(classes, class_colors(classes))) if classes is not None else {}
+    # the room outlines in their class's colour in /segmentation_rviz (RViz: Map display, costmap scheme)
+    colors = dict(zip(classes, rviz_colors(len(classes)))) if classes is not None else {}
     seg = values if n_values <= ROS_MAX_VALUES else None
     name = OUT_NAMES.get(fmt, f"segmentation.{fmt}")
     write_segmentation_bag(tmp / name, fmt, views.map_frame, int(views.map.stamp_ns), views.map.resolution,
                            views.map.ros_origin, views.map.values, seg, rooms, colors)
-    return {"bag_out": name, "bag_topics": ["/map"] + (["/segmentation"] if seg is not None else []) + ["/rooms"]}
+    return {"bag_out": name, "bag_topics": ["/map"] + (["/segmentation", "/segmentation_rviz"] if seg is not None
+                                                       else []) + ["/rooms"]}

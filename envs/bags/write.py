@@ -4,9 +4,16 @@ Topics (all stamped with the map's stamp, in the map's frame):
 
 * ``/map`` (``nav_msgs/OccupancyGrid``): the input map as read;
 * ``/segmentation`` (``nav_msgs/OccupancyGrid``): cell = class index (segment id in
-  geometry mode), -1 where none (as ``segmentation.yaml``; only with at most 101 values);
+  geometry mode), -1 where none (as ``segmentation.yaml``; only with at most 101 values):
+  the numbers, for programs (values 0-6 all look white in RViz's Map display);
+* ``/segmentation_rviz`` (``nav_msgs/OccupancyGrid``, written with ``/segmentation``): for
+  the eye, in RViz's Map display with Color Scheme ``costmap`` (Foxglove: color mode
+  costmap): class / segment ``k`` is the cell value :data:`RVIZ_VALUES` ``[k]`` (taken in turn
+  beyond its length), colours that palette shows apart (blue, green, magenta, yellow, cyan,
+  red, orange, purple, ...); cells with none are 0, which that scheme leaves transparent;
 * ``/rooms`` (``visualization_msgs/MarkerArray``): per room segment a ``LINE_STRIP`` per
-  polygon ring (namespace ``rooms``, the exterior then the holes; the class's colour) and a
+  polygon ring (namespace ``rooms``, the exterior then the holes; the class's colour, that of
+  ``/segmentation_rviz`` when the caller passes :func:`rviz_colors`) and a
   ``TEXT_VIEW_FACING`` label (namespace ``room_names``: class name and area) at a point
   inside the room.
 
@@ -29,8 +36,44 @@ import numpy as np
 from envs.bags.source import require_rosbags
 
 FORMATS = ("ros1", "mcap")
+#: ``/segmentation_rviz`` cell values in class order: far apart in RViz's ``costmap`` palette
+#: (1 blue, 101 green, 100 magenta, -2 yellow, 99 cyan, 98 red, -65 orange, 50 purple, then
+#: steps of the blue-red and red-yellow ramps).
+RVIZ_VALUES = (1, 101, 100, -2, 99, 98, -65, 50, 25, 75, -96, -33, 12, 62, -112, -17)
 #: Line width of room outlines and height of their names, metres.
 LINE_M, TEXT_M = 0.05, 0.4
+
+
+def costmap_rgb(value: int) -> tuple[int, int, int]:
+    """The colour RViz's Map display gives an OccupancyGrid cell ``value`` (-128..127) with
+    Color Scheme ``costmap`` (rviz ``map_display.cpp``, ``makeCostmapPalette``; 0 is
+    transparent there, given here as black)."""
+    u = int(value) & 0xFF
+    if u == 0:
+        return (0, 0, 0)
+    if u <= 98:
+        v = 255 * u // 100
+        return (v, 0, 255 - v)
+    if u == 99:
+        return (0, 255, 255)
+    if u == 100:
+        return (255, 0, 255)
+    if u <= 127:
+        return (0, 255, 0)
+    if u <= 254:
+        return (255, 255 * (u - 128) // (254 - 128), 0)
+    return (0x70, 0x89, 0x86)
+
+
+def rviz_values(labels: np.ndarray) -> np.ndarray:
+    """``/segmentation_rviz``'s cells: class / segment ``k`` -> ``RVIZ_VALUES[k % len]``, none -> 0."""
+    v = np.asarray(RVIZ_VALUES, np.int64)
+    return np.where(labels >= 0, v[np.maximum(labels, 0) % len(v)], 0)
+
+
+def rviz_colors(n: int) -> list[tuple[int, int, int]]:
+    """The colours of classes 0 .. n-1 in ``/segmentation_rviz`` (for the room outlines)."""
+    return [costmap_rgb(RVIZ_VALUES[k % len(RVIZ_VALUES)]) for k in range(n)]
 
 
 def _typestore(fmt: str):
@@ -138,6 +181,8 @@ def write_segmentation_bag(path: str | Path, fmt: str, frame: str, stamp_ns: int
         msgs.append(("/segmentation", "nav_msgs/msg/OccupancyGrid",
                      _grid_msg(T, np.where(segmentation < 0, -1, segmentation), resolution, ros_origin, stamp_ns,
                                frame, ros1)))
+        msgs.append(("/segmentation_rviz", "nav_msgs/msg/OccupancyGrid",
+                     _grid_msg(T, rviz_values(segmentation), resolution, ros_origin, stamp_ns, frame, ros1)))
     msgs.append(("/rooms", "visualization_msgs/msg/MarkerArray", room_markers(T, ros1, rooms, stamp_ns, frame, colors)))
     store = _typestore(fmt)
     work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
