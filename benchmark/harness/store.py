@@ -290,10 +290,23 @@ class Job:
         return self.dir.name
 
 
+def _clip(value: Any, limit: int = 60) -> str:
+    """``str(value)`` cut to ``limit`` characters, without a bracket it opens and the cut leaves
+    unclosed (``... (3bd9fdf8dd`` -> ``......``), and ``...`` where it was cut."""
+    text = str(value)
+    if len(text) <= limit:
+        return text
+    cut = text[:limit]
+    for opening, closing in ("()", "[]", "{}"):
+        while cut.count(opening) > cut.count(closing):
+            cut = cut[: cut.rfind(opening)]
+    return cut.rstrip(" ,;:") + "..."
+
+
 def _differences(old: dict[str, Any], new: dict[str, Any], limit: int = 4) -> str:
     keys = sorted(set(old) | set(new))
     diff = [k for k in keys if old.get(k) != new.get(k)]
-    parts = [f"{k}: {old.get(k, '(unset)')!s:.60} -> {new.get(k, '(unset)')!s:.60}" for k in diff[:limit]]
+    parts = [f"{k}: {_clip(old.get(k, '(unset)'))} -> {_clip(new.get(k, '(unset)'))}" for k in diff[:limit]]
     if len(diff) > limit:
         parts.append(f"and {len(diff) - limit} more")
     return "; ".join(parts) or "the house contents"
