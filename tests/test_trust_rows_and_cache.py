@@ -7,10 +7,12 @@ gone does not average a family over the severities left as if they were all."""
 
 from __future__ import annotations
 
+import json
 import logging
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from benchmark.config import compose_job
 from benchmark.harness.runner import run
@@ -110,3 +112,79 @@ def test_every_reader_of_metrics_files_goes_through_the_one_loader():
         if re.search(r"read_csv\([^)]*metrics", text) or re.search(r"\bread_metrics\(", text):
             readers.append(rel)
     assert readers == []
+
+
+# ------------------------------------------------------------------ item 11 (part): a summary whose sweep records are gone
+METHODS = ("graph_knn", "vision_cone")
+
+
+def _robustness_rows(folder: Path, scan: tuple[int, ...] = (1, 2, 3), houses: int = 3) -> Path:
+    """A robustness run's rows without its sweep records (no multirun.yaml, no job folders: a
+    copy of the rows): clean, scan at ``scan`` (the sweep's severities 4 and 5 gone) and pose
+    1..5, two methods, each severity 5 points of matched IoU lower than the one before."""
+    rows = []
+    conditions = [("clean", 0), *(("scan", s) for s in scan), *(("pose", s) for s in range(1, 6))]
+    for agg_i, agg in enumerate(METHODS):
+        for corruption, sev in conditions:
+            for h in range(houses):
+                v = 0.8 - 0.05 * sev - 0.1 * agg_i + 0.01 * h
+                rows.append({"house_id": f"h{h}", "dataset": "synthetic", "env": "synthetic", "classifier": "oracle",
+                             "aggregator": agg, "postprocess": "default", "segmenter": "", "corruption": corruption,
+                             "severity": sev, "status": "ok", "error": "", "iou": v, "precision": v, "recall": v,
+                             "matched_iou": v, "pq": v})
+    folder.mkdir(parents=True)
+    pd.DataFrame(rows).to_csv(folder / "metrics.csv", index=False)
+    return folder / "metrics.csv"
+
+
+GONE_LINE = ("scan map left out of the summary: severity 4 has no rows for any method; severity 5 has no rows for "
+             "any method (no sweep record (multirun.yaml) says which severities were run, so every one "
+             "conf/corruption defines (1-5) is expected; a mean over the other severities would not compare)")
+
+
+def test_a_summary_whose_sweep_records_are_gone_leaves_out_a_family_missing_its_top_severities(tmp_path, capsys):
+    """Issue 61 item 11 (part): with multirun.yaml gone, scan's severities 4 and 5 missing for
+    every method were invisible, and 'scan' was the mean over 1..3 as if complete. The summary
+    now expects every severity conf/corruption defines, says so in one line, and shows no scan
+    mean; pose (all five there) is kept, and its mean is over 1..5."""
+    from benchmark.commands.robustness import main as robustness
+
+    run_dir = _robustness_rows(tmp_path / "run").parent
+    out = tmp_path / "out"
+    assert robustness([str(run_dir), "--metric", "matched_iou", "--out", str(out)]) == 0
+    md = (out / "robustness.md").read_text()
+    assert f"- {GONE_LINE}" in md and md.count("scan map left out") == 1
+    t = pd.read_csv(out / "robustness_synthetic_matched_iou.csv", index_col="method")
+    assert "scan" not in t.columns and "drop scan" not in t.columns
+    for i, agg in enumerate(METHODS):
+        m = f"oracle+{agg} +post"
+        assert t.loc[m, "pose"] == pytest.approx(100 * (0.8 - 0.15 - 0.1 * i + 0.01))  # severities 1..5: mean 3
+    capsys.readouterr()
+
+
+def test_the_report_and_the_published_blocks_expect_the_same_severities(tmp_path):
+    """The report's robustness section and the README's block summarise with the same expected
+    severities as the command: a sweep's record where there is one, else what conf/corruption
+    defines."""
+    from benchmark.reports import robustness as rb
+    from benchmark.reports.html_report import _robustness_section
+    from benchmark.reports.tables import load_rows
+
+    f = _robustness_rows(tmp_path / "run")
+    expected, unrecorded = rb.expected_severities([f])
+    assert expected == rb.defined_severities() and unrecorded == sorted(expected)
+    assert expected["scan"] == [1, 2, 3, 4, 5] and expected["explore"] == [0, 1, 2, 3, 4, 5]
+    section = _robustness_section([f], [(None, None, load_rows([f]))])
+    assert GONE_LINE.replace("(", "").replace(")", "") in section.replace("(", "").replace(")", "")
+    assert ">scan map</th>" not in section and ">pose error</th>" in section
+    # a sweep record that asked for scan 1..3 only: then 1..3 is the whole family
+    (tmp_path / "run" / "multirun.yaml").write_text(json.dumps(
+        {"hydra": {"overrides": {"task": []}, "sweeper": {"params": {
+            "corruption": "clean,scan_1,scan_2,scan_3,pose_1,pose_2,pose_3,pose_4,pose_5",
+            "aggregator": ",".join(METHODS)}}}}))
+    expected, unrecorded = rb.expected_severities([tmp_path / "run"])
+    assert expected["scan"] == [1, 2, 3] and expected["pose"] == [1, 2, 3, 4, 5]
+    assert "scan" not in unrecorded and "slam" in unrecorded
+    assert rb.expected_severities([f])[0]["scan"] == [1, 2, 3]  # found from a metrics file too
+    section = _robustness_section([f], [(None, None, load_rows([f]))])
+    assert "scan map left out" not in section and ">scan map</th>" in section

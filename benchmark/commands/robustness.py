@@ -15,7 +15,9 @@ each of their conditions instead), and
 ``robustness.md`` with every table, the rankings and what they show in words, the curves that
 rise by more than chance, how many houses a cell needs to detect ``--delta`` points (the power
 report) and every severity's physical values. A family whose severities are not all there (a
-job that did not finish, for some method or all) is left out with a line naming it; a sweep
+job that did not finish, for some method or all; the severities its sweep's ``multirun.yaml`` asked
+for, or every one ``conf/corruption`` defines where no sweep record is left) is left out with a
+line naming it; a sweep
 whose jobs did not all finish is named with its missing jobs (stderr and robustness.md). A house that failed under any condition is
 left out of every cell of its dataset (one line names it), so every cell holds the same houses.
 The output folder is written as a whole (an interrupted command leaves the old set or the new).
@@ -26,7 +28,6 @@ on forked processes, one per core (``ROOMSEG_JOBS=1``: one after another in this
 from __future__ import annotations
 
 import functools
-import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -66,27 +67,6 @@ def severity_settings(conf_dir: str | Path = CONF_DIR) -> dict[tuple[str, int], 
     return out
 
 
-def expected_severities(paths: Sequence[str | Path]) -> dict[str, list[int]] | None:
-    """family -> the severities the sweep(s) under ``paths`` asked for (their ``multirun.yaml``),
-    or None when no path holds a sweep description (a published copy: gaps are then found from
-    the rows alone)."""
-    from benchmark.reports.sweep_jobs import MULTIRUN, expected_jobs
-
-    out: dict[str, set[int]] = {}
-    found = False
-    for p in map(Path, paths):
-        for sweep in ([p] if (p / MULTIRUN).exists() else sorted(m.parent for m in p.rglob(MULTIRUN)) if p.is_dir()
-                      else []):
-            jobs = expected_jobs(sweep) or []
-            found = True
-            for job in jobs:
-                for o in job:
-                    m = re.fullmatch(r"corruption=(\w+)_(\d+)", o)
-                    if m:
-                        out.setdefault(m.group(1), set()).add(int(m.group(2)))
-    return {f: sorted(v) for f, v in out.items()} if found else None
-
-
 #: value columns shown in robustness.md's summary (every column, with its interval, is in the .csv
 #: and .md files of each table); the labelled conditions have a table of their own there.
 SHOWN = ("clean", *[f for f in rb.FAMILIES if f not in rb.LABELLED], "mCE", "rel mCE", "mean drop")
@@ -122,7 +102,8 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
                                  f"run `roomseg-bench experiment=robustness` (conf/corruption) first")
     rows = rows.copy()
     rows["severity"] = rows["severity"].astype(int)
-    parts = rb.summarise(rows, metrics, reference, expected_severities(paths), delta=delta)
+    expected, unrecorded = rb.expected_severities(paths)  # the sweep's, else every one conf/corruption defines
+    parts = rb.summarise(rows, metrics, reference, expected, delta=delta, unrecorded=unrecorded)
     del rows
     labelled = [f for f in rb.LABELLED if any(f in p["table"].columns for p in parts.values())]
     ref_words = ("a method every family degrades, chosen per dataset and metric (named under each table)"

@@ -488,7 +488,8 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
            + "; the full tables (PQ, the paper's IoU, CE and drop "
            "per condition, rankings, power) are written by <code>python -m benchmark.commands.robustness</code>.</p>"]
     try:
-        parts = rb.summarise(rows, ("matched_iou",), "auto")
+        expected, unrecorded = rb.expected_severities(run_dirs)  # the sweep's, else every one conf/corruption defines
+        parts = rb.summarise(rows, ("matched_iou",), "auto", expected, unrecorded=unrecorded)
     except rb.RobustnessError as e:
         return "".join(out) + f'<p class="muted">No robustness table for this run: {_esc(e)}</p>'
     for (dataset, _), part in parts.items():

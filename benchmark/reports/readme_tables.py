@@ -274,7 +274,8 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
 
     df = load_rows(paths)
     df["severity"] = df["severity"].astype(int)
-    parts = rb.summarise(df, ("matched_iou", "pq"), "auto")
+    expected, unrecorded = rb.expected_severities(paths)  # a published copy: every severity conf/corruption defines
+    parts = rb.summarise(df, ("matched_iou", "pq"), "auto", expected, unrecorded=unrecorded)
     out, power = [], []
     for dataset in sorted({d for d, _ in parts}):
         p, pq = parts[(dataset, "matched_iou")], parts[(dataset, "pq")]

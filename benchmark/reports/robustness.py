@@ -145,7 +145,8 @@ def house_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str, int], 
 
 
 def complete_families(cells: pd.DataFrame, expected: Mapping[str, Sequence[int]] | None = None,
-                      families: Sequence[str] = FAMILIES) -> tuple[list[str], list[str]]:
+                      families: Sequence[str] = FAMILIES,
+                      unrecorded: Collection[str] = ()) -> tuple[list[str], list[str]]:
     """The families whose every expected severity holds rows for every method, and one line per
     family left out saying which severities lack rows (for every method, or for which).
 
@@ -155,15 +156,21 @@ def complete_families(cells: pd.DataFrame, expected: Mapping[str, Sequence[int]]
             severity with rows, so a severity missing in the middle is caught, and 0 where some
             method has the family's own severity-0 rows; a family's top severities missing for
             every method are caught only with ``expected``). A family with fewer than five
-            severities (``lost``: 1..3, ``kidnap``: 1..2) is complete when those are all there."""
+            severities (``lost``: 1..3, ``kidnap``: 1..2) is complete when those are all there.
+        unrecorded: families whose ``expected`` severities no sweep record gives (the severities
+            ``conf/corruption`` defines: :func:`expected_severities`): checked only where they
+            have rows, severity 0 as without ``expected``, and their line says so."""
     methods = sorted(cells["method"].unique())
     have = cells.groupby(["corruption", "severity"])["method"].agg(set)
     kept, notes = [], []
     for f in families:
         present = sorted(int(s) for (c, s) in have.index if c == f)
-        if not present and not (expected and f in expected):
+        guessed = f in unrecorded and bool(expected) and f in expected
+        if not present and not (expected and f in expected and not guessed):
             continue
-        if expected and f in expected:
+        if guessed:  # every severity the configs define (0 where the rows have it)
+            want = [0] * (0 in present) + sorted({int(s) for s in expected[f] if int(s) > 0})
+        elif expected and f in expected:
             want = sorted({int(s) for s in expected[f]})
         else:  # severity 0 only where the family has its own (some method's rows): then every method needs it
             want = [0] * (0 in present) + list(range(1, max(present) + 1))
@@ -177,11 +184,79 @@ def complete_families(cells: pd.DataFrame, expected: Mapping[str, Sequence[int]]
                 gaps.append(f"severity {s} has no rows for {', '.join(lack[:3])}"
                             + (f" and {len(lack) - 3} more" if len(lack) > 3 else ""))
         if gaps:
+            why = (f"no sweep record (multirun.yaml) says which severities were run, so every one conf/corruption "
+                   f"defines ({_span(want)}) is expected; " if guessed else "")
             notes.append(f"{FAMILY_WORDS.get(f, f)} left out of the summary: {'; '.join(gaps)} "
-                         f"(a mean over the other severities would not compare)")
+                         f"({why}a mean over the other severities would not compare)")
         else:
             kept.append(f)
     return kept, notes
+
+
+def _span(severities: Sequence[int]) -> str:
+    """``1-5``, ``0-5``, or ``1, 3`` where the severities are not consecutive."""
+    s = sorted(severities)
+    if len(s) > 1 and s == list(range(s[0], s[-1] + 1)):
+        return f"{s[0]}-{s[-1]}"
+    return ", ".join(map(str, s))
+
+
+def defined_severities(conf_dir: str | Path | None = None) -> dict[str, list[int]]:
+    """family -> the severities ``conf/corruption`` defines (its ``<family>_<k>.yaml`` files, a
+    family's own severity 0 included)."""
+    from benchmark.paths import CONF_DIR
+
+    out: dict[str, set[int]] = {}
+    for p in Path(conf_dir or CONF_DIR, "corruption").glob("*_[0-9].yaml"):
+        family, k = p.stem.rsplit("_", 1)
+        out.setdefault(family, set()).add(int(k))
+    return {f: sorted(v) for f, v in sorted(out.items())}
+
+
+def recorded_severities(paths: Sequence[str | Path]) -> dict[str, list[int]] | None:
+    """family -> the severities the sweep(s) at or above ``paths`` asked for (their
+    ``multirun.yaml``: in a folder read, under it, or in the folder above a job folder or a job's
+    metrics file), or None when no sweep record is found (a published copy, or a run whose
+    records are gone).
+
+    Raises:
+        ValueError: an unreadable ``multirun.yaml`` (the message names it)."""
+    import re
+
+    from benchmark.reports.sweep_jobs import MULTIRUN, expected_jobs
+
+    sweeps: dict[Path, None] = {}
+    for p in map(Path, paths):
+        d = p.parent if p.is_file() else p
+        for cand in (d, d.parent):  # the folder itself, or the sweep folder holding a job
+            if (cand / MULTIRUN).exists():
+                sweeps.setdefault(cand.resolve(), None)
+        if p.is_dir():
+            for m in sorted(p.rglob(MULTIRUN)):
+                sweeps.setdefault(m.parent.resolve(), None)
+    if not sweeps:
+        return None
+    out: dict[str, set[int]] = {}
+    for sweep in sweeps:
+        for job in expected_jobs(sweep) or []:
+            for o in job:
+                m = re.fullmatch(r"corruption=(\w+)_(\d+)", o)
+                if m:
+                    out.setdefault(m.group(1), set()).add(int(m.group(2)))
+    return {f: sorted(v) for f, v in out.items()}
+
+
+def expected_severities(paths: Sequence[str | Path],
+                        conf_dir: str | Path | None = None) -> tuple[dict[str, list[int]], list[str]]:
+    """The severities a summary of the rows under ``paths`` expects per family, and the families
+    no sweep record names: the severities the sweep(s) asked for (:func:`recorded_severities`),
+    and for every other family those ``conf/corruption`` defines (:func:`defined_severities`),
+    so that a family whose top severities are gone with the sweep's records is left out with a
+    line, not averaged over the severities left (:func:`complete_families`)."""
+    recorded = recorded_severities(paths) or {}
+    defined = defined_severities(conf_dir)
+    unrecorded = sorted(f for f in defined if f not in recorded)
+    return {**defined, **recorded}, unrecorded
 
 
 def _means(values: Mapping[tuple[str, str, int], np.ndarray], n_boot: int) -> dict[tuple[str, str, int], np.ndarray]:
@@ -620,11 +695,13 @@ def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
 
 def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None = None,
               expected: Mapping[str, Sequence[int]] | None = None, n_boot: int = stats.N_BOOT,
-              delta: float = DELTA) -> dict:
+              delta: float = DELTA, unrecorded: Collection[str] = ()) -> dict:
     """Per dataset and metric: the summary table (CE and mCE for the ranked metrics only), its
     cells, the notes (rankings, reference, families left out), the rising curves and the power
     report. ``reference`` None or ``"auto"``: :func:`pick_reference`. ``expected``: family ->
-    severities the sweep asked for (:func:`complete_families`). Raises RobustnessError."""
+    severities the sweep asked for, ``unrecorded``: the families among them no sweep record
+    names (both :func:`expected_severities` of the rows' folders; :func:`complete_families`).
+    Raises RobustnessError."""
     if reference == "auto":
         reference = None
     out = {}
@@ -632,7 +709,7 @@ def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None 
         d, dropped = drop_failed_houses(d)
         for metric in metrics:
             cells = cell_means(d, metric)
-            kept, left = complete_families(cells, expected)
+            kept, left = complete_families(cells, expected, unrecorded=unrecorded)
             keep = cells["corruption"].isin(["clean", *kept])
             cells = cells[keep].reset_index(drop=True)
             sub = d[d["corruption"].isin(["clean", *kept])]
@@ -698,5 +775,6 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
 
 __all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "APART", "OWN_ZERO_WORDS", "RobustnessError", "cell_means", "complete_families",
            "drop_failed_houses", "house_values", "numbers", "pick_reference", "power_lines", "power_report",
-           "rank_notes", "family_note", "view_geometric_verdicts", "rising_curves", "summarise", "summary_table", "to_markdown", "to_latex", "family_figure",
+           "rank_notes", "family_note", "view_geometric_verdicts", "rising_curves", "summarise", "summary_table",
+           "defined_severities", "recorded_severities", "expected_severities", "to_markdown", "to_latex", "family_figure",
            "zero_key", "own_zero_families", "own_zero_note", "condition_columns"]
