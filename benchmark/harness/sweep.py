@@ -104,10 +104,32 @@ def sweep_table(jobs: Sequence[Job], root: Path) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["job", "houses", "ok", "failed", *[f"mean_{m}" for m in METRICS], "wall_s"])
 
 
+def launched_dirs(sweep: str) -> set[Path]:
+    """The job folders this process's launcher (``hydra/launcher: local``) reports the multirun
+    ``sweep`` wrote, resolved (empty with another launcher)."""
+    import importlib
+
+    try:
+        launched = importlib.import_module("hydra_plugins.roomseg_sweep.roomseg_sweep").LAUNCHED
+    except (ImportError, AttributeError):
+        return set()
+    out = set()
+    for ret in launched:
+        info = getattr(ret, "roomseg_job", None) or {}
+        if info.get("sweep") == sweep and info.get("dir"):
+            out.add(Path(info["dir"]).resolve())
+    return out
+
+
 def write_summary(sweep_dir: Path, sweep: str | None = None, started: float | None = None) -> pd.DataFrame:
-    """Summarise the jobs under ``sweep_dir`` (those whose ``summary.json`` carries the multirun
-    token ``sweep``, when given) into ``sweep_summary.{md,csv}`` there; with ``sweep``, also
-    record those jobs in ``last_sweep.json`` (``started``: the multirun's start, Unix time).
+    """Summarise the jobs under ``sweep_dir`` into ``sweep_summary.{md,csv}`` there; with the
+    multirun token ``sweep``, only that multirun's jobs, and record them in ``last_sweep.json``
+    (``started``: the multirun's start, Unix time).
+
+    A multirun's jobs are those whose ``summary.json`` carries its token and those its launcher
+    reports it wrote (:func:`launched_dirs`): two multiruns into one folder at once that run the
+    same configuration write the same job folder, whose ``summary.json`` is the last writer's,
+    so each counts its own jobs whichever wrote last.
 
     Returns:
         The table (empty when no job finished)."""
@@ -116,7 +138,8 @@ def write_summary(sweep_dir: Path, sweep: str | None = None, started: float | No
     except FileNotFoundError:
         jobs = []
     if sweep is not None:
-        jobs = [j for j in jobs if j.summary().get("sweep_id") == sweep]
+        ran = launched_dirs(sweep)
+        jobs = [j for j in jobs if j.summary().get("sweep_id") == sweep or j.dir.resolve() in ran]
     table = sweep_table(jobs, sweep_dir)
     n_failed = int(table["failed"].fillna(0).sum()) if len(table) else 0
     pct = table.copy()
@@ -185,5 +208,5 @@ class SweepSummary(Callback):
             print(f"{md.rstrip().splitlines()[-1]} Per job: {sweep_dir / (SWEEP_SUMMARY + '.md')}", flush=True)
 
 
-__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "SWEEP_ENV", "clear_error", "current_sweep", "read_error", "record", "record_died", "record_error", "sweep_table",
+__all__ = ["SweepSummary", "OUTCOME", "JOB_ERROR", "SWEEP_ENV", "clear_error", "current_sweep", "launched_dirs", "read_error", "record", "record_died", "record_error", "sweep_table",
            "write_summary"]

@@ -261,6 +261,12 @@ def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
     last = dict(getattr(runner, "LAST_RUN", None) or {})
     ret.roomseg_job = {"houses": int(last.get("houses", 0)), "moved": str(last.get("moved", ""))} \
         if ret.status == JobStatus.COMPLETED else {"houses": 0, "moved": ""}
+    if ret.status == JobStatus.COMPLETED:
+        # the folder it wrote, and its multirun's token: that sweep's summary counts the job even
+        # where another sweep into the same folder has rewritten the job's summary.json since
+        sweep = sys.modules.get("benchmark.harness.sweep")
+        ret.roomseg_job.update(dir=str(last.get("dir", "")),
+                               sweep=(sweep.current_sweep() if sweep is not None else None) or "")
     return ret
 
 
