@@ -100,6 +100,73 @@ def test_publish_records_the_numba_compile_step_of_a_fresh_clone(tmp_path):
         rt.publish(run, "bench", tmp_path, tmp_path / "time.txt", compile_time_file=tmp_path / "bad.txt")
 
 
+def _timing_runs(folder: Path, runs: list[tuple]) -> Path:
+    """Scripted timing files as make bench-publish writes them: per run (compile s, empty (wall s,
+    KiB, 1-min load), filled (wall s, KiB, 1-min load)) a folder 1/, 2/, ..."""
+    for i, (comp, empty, filled) in enumerate(runs, 1):
+        d = folder / str(i)
+        d.mkdir(parents=True)
+        (d / "compile.txt").write_text(f"{comp} 250000\n")
+        for case, (wall, kib, load) in (("empty", empty), ("filled", filled)):
+            (d / f"{case}.txt").write_text(f"Command exited with non-zero status 0\n{wall} {kib}\n")
+            (d / f"{case}.load").write_text(f"{load} 1.50 1.20 3/512 4242\n")
+    return folder
+
+
+def test_the_bench_timing_is_the_median_of_fresh_runs_with_range_and_load(tmp_path):
+    """make bench-publish times several fresh-clone runs (empty, then filled cache) and the
+    block says each case's median wall time, peak RSS and load with their ranges."""
+    run = _hand_run(tmp_path)
+    timing = _timing_runs(tmp_path / "timing", [
+        (17.2, (29.4, 339968, 2.04), (20.1, 307200, 2.31)),
+        (16.1, (26.0, 330000, 1.62), (19.0, 300000, 1.90)),
+        (18.9, (33.3, 350000, 2.40), (22.4, 310000, 2.02))])
+    dest = rt.publish(run, "bench", tmp_path, timings_dir=timing)
+    prov = json.loads((dest / "provenance.json").read_text())
+    assert prov["timings"]["runs"] == 3 and prov["timings"]["empty"]["wall_s"] == [29.4, 26.0, 33.3]
+    assert prov["timings"]["filled"]["load_1min"] == [2.31, 1.9, 2.02]
+    prov.update(date_utc="2026-11-29", machine="AMD EPYC, 2 cores, 24 GiB, Linux 6.18", commit="abc1234")
+    line = rt.timings_line(prov)
+    assert line == (
+        "Measured with `/usr/bin/time` on 2026-11-29 on AMD EPYC, 2 cores, 24 GiB, Linux 6.18 at commit abc1234: "
+        "`make bench` (2 configurations) as on a fresh clone, 3 times (numba's cache empty, then `make setup`'s "
+        "kernel compile step: 17 s (16-19 s)), each time twice: **from an empty cache 29 s (26-33 s) wall**, "
+        "332 MB (322-342 MB) peak RSS, load 2.0 (1.6-2.4); **again, its cache filled, 20 s (19-22 s) wall**, "
+        "300 MB (293-303 MB) peak RSS, load 2.0 (1.9-2.3). Medians over the 3 runs, their ranges in parentheses; "
+        "load: the 1-minute load average as the run ended, its own workers included.\n")
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- BEGIN generated: bench-timing -->\n<!-- END generated: bench-timing -->\n")
+    assert rt.write(readme, tmp_path) == ["bench-timing"]
+    assert "**from an empty cache 29 s (26-33 s) wall**" in readme.read_text()
+    # one run: no ranges
+    one = _timing_runs(tmp_path / "one", [(12.0, (15.0, 339968, 1.4), (9.6, 307200, 1.2))])
+    line = rt.timings_line({**prov, "timings": rt.read_timings(one)})
+    assert "once (numba's cache empty, then `make setup`'s kernel compile step: 12 s)" in line
+    assert "**from an empty cache 15 s wall**, 332 MB peak RSS, load 1.4;" in line and "One run; load" in line
+
+
+def test_bad_timing_files_are_one_line_naming_the_file(tmp_path, capsys, monkeypatch):
+    run = _hand_run(tmp_path)
+    timing = _timing_runs(tmp_path / "timing", [(17.2, (29.4, 339968, 2.0), (20.1, 307200, 2.3))] * 2)
+    (timing / "2" / "filled.txt").unlink()
+    with pytest.raises(ValueError, match=r"timing/2/filled.txt: expected GNU time"):
+        rt.read_timings(timing)
+    (timing / "2" / "filled.txt").write_text("20.1 307200\n")
+    (timing / "1" / "empty.load").write_text("busy\n")
+    with pytest.raises(ValueError, match=r"timing/1/empty.load: expected a copy of /proc/loadavg"):
+        rt.read_timings(timing)
+    (tmp_path / "none").mkdir()
+    with pytest.raises(ValueError, match="no run folders in it"):
+        rt.read_timings(tmp_path / "none")
+    from benchmark.commands.maintainer.readme_tables import main
+
+    monkeypatch.chdir(tmp_path)  # publish writes under the current folder's results/published
+    assert main(["publish", str(run), "--name", "bench", "--timings", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no run folders in it" in err[0]
+    assert not (tmp_path / "results" / "published").exists()  # nothing written
+
+
 def test_bad_markers_and_missing_inputs(tmp_path):
     with pytest.raises(ValueError, match="no '<!-- END generated: bench-table4 -->'"):
         rt.blocks_in("<!-- BEGIN generated: bench-table4 -->\nx\n")

@@ -117,7 +117,7 @@ def measured_line(module: str, args: list[str]) -> str:
 
 def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: str | Path | None = None,
             command: str = "make bench", columns: Sequence[str] | None = None,
-            compile_time_file: str | Path | None = None) -> Path:
+            compile_time_file: str | Path | None = None, timings_dir: str | Path | None = None) -> Path:
     """Copy a finished run's per-house metrics into ``<root>/results/published/<name>/``.
 
     Each job's ``metrics.csv`` keeps its relative folder and every column but the stage
@@ -126,7 +126,9 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
     the UTC date, :func:`machine`, the commit and, from ``time_file`` (GNU time's
     ``-f "%e %M"``: wall seconds and peak RSS in KiB), the wall time and peak memory; from
     ``compile_time_file`` (the same format), the seconds ``make setup``'s numba compile step took
-    into an empty numba cache before the run (the run then timed as on a fresh clone).
+    into an empty numba cache before the run (the run then timed as on a fresh clone); from
+    ``timings_dir``, the repeated fresh-clone runs of ``make bench-publish``
+    (:func:`read_timings`), whose medians, ranges and load averages the timing block shows.
 
     Returns:
         the published folder (replaced whole).
@@ -141,6 +143,7 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
     from benchmark.reports.tables import ROW_SOURCE_COLUMNS, read_rows
 
     run_dir, root = Path(run_dir), Path(root)
+    timings = read_timings(timings_dir) if timings_dir is not None else None  # read before anything is written
     jobs = find_jobs([run_dir])
     dest = root / PUBLISHED / name
     tmp = dest.with_name(f".{name}.tmp")
@@ -169,6 +172,8 @@ def publish(run_dir: str | Path, name: str, root: str | Path = ".", time_file: s
         prov["wall_s"], prov["peak_rss_mb"] = round(wall, 1), round(rss_kb / 1024)
     if compile_time_file is not None:
         prov["numba_compile_s"] = round(gnu_time(compile_time_file)[0], 1)
+    if timings is not None:
+        prov["timings"] = timings
     atomic_write_json(tmp / PROVENANCE, prov)
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)
@@ -182,6 +187,91 @@ def gnu_time(path: str | Path) -> tuple[float, int]:
         return float(wall), int(rss_kb)
     except (OSError, ValueError) as e:
         raise ValueError(f"{path}: expected GNU time's '%e %M' (seconds, KiB), got an error: {e}") from None
+
+
+#: the two timed ``make bench`` runs of each fresh-clone repetition of ``make bench-publish``: into an
+#: empty results folder (stage cache empty), then again into the same folder (its cache filled).
+TIMING_CASES = ("empty", "filled")
+
+
+def _load_averages(path: Path) -> tuple[float, float]:
+    """(1-minute, 5-minute) load average from a copy of ``/proc/loadavg``; ValueError naming the file."""
+    try:
+        one, five = Path(path).read_text().split()[:2]
+        return float(one), float(five)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{path}: expected a copy of /proc/loadavg (1-, 5- and 15-minute load averages), "
+                         f"got an error: {e}") from None
+
+
+def read_timings(folder: str | Path) -> dict:
+    """The repeated fresh-clone timings of ``make bench-publish`` under ``folder``: one subfolder
+    per repetition (``1``, ``2``, ...), each holding ``compile.txt`` (``make setup``'s kernel
+    compile step into an empty numba cache), ``empty.txt`` and ``filled.txt`` (GNU time's
+    ``%e %M`` of ``make bench`` into an empty results folder, then again with its cache
+    filled) and ``empty.load`` / ``filled.load`` (``/proc/loadavg`` as each ended).
+
+    Returns:
+        ``{"runs": n, "compile_s": [...], "empty": {"wall_s": [...], "peak_rss_mb": [...],
+        "load_1min": [...], "load_5min": [...]}, "filled": {...}}``, each list in repetition order.
+
+    Raises:
+        ValueError: no repetition folder, or a file missing or malformed (one line naming it).
+    """
+    folder = Path(folder)
+    reps = sorted((d for d in folder.iterdir() if d.is_dir()), key=lambda d: (not d.name.isdigit(),
+                  int(d.name) if d.name.isdigit() else 0, d.name)) if folder.is_dir() else []
+    if not reps:
+        raise ValueError(f"--timings {folder}: no run folders in it; expected one folder per timed run "
+                         "(1/, 2/, ...) as make bench-publish writes them")
+    out: dict = {"runs": len(reps), "compile_s": []}
+    for case in TIMING_CASES:
+        out[case] = {"wall_s": [], "peak_rss_mb": [], "load_1min": [], "load_5min": []}
+    for d in reps:
+        out["compile_s"].append(round(gnu_time(d / "compile.txt")[0], 1))
+        for case in TIMING_CASES:
+            wall, rss_kb = gnu_time(d / f"{case}.txt")
+            one, five = _load_averages(d / f"{case}.load")
+            got = out[case]
+            got["wall_s"].append(round(wall, 1))
+            got["peak_rss_mb"].append(round(rss_kb / 1024))
+            got["load_1min"].append(one)
+            got["load_5min"].append(five)
+    return out
+
+
+def _median_range(values: Sequence[float], fmt: str, unit: str = "") -> tuple[str, str]:
+    """(the median, ``lo-hi`` or ``""`` for one value), each formatted with ``fmt`` and ``unit``."""
+    import statistics
+
+    med = format(statistics.median(values), fmt) + unit
+    lo, hi = format(min(values), fmt), format(max(values), fmt)
+    return med, ("" if len(values) < 2 else f"{lo}-{hi}{unit}")
+
+
+def timings_line(p: dict) -> str:
+    """The timing block of a provenance with repeated fresh-clone runs (``p["timings"]``, from
+    :func:`read_timings`): per case the median wall time, peak RSS and 1-minute load average
+    at the run's end, each with its range over the runs."""
+    t = p["timings"]
+    n = t["runs"]
+
+    def stat(values: Sequence[float], fmt: str, unit: str = "") -> str:
+        med, span = _median_range(values, fmt, unit)
+        return f"{med} ({span})" if span else med
+
+    cases = []
+    for case, words in zip(TIMING_CASES, ("from an empty cache", "again, its cache filled,")):
+        c = t[case]
+        cases.append(f"**{words} {stat(c['wall_s'], '.0f', ' s')} wall**, {stat(c['peak_rss_mb'], '.0f', ' MB')} "
+                     f"peak RSS, load {stat(c['load_1min'], '.1f')}")
+    commit = f" at commit {p['commit']}" if p.get("commit") else ""
+    times = f"{n} times" if n > 1 else "once"
+    medians = f"Medians over the {n} runs, their ranges in parentheses" if n > 1 else "One run"
+    return (f"Measured with `/usr/bin/time` on {p['date_utc']} on {p['machine']}{commit}: `{p['command']}` "
+            f"({p['jobs']} configurations) as on a fresh clone, {times} (numba's cache empty, then `make setup`'s "
+            f"kernel compile step: {stat(t['compile_s'], '.0f', ' s')}), each time twice: {cases[0]}; {cases[1]}. "
+            f"{medians}; load: the 1-minute load average as the run ended, its own workers included.\n")
 
 
 def provenance(root: str | Path, name: str) -> dict:
@@ -219,6 +309,8 @@ def render_block(block: Block, root: str | Path = ".") -> str:
     root = Path(root)
     if block.table is None:
         p = provenance(root, block.sources[0])
+        if "timings" in p:
+            return timings_line(p)
         if "wall_s" not in p:
             return (f"Not timed: `{p['command']}` was published without a time file "
                     f"(on {p['date_utc']}, {p['machine']}).\n")
@@ -370,4 +462,4 @@ def write(readme: str | Path = "README.md", root: str | Path = ".") -> list[str]
 
 
 __all__ = ["BLOCKS", "Block", "PUBLISHED", "publish", "provenance", "gnu_time", "head_commit", "render_block",
-           "blocks_in", "update_text", "check", "write", "machine"]
+           "blocks_in", "update_text", "check", "write", "machine", "read_timings", "timings_line"]

@@ -2,6 +2,7 @@
 (:mod:`benchmark.reports.readme_tables`).
 
     python -m benchmark.commands.maintainer.readme_tables publish results/runs/bench --name bench [--time FILE]
+    python -m benchmark.commands.maintainer.readme_tables publish RUN --name bench --timings DIR   # make bench-publish
     python -m benchmark.commands.maintainer.readme_tables write     # rewrite the blocks of README.md and the docs pages
     python -m benchmark.commands.maintainer.readme_tables check     # exit 1 and name the blocks that differ
 """
@@ -26,6 +27,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--compile-time", type=Path, default=None,
                    help="GNU time output of make setup's numba compile step before the run, into an empty numba "
                         "cache (a fresh clone's)")
+    p.add_argument("--timings", type=Path, default=None, metavar="DIR",
+                   help="repeated fresh-clone runs, one folder each (1/, 2/, ...) holding compile.txt, empty.txt, "
+                        "filled.txt (GNU time '%%e %%M') and empty.load, filled.load (/proc/loadavg at each run's "
+                        "end), as make bench-publish writes them; the timing block shows their medians and ranges")
     p.add_argument("--command", default="make bench", help="the command that made the run (recorded)")
     p.add_argument("--columns", default=None,
                    help="robustness: keep these columns only, every job's rows in one metrics.csv "
@@ -41,7 +46,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from benchmark.reports.readme_tables import ROBUSTNESS_COLUMNS
 
             columns = ROBUSTNESS_COLUMNS if a.columns == "robustness" else (a.columns.split(",") if a.columns else None)
-            print(publish(a.run_dir, a.name, ".", a.time, a.command, columns, a.compile_time))
+            print(publish(a.run_dir, a.name, ".", a.time, a.command, columns, a.compile_time, a.timings))
         elif a.cmd == "write":
             for f in a.readme or [Path(f) for f in BLOCK_FILES]:
                 changed = write(f, ".")
