@@ -111,6 +111,8 @@ class Exploration:
         length: metres driven.
         scan_map: the map the robot built (frontier), or None (random walk).
         stop: why it stopped: ``budget``, ``explored`` (no reachable frontier) or ``stuck``.
+        explorer: the :class:`Frontier` that explored (None elsewhere): its budget check
+            (:func:`no_view_on_own_map`) explores again with larger budgets.
     """
 
     poses: np.ndarray
@@ -119,6 +121,7 @@ class Exploration:
     length: float
     scan_map: ScanMap | None
     stop: str
+    explorer: Frontier | None = None
 
 
 class _Drive:
@@ -341,11 +344,74 @@ class Frontier:
             if how == "arrived" and _is_frontier(lo, walk, tr, tc):
                 done[tr, tc] = True
         self.last = drive.result(stop)
+        self.last.explorer = self
         return self.last
 
     def generate(self, scene: Scene) -> np.ndarray:
         """(N, 3) view poses (x, z metres, yaw degrees); :attr:`last` keeps the whole exploration."""
         return self.explore(scene).poses
+
+    def smallest_budget(self, scene: Scene, up_to: float | None = None) -> float | None:
+        """The smallest budget, in steps of ``scan_spacing`` above this explorer's, with which
+        the map the robot builds of ``scene`` holds one of its views (:func:`views_on_own_map`:
+        ``mapping=explored`` can then work); None when none up to ``up_to`` metres (default
+        :data:`SMALLEST_BUDGET_SEARCH_M`) does, or when the robot explores everything it can
+        reach first (a larger budget then adds nothing)."""
+        import copy
+
+        up_to = SMALLEST_BUDGET_SEARCH_M if up_to is None else float(up_to)
+        step = self.scan.spacing
+        if not math.isfinite(self.budget):
+            return None
+        obstacles = scan_obstacles(scene, self.scan.height)
+        budget = (math.floor(self.budget / step + 1e-9) + 1) * step
+        while budget <= up_to + 1e-9:
+            trial = copy.copy(self)
+            trial.budget = budget
+            found = trial._explore(scene, obstacles)
+            if views_on_own_map(found, scene.grid):
+                return round(budget, 6)
+            if found.stop != "budget":
+                return None
+            budget += step
+        return None
+
+
+#: the largest budget (metres) :meth:`Frontier.smallest_budget` tries.
+SMALLEST_BUDGET_SEARCH_M = 20.0
+
+
+def views_on_own_map(exploration: Exploration, grid: GridMap) -> bool:
+    """Whether a view of ``exploration`` stands on a free cell of the map the robot built (its
+    ``scan_map``): under ``mapping=explored`` the aggregators keep the views on that map's cells
+    and drop the others; True without a map of its own."""
+    scan = exploration.scan_map
+    if scan is None:
+        return True
+    own = GridMap(np.asarray(scan.free, bool), grid.resolution, grid.origin)
+    poses = np.asarray(exploration.poses, np.float64).reshape(-1, 3)
+    r, c = own.world_to_cell(poses[:, 0], poses[:, 1])
+    return bool(np.any(own.is_walkable(r, c)))
+
+
+def no_view_on_own_map(exploration: Exploration, scene: Scene) -> str | None:
+    """The budget check of ``mapping=explored``: None when a view of ``exploration`` lies on the
+    map the robot built, else one line saying so and the smallest budget with which one does
+    for this house (:meth:`Frontier.smallest_budget`). A cell is free on that map only once
+    several scans have crossed it, so a short drive leaves every view, the start pose's too,
+    off the map."""
+    if views_on_own_map(exploration, scene.grid):
+        return None
+    explorer = exploration.explorer
+    line = (f"house {scene.house_id!r}: none of the {len(exploration.poses)} views lies on the map the exploring "
+            f"robot built in {exploration.length:.2f} m (a cell is free on it once several scans crossed it)")
+    if explorer is None:
+        return line + "; expected a larger viewpoints.budget"
+    best = explorer.smallest_budget(scene)
+    if best is None:
+        return (line + f"; no viewpoints.budget up to {SMALLEST_BUDGET_SEARCH_M:g} m puts one there "
+                f"(viewpoints.budget={explorer.budget:g})")
+    return line + f"; viewpoints.budget={explorer.budget:g}: expected at least {best:g} m for this house"
 
 
 #: metres driven between the poses of a mapping route (:func:`exploration_route`).
@@ -598,4 +664,4 @@ def explore_frontier_reference(scene: Scene, frontier: Frontier) -> Exploration:
 
 
 __all__ = ["Frontier", "RandomWalk", "Exploration", "explore_frontier_reference", "frontier_cells",
-           "heading_offsets", "start_cell"]
+           "heading_offsets", "no_view_on_own_map", "start_cell", "views_on_own_map"]

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from benchmark.conditions.exploration import no_view_on_own_map
 from envs.maps.gridmap import GridMap
 from envs.maps.reachable import reachable_mask, seed_cells
 from envs.maps.scene import Scene
@@ -57,6 +58,9 @@ class ExploredMapping:
         if free.shape != scene.grid.shape:
             raise ValueError(f"mapping=explored: the explorer's map is {free.shape}, expected the house's grid "
                              f"{scene.grid.shape}")
+        no_view = no_view_on_own_map(exploration, scene)  # a budget too short: say the smallest that works
+        if no_view is not None:
+            raise ValueError(no_view)
         grid = GridMap(free, scene.grid.resolution, scene.grid.origin)
         return reachable_mask(free, seed_cells(grid, np.asarray(poses)[:, :2]))
 
