@@ -3,8 +3,9 @@ writes, file locks.
 
 A cache entry is a file (or folder) under ``<cache_dir>/<stage>/<key>/<house>@<content>...``
 (paths: :mod:`benchmark.harness.store`). ``key`` is a short hash of the resolved configs of
-every stage the entry depends on, so changing an aggregator never invalidates renders or
-classifier outputs; ``content`` is a short hash of what the entry was computed from: the
+every stage the entry depends on (a score entry's also of the row it holds, its stage names and
+dataset, and of ``run.save_maps``: :func:`benchmark.harness.runner.stage_keys`), so changing an
+aggregator never invalidates renders or classifier outputs; ``content`` is a short hash of what the entry was computed from: the
 house's JSON and every input file the stages read (:func:`content_hash`,
 :func:`file_fingerprint`, :func:`config_inputs`), so editing one house or one pose file
 recomputes what depends on it and nothing else. Writes go to a temporary name in the same
