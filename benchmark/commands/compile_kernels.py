@@ -93,7 +93,6 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.conditions.alignment import to_map_frame
     from benchmark.conditions.coverage import view_coverage
     from benchmark.conditions.exploration import Frontier, RandomWalk
-    from benchmark.conditions.pose_graph import PoseGraph, solve
     from benchmark.metrics import segments
     from benchmark.postprocess import PostProcess
     from benchmark.segmenters.distance import DistanceTransform
@@ -124,9 +123,6 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
             scan_obstacles(scene, 0.25, house_wall_height(house)), grid, poses[:4], poses[:4] + [0.05, 0.0, 1.0],
             ScanSettings(range_noise=0.02, dropout=0.1, seed=1))),
         ("exploration", lambda: (Frontier(budget=3.0).explore(scene), RandomWalk(budget=3.0).generate(scene))),
-        ("pose-graph solve", lambda: solve(PoseGraph(4, np.array([0, 1, 2, 0]), np.array([1, 2, 3, 3]),
-                                                     np.tile([0.5, 0.0, 0.1], (4, 1)),
-                                                     np.tile(np.eye(3), (4, 1, 1))), np.zeros((4, 3)))),
         ("route", lambda: route(grid.walkable, grid, poses[:4])),
         ("map frame", lambda: to_map_frame(scene.instances, grid, 0.01, np.array([0.05, 0.0]))),
         ("coverage", lambda: view_coverage(scene, poses, 90.0, 6.0, occluders(scene, 1.2))),

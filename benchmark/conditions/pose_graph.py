@@ -1,39 +1,55 @@
-"""A 2D pose graph and its least-squares solve (graph SLAM's back end, Grisetti et al. 2010).
+"""A 2D pose graph and its robust solve on GTSAM (graph SLAM's back end).
 
 Nodes are SE(2) states (x, z metres, phi radians counter-clockwise from +x; see
-:mod:`benchmark.conditions.odometry`). An edge ``(i, j, z, sqrt_info)`` says "node j seen from node i is at
-``z``" (dx, dz in i's frame, metres; dphi, radians), with ``sqrt_info`` (3, 3) the upper
-Cholesky factor of its information matrix (inverse covariance), so that the whitened residual
+:mod:`benchmark.conditions.odometry`). An edge ``(i, j, z, sqrt_info)`` says "node j seen from node
+i is at ``z``" (dx, dz in i's frame, metres; dphi, radians), with ``sqrt_info`` (3, 3) the upper
+Cholesky factor of its information matrix (inverse covariance). Each edge is a GTSAM
+``BetweenFactorPose2``: its whitened residual is
 
-    r_ij = sqrt_info @ [R(phi_i)^T (t_j - t_i) - z[:2],  wrap(phi_j - phi_i - z[2])]
+    r_ij = sqrt_info @ Log(Z^-1 (X_i^-1 X_j))
 
-has unit covariance. :func:`solve` minimises the sum of squared whitened residuals over every
-node but the first (the map's frame: the robot's start) by Levenberg-Marquardt with the sparse
-analytic Jacobian, each step's normal equations solved by a sparse Cholesky factorisation
-(:mod:`benchmark.conditions.sparse_cholesky`; SciPy's sparse LU for a graph whose factor would
-exceed :data:`CHOLESKY_MAX_ENTRIES`, or where a damped system is not positive definite to
-rounding). With noisy constraints it leaves a residual: the corrected
-poses are not the true ones.
+(``Log`` SE(2)'s logarithm, ``Z`` the measured relative pose), unit covariance when the edge is
+right. Edges flagged ``robust`` (the loop closures) carry a robust kernel (:data:`KERNELS`);
+odometry edges stay Gaussian (a robot's wheels do not report a move 3 m long that never happened;
+a scan matcher does match two places that only look alike).
+
+:func:`solve` is the final (offline) estimate: GTSAM's Levenberg-Marquardt run to convergence
+(relative decrease of the cost below :data:`RELATIVE_TOLERANCE`), ``max_iterations`` at most, a
+solve cut off there reported as not converged. With ``kernel="gnc"`` (graduated non-convexity,
+Yang et al. 2020, truncated least squares) GTSAM's ``GncLMOptimizer`` starts from the plain
+least-squares solution and turns the closures' cost non-convex step by step, ending with every
+closure an inlier (weight 1) or an outlier (weight 0); the estimate is then the Levenberg-
+Marquardt solve over the odometry and the inlier closures. :func:`online` is the estimate the
+robot had at each moment: iSAM2 updated node by node in travel order, each node's pose read
+right after its own update.
+
+Node 0 is the map's frame (the robot's start, ``initial[0]``): a prior there fixes the gauge for
+the linear algebra, and the answer is moved rigidly to put node 0 at ``initial[0]`` exactly (every
+between factor is unchanged by a rigid move of the whole graph). With noisy constraints a
+residual stays: the corrected poses are not the true ones.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csc_matrix
-from scipy.sparse.linalg import spsolve
 
-from benchmark.conditions import sparse_cholesky
 from benchmark.conditions.odometry import wrap
-from envs.kernel_cache import njit
 
-#: the most entries the Cholesky factor of a solve's system may hold; a larger graph's solve
-#: keeps SciPy's sparse LU (SuperLU), faster there. A house's route (about 470 nodes, 1,400
-#: unknowns, 15,000 entries) factors in about a tenth of the LU's time; a robot covering a
-#: 70 x 70 lattice of nodes with closures to the row beside (14,700 unknowns, about a million
-#: entries by this order) in about 1.8 times the LU's.
-CHOLESKY_MAX_ENTRIES = 200_000
+#: the robust kernels a closure edge may carry ("none": Gaussian, plain least squares)
+KERNELS = ("none", "huber", "cauchy", "dcs", "gnc")
+
+#: Levenberg-Marquardt stops when one iteration lowers the cost by less than this share of it
+RELATIVE_TOLERANCE = 1e-6
+#: ... or by less than this (absolute, in units of the cost: half the sum of squared whitened residuals)
+ABSOLUTE_TOLERANCE = 1e-12
+
+#: iSAM2 (:func:`online`): a variable is relinearised when its update exceeds this (m and rad)
+RELINEARIZE_THRESHOLD = 0.01
+#: ... checked every this many updates (GTSAM's relinearizeSkip)
+RELINEARIZE_SKIP = 1
 
 
 @dataclass
@@ -45,6 +61,7 @@ class PoseGraph:
         i, j: (E,) int node indices of each edge (from i to j).
         z: (E, 3) measured relative poses (dx, dz metres in i's frame; dphi radians).
         sqrt_info: (E, 3, 3) square roots of the edges' information matrices.
+        robust: (E,) bool, the edges that carry the robust kernel (loop closures); None: none.
     """
 
     n: int
@@ -52,6 +69,13 @@ class PoseGraph:
     j: np.ndarray
     z: np.ndarray
     sqrt_info: np.ndarray
+    robust: np.ndarray | None = None
+
+    def robust_mask(self) -> np.ndarray:
+        """(E,) bool, :attr:`robust` or all False."""
+        if self.robust is None:
+            return np.zeros(len(self.i), bool)
+        return np.asarray(self.robust, bool).reshape(len(self.i))
 
 
 def relative(states: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -62,234 +86,243 @@ def relative(states: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     return np.column_stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1], wrap(s[j, 2] - s[i, 2])])
 
 
-def residuals(states: np.ndarray, graph: PoseGraph) -> np.ndarray:
-    """(E, 3) whitened residuals of every edge at ``states`` (module docstring)."""
-    e = relative(states, graph.i, graph.j) - graph.z
-    e[:, 2] = wrap(e[:, 2])
-    return np.einsum("eab,eb->ea", graph.sqrt_info, e)
+def check_kernel(kernel: str, width: float) -> None:
+    """One line for a kernel not in :data:`KERNELS` or a width that is not a number > 0."""
+    if kernel not in KERNELS:
+        raise ValueError(f"pose_error.robust_kernel = {kernel!r}: expected one of {', '.join(KERNELS)}")
+    ok = isinstance(width, int | float) and not isinstance(width, bool) and math.isfinite(width) and width > 0
+    if not ok:
+        raise ValueError(f"pose_error.kernel_width = {width!r}: expected a number > 0 (sigmas of a closure's "
+                         f"whitened error)")
 
 
-def _blocks(states: np.ndarray, graph: PoseGraph) -> tuple[np.ndarray, np.ndarray]:
-    """The whitened residuals' Jacobian blocks: ((E, 3, 3) with respect to node j's state,
-    (E, 3, 3) with respect to node i's)."""
+def _gtsam():
+    try:
+        import gtsam
+    except ImportError as e:  # a core dependency; a broken install says so in one line
+        raise ImportError(f"the pose-graph solve needs GTSAM ({e}); pip install 'gtsam==4.3.0' "
+                          f"(a core dependency of roomseg-bench)") from None
+    return gtsam
+
+
+def _noise(gtsam, sqrt_info: np.ndarray, kernel: str, width: float):
+    """The GTSAM noise model of one edge: Gaussian from its square-root information, under
+    ``kernel`` (``width`` sigmas: Huber's k, Cauchy's c, DCS's sqrt(phi)) unless "none" / "gnc"."""
+    base = gtsam.noiseModel.Gaussian.SqrtInformation(np.ascontiguousarray(sqrt_info, np.float64))
+    m = gtsam.noiseModel.mEstimator
+    if kernel == "huber":
+        return gtsam.noiseModel.Robust.Create(m.Huber(width), base)
+    if kernel == "cauchy":
+        return gtsam.noiseModel.Robust.Create(m.Cauchy(width), base)
+    if kernel == "dcs":
+        return gtsam.noiseModel.Robust.Create(m.DCS(width * width), base)
+    return base
+
+
+def _factors(gtsam, graph: PoseGraph, kernel: str, width: float, keep: np.ndarray | None = None):
+    """(the factor graph of ``graph``'s edges, the index in it of each robust edge's factor)."""
+    fg = gtsam.NonlinearFactorGraph()
+    robust = graph.robust_mask()
+    at = []
+    for e in range(len(graph.i)):
+        if keep is not None and not keep[e]:
+            continue
+        k = kernel if robust[e] else "none"
+        if robust[e]:
+            at.append(fg.size())
+        z = graph.z[e]
+        fg.add(gtsam.BetweenFactorPose2(int(graph.i[e]), int(graph.j[e]), gtsam.Pose2(float(z[0]), float(z[1]),
+                                                                                      float(z[2])),
+                                        _noise(gtsam, graph.sqrt_info[e], k, width)))
+    return fg, np.array(at, np.int64)
+
+
+def _values(gtsam, states: np.ndarray):
+    v = gtsam.Values()
+    for k, (x, y, t) in enumerate(np.asarray(states, np.float64).tolist()):
+        v.insert(k, gtsam.Pose2(x, y, t))
+    return v
+
+
+def _states(values, n: int) -> np.ndarray:
+    return np.array([[p.x(), p.y(), p.theta()] for p in (values.atPose2(k) for k in range(n))], np.float64)
+
+
+def _anchor(states: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """``states`` moved rigidly so that the first sits at ``start`` exactly."""
     s = np.asarray(states, np.float64)
-    i, j = graph.i, graph.j
-    e_n = len(i)
-    d = s[j, :2] - s[i, :2]
-    c, sn = np.cos(s[i, 2]), np.sin(s[i, 2])
-    rt = np.zeros((e_n, 3, 3))  # d r_raw / d state_j ; d / d state_i is -rt plus the heading term
-    rt[:, 0, 0], rt[:, 0, 1], rt[:, 1, 0], rt[:, 1, 1], rt[:, 2, 2] = c, sn, -sn, c, 1.0
-    ji = -rt.copy()
-    ji[:, 0, 2] = -sn * d[:, 0] + c * d[:, 1]
-    ji[:, 1, 2] = -c * d[:, 0] - sn * d[:, 1]
-    return np.einsum("eab,ebc->eac", graph.sqrt_info, rt), np.einsum("eab,ebc->eac", graph.sqrt_info, ji)
+    dphi = float(start[2] - s[0, 2])
+    c, sn = math.cos(dphi), math.sin(dphi)
+    d = s[:, :2] - s[0, :2]
+    out = np.empty_like(s)
+    out[:, 0] = start[0] + c * d[:, 0] - sn * d[:, 1]
+    out[:, 1] = start[1] + sn * d[:, 0] + c * d[:, 1]
+    out[:, 2] = wrap(s[:, 2] + dphi)
+    out[0] = start
+    return out
 
 
-def _block_pattern(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray]:
-    """Every entry the normal equations over nodes 1..n-1 may have, in CSC (both triangles):
-    the 3 x 3 blocks of each node with itself and with every node an edge joins it to."""
-    n = graph.n
-    own = np.arange(1, n)
-    a = np.concatenate([np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64), own])
-    b = np.concatenate([np.asarray(graph.j, np.int64), np.asarray(graph.i, np.int64), own])
-    keep = (a > 0) & (b > 0)
-    a, b = a[keep] - 1, b[keep] - 1
-    rows = 3 * a[:, None, None] + np.arange(3)[None, :, None]
-    cols = 3 * b[:, None, None] + np.arange(3)[None, None, :]
-    rows, cols = np.broadcast_arrays(rows, cols)
-    size = 3 * (n - 1)
-    m = csc_matrix((np.ones(rows.size, np.int8), (rows.ravel(), cols.ravel())), shape=(size, size))
-    m.sum_duplicates()
-    return m.indptr, m.indices
+def _prior(gtsam, start: np.ndarray):
+    """Node 0 held at ``start`` (a hard constraint: the gauge of the map's frame)."""
+    return gtsam.PriorFactorPose2(0, gtsam.Pose2(*map(float, start)), gtsam.noiseModel.Constrained.All(3))
 
 
-def _incidence(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per node, the edges that touch it in edge order: (n + 1,) offsets, the edges, and each
-    one's role (1: the node is the edge's j, 2: its i, 3: both)."""
-    i, j = np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64)
-    e = np.arange(len(i))
-    node = np.concatenate([j, i])
-    edge = np.concatenate([e, e])
-    role = np.concatenate([np.full(len(e), 1), np.full(len(e), 2)])
-    order = np.lexsort((edge, node))
-    node, edge, role = node[order], edge[order], role[order]
-    same = np.zeros(len(node), bool)  # an edge from a node to itself: one entry, both roles
-    same[1:] = (node[1:] == node[:-1]) & (edge[1:] == edge[:-1])
-    role[np.flatnonzero(same) - 1] = 3
-    node, edge, role = node[~same], edge[~same], role[~same]
-    offsets = np.searchsorted(node, np.arange(graph.n + 1)).astype(np.int64)
-    return offsets, edge.astype(np.int64), role.astype(np.int64)
+def _lm_params(gtsam, max_iterations: int):
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(max_iterations)
+    params.setRelativeErrorTol(RELATIVE_TOLERANCE)
+    params.setAbsoluteErrorTol(ABSOLUTE_TOLERANCE)
+    return params
 
 
-@njit(cache=True, nogil=True)
-def _normal_equations(bj, bi, ei, ej, r, offsets, edges, roles, n):
-    """The normal equations J^T J, J^T r of the sparse Jacobian over nodes 1..n-1 (column
-    3 (k - 1) + c: node k's state c), as SciPy forms them from the COO Jacobian (``J.T @ J`` by
-    its row-by-row product, ``J.T @ r``), sum for sum in the same order, so the values are its
-    values bit for bit: entry (k, l) adds J[rho, k] J[rho, l] over the rows rho holding both, rho
-    ascending, from 0.0; an entry that comes to exactly 0 is left out except on the diagonal
-    (kept at 0.0, where SciPy adds the damping to a missing entry).
-
-    Returns:
-        (indptr, indices, data, g, diag, at_diag): J^T J in CSC (indices ascending in each
-        column), J^T r, J^T J's diagonal and the index in ``data`` of each column's diagonal entry.
-    """
-    m = 3 * (n - 1)
-    cap = 0  # per column: at most 6 columns per edge touching the node (its two nodes), and the diagonal
-    for k in range(1, n):
-        cap += 3 * (6 * (offsets[k + 1] - offsets[k]) + 1)
-    indptr = np.zeros(m + 1, np.int32)
-    indices = np.empty(cap, np.int32)
-    data = np.empty(cap, np.float64)
-    g = np.zeros(m, np.float64)
-    diag = np.zeros(m, np.float64)
-    at_diag = np.empty(m, np.int64)
-    sums = np.zeros(m, np.float64)
-    mark = np.full(m, -1, np.int64)
-    touched = np.empty(m, np.int64)
-    w = np.empty(6, np.float64)
-    wc = np.empty(6, np.int64)
-    nnz = 0
-    for k in range(1, n):
-        for c in range(3):
-            col = 3 * (k - 1) + c
-            nt = 0
-            gsum = 0.0
-            for t in range(offsets[k], offsets[k + 1]):
-                e = edges[t]
-                role = roles[t]
-                a_node = ei[e]
-                b_node = ej[e]
-                for a in range(3):
-                    if role == 1:
-                        v = bj[e, a, c]
-                    elif role == 2:
-                        v = bi[e, a, c]
-                    else:
-                        v = bj[e, a, c] + bi[e, a, c]
-                    gsum += v * r[3 * e + a]
-                    # row 3 e + a of J: node i's and node j's columns, ascending
-                    nw = 0
-                    if a_node == b_node:
-                        if a_node > 0:
-                            for d in range(3):
-                                wc[nw] = 3 * (a_node - 1) + d
-                                w[nw] = bj[e, a, d] + bi[e, a, d]
-                                nw += 1
-                    else:
-                        first, second = (a_node, b_node) if a_node < b_node else (b_node, a_node)
-                        for node in (first, second):
-                            if node > 0:
-                                for d in range(3):
-                                    wc[nw] = 3 * (node - 1) + d
-                                    w[nw] = bi[e, a, d] if node == a_node else bj[e, a, d]
-                                    nw += 1
-                    for q in range(nw):
-                        lc = wc[q]
-                        if mark[lc] != col:
-                            mark[lc] = col
-                            sums[lc] = 0.0
-                            touched[nt] = lc
-                            nt += 1
-                        sums[lc] += v * w[q]
-            g[col] = gsum
-            # this column's entries, rows ascending (J^T J is symmetric, value for value)
-            for x in range(1, nt):
-                y = touched[x]
-                z = x - 1
-                while z >= 0 and touched[z] > y:
-                    touched[z + 1] = touched[z]
-                    z -= 1
-                touched[z + 1] = y
-            has_diag = False
-            for x in range(nt):
-                lc = touched[x]
-                if lc == col:
-                    has_diag = True
-                    diag[col] = sums[lc]
-                if sums[lc] != 0.0 or lc == col:
-                    if lc > col and not has_diag:
-                        at_diag[col] = nnz
-                        indices[nnz] = col
-                        data[nnz] = 0.0
-                        nnz += 1
-                        has_diag = True
-                    if lc == col:
-                        at_diag[col] = nnz
-                    indices[nnz] = lc
-                    data[nnz] = sums[lc]
-                    nnz += 1
-            if not has_diag:
-                at_diag[col] = nnz
-                indices[nnz] = col
-                data[nnz] = 0.0
-                nnz += 1
-            indptr[col + 1] = nnz
-    return indptr, indices[:nnz].copy(), data[:nnz].copy(), g, diag, at_diag
+def _levenberg_marquardt(gtsam, fg, values, max_iterations: int):
+    """(values, iterations, converged): GTSAM's LM on ``fg`` from ``values``, iteration by
+    iteration until the cost falls by less than the tolerances, or no damping finds a step that
+    lowers it (a minimum to rounding), or ``max_iterations`` are done (not converged)."""
+    opt = gtsam.LevenbergMarquardtOptimizer(fg, values, _lm_params(gtsam, max_iterations))
+    prev = opt.error()
+    if prev <= ABSOLUTE_TOLERANCE:
+        return opt.values(), 0, True
+    while opt.iterations() < max_iterations:
+        before = opt.iterations()
+        opt.iterate()
+        cur = opt.error()
+        if opt.iterations() == before or gtsam.checkConvergence(RELATIVE_TOLERANCE, ABSOLUTE_TOLERANCE, 0.0,
+                                                                prev, cur):
+            return opt.values(), int(opt.iterations()), True
+        prev = cur
+    return opt.values(), int(opt.iterations()), False
 
 
-def solve(graph: PoseGraph, initial: np.ndarray, max_iterations: int = 100) -> tuple[np.ndarray, dict]:
-    """Least-squares node states, node 0 held at ``initial[0]``: Levenberg-Marquardt on the
-    sparse normal equations (a sparse Cholesky factorisation of each damped system, the order
-    and pattern worked out once per solve), as g2o and GTSAM solve pose graphs.
+def solve(graph: PoseGraph, initial: np.ndarray, kernel: str = "cauchy", width: float = 3.37,
+          max_iterations: int = 1000) -> tuple[np.ndarray, dict]:
+    """The final estimate: node states minimising the (robust) cost, node 0 held at ``initial[0]``.
 
     Args:
-        graph: the edges.
-        initial: (n, 3) starting states (the odometry chain).
-        max_iterations: linear solves allowed.
+        graph: the edges (``graph.robust``: those under the kernel).
+        initial: (n, 3) starting states (the dead-reckoning chain).
+        kernel: one of :data:`KERNELS` on the robust edges (module docstring).
+        width: the kernel's constant in sigmas of a closure's whitened error (GNC: a closure
+            whose whitened error is within ``width`` is an inlier; 3.37 = sqrt of the 99 %
+            quantile of chi-square with 3 degrees of freedom).
+        max_iterations: Levenberg-Marquardt iterations allowed (GNC: per inner solve).
 
     Returns:
-        ((n, 3) states, info): ``chi2`` the final sum of squared whitened residuals, ``dof``
-        (3E - 3(n-1)), ``iterations``, ``converged`` (the last step moved no state by more than
-        1e-9 or the cost stopped falling).
+        ((n, 3) states, info): ``chi2`` the final sum of squared whitened residuals over the edges
+        kept (Gaussian: every edge; robust kernels: every edge, unweighted; GNC: the odometry and
+        the inlier closures), ``dof`` (3 x edges kept - 3 (n - 1)), ``iterations`` (the final
+        Levenberg-Marquardt solve's), ``converged`` (False when that solve was cut off at
+        ``max_iterations``, or GNC's weights did not settle at 0 / 1), ``outliers`` (robust edges
+        down-weighted: GNC weight 0, or whitened error beyond ``width`` at the answer).
     """
-    x = np.asarray(initial, np.float64).reshape(-1, 3).copy()
-    if graph.n != len(x):
-        raise ValueError(f"pose graph has {graph.n} nodes, initial states {len(x)}")
+    check_kernel(kernel, width)
+    x0 = np.asarray(initial, np.float64).reshape(-1, 3)
+    if graph.n != len(x0):
+        raise ValueError(f"pose graph has {graph.n} nodes, initial states {len(x0)}")
+    robust = graph.robust_mask()
     if graph.n < 2 or len(graph.i) == 0:
-        r = residuals(x, graph) if len(graph.i) else np.zeros((0, 3))
-        return x, {"chi2": float((r ** 2).sum()), "dof": 0, "iterations": 0, "converged": True}
-    r = residuals(x, graph)
-    cost = float((r ** 2).sum())
-    lam, converged, it = 1e-4, False, 0
-    system = None  # the normal equations at x: made again only when a step is taken
-    incidence = _incidence(graph)
-    ei, ej = np.asarray(graph.i, np.int64), np.asarray(graph.j, np.int64)
-    size = 3 * (graph.n - 1)
-    analysis = sparse_cholesky.analyse(*_block_pattern(graph), size)
-    if analysis.lp[-1] > CHOLESKY_MAX_ENTRIES:
-        analysis = None
-    while it < max_iterations:
-        it += 1
-        if system is None:
-            r = r.ravel()
-            system = _normal_equations(*_blocks(x, graph), ei, ej, r, *incidence, graph.n)
-        indptr, indices, data, g, diag, at_diag = system
-        damped = data.copy()
-        damped[at_diag] += lam * np.maximum(diag, 1e-12)  # (the damping is > 0: no entry becomes 0)
-        lx = None if analysis is None else sparse_cholesky.factor(analysis, indptr, indices, damped)
-        if lx is not None:
-            step = sparse_cholesky.solve(analysis, lx, -g)
-        else:  # a large graph, or not positive definite to rounding: the LU with pivoting copes
-            step = spsolve(csc_matrix((damped, indices, indptr), shape=(size, size)), -g)
-        trial = x.copy()
-        trial[1:] += step.reshape(-1, 3)
-        trial[:, 2] = wrap(trial[:, 2])
-        r_trial = residuals(trial, graph)
-        new = float((r_trial ** 2).sum())
-        if new <= cost:
-            done = np.abs(step).max() < 1e-9 or cost - new <= 1e-12 * max(cost, 1.0)
-            x, r, cost, lam, system = trial, r_trial, new, max(lam / 10.0, 1e-12), None
-            if done:
-                converged = True
-                break
+        return x0.copy(), {"chi2": 0.0, "dof": 0, "iterations": 0, "converged": True, "outliers": 0}
+    gtsam = _gtsam()
+    values = _values(gtsam, x0)
+    keep = np.ones(len(graph.i), bool)
+    converged = True
+    if kernel == "gnc" and robust.any():
+        fg, at = _factors(gtsam, graph, "none", width)
+        fg.add(_prior(gtsam, x0[0]))
+        params = gtsam.GncLMParams(_lm_params(gtsam, max_iterations))
+        params.setLossType(gtsam.GncLossType.TLS)
+        inliers = np.setdiff1d(np.arange(fg.size()), at)
+        params.setKnownInliers([int(k) for k in inliers])
+        gnc = gtsam.GncLMOptimizer(fg, values, params)
+        gnc.setInlierCostThresholds(0.5 * width * width)  # GTSAM's factor cost is half the squared error
+        values = gnc.optimize()
+        w = np.asarray(gnc.getWeights(), np.float64)[at]
+        converged = bool(np.all((w < 1e-4) | (w > 1 - 1e-4)))
+        keep[np.flatnonzero(robust)[w < 0.5]] = False
+        kernel = "none"
+    fg, at = _factors(gtsam, graph, kernel, width, keep)
+    fg.add(_prior(gtsam, x0[0]))
+    values, iterations, lm_ok = _levenberg_marquardt(gtsam, fg, values, max_iterations)
+    plain, _ = _factors(gtsam, graph, "none", width, keep)
+    chi2 = 2.0 * plain.error(values)
+    if kernel in ("huber", "cauchy", "dcs"):
+        per = np.array([2.0 * plain.at(int(k)).error(values) for k in at])
+        outliers = int((per > width * width).sum())
+    else:
+        outliers = int((~keep).sum())
+    states = _anchor(_states(values, graph.n), x0[0])
+    return states, {"chi2": float(chi2), "dof": int(3 * keep.sum() - 3 * (graph.n - 1)), "iterations": iterations,
+                    "converged": bool(converged and lm_ok), "outliers": outliers}
+
+
+def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str = "cauchy",
+           width: float = 3.37) -> np.ndarray:
+    """The estimate the robot had of each of ``nodes`` when it reached it: iSAM2 updated node by
+    node in travel order (node k joins with every edge whose later node is k), each node's pose
+    read right after its own update, moved rigidly like :func:`solve`'s to put node 0 at
+    ``initial[0]``.
+
+    ``kernel`` as :func:`solve`'s on the robust edges; GNC is a batch method (it needs every
+    closure at once), so online a closure under ``"gnc"`` carries its end point, the truncated
+    quadratic (GTSAM's ``TruncatedLeastSquares``, inlier bound ``width`` sigmas), as a robot
+    that rejects a closure inconsistent with its estimate at that moment.
+
+    Args:
+        graph: the edges; every edge joins two nodes, the later one determines when it is added.
+        initial: (n, 3) dead reckoning: a new node starts at its predecessor's estimate
+            composed with the dead-reckoning move.
+        nodes: (V,) node indices wanted (the views' nodes).
+
+    Returns:
+        (V, 3) states.
+    """
+    check_kernel(kernel, width)
+    x0 = np.asarray(initial, np.float64).reshape(-1, 3)
+    nodes = np.asarray(nodes, np.int64).reshape(-1)
+    if len(nodes) == 0:
+        return np.zeros((0, 3))
+    gtsam = _gtsam()
+    n = graph.n
+    later = np.maximum(graph.i, graph.j)
+    order = np.argsort(later, kind="stable")
+    bounds = np.searchsorted(later[order], np.arange(n + 1))
+    robust = graph.robust_mask()
+    if kernel == "gnc":
+        m = gtsam.noiseModel.mEstimator.TruncatedLeastSquares(width)
+    params = gtsam.ISAM2Params()
+    params.setRelinearizeThreshold(RELINEARIZE_THRESHOLD)
+    params.relinearizeSkip = RELINEARIZE_SKIP
+    isam = gtsam.ISAM2(params)
+    wanted = np.zeros(n, bool)
+    wanted[nodes] = True
+    at_node = {}
+    prev = None
+    for k in range(n):
+        fg = gtsam.NonlinearFactorGraph()
+        v = gtsam.Values()
+        if k == 0:
+            fg.add(_prior(gtsam, x0[0]))
+            guess = gtsam.Pose2(*map(float, x0[0]))
         else:
-            lam *= 10.0
-            if lam > 1e12:
-                converged = True  # no step lowers the cost: a minimum
-                break
-    return x, {"chi2": cost, "dof": int(3 * len(graph.i) - 3 * (graph.n - 1)), "iterations": it,
-               "converged": converged}
+            a, b = gtsam.Pose2(*map(float, x0[k - 1])), gtsam.Pose2(*map(float, x0[k]))
+            guess = prev.compose(a.between(b))
+        v.insert(k, guess)
+        for e in order[bounds[k]:bounds[k + 1]]:
+            z = graph.z[e]
+            if robust[e] and kernel == "gnc":
+                base = gtsam.noiseModel.Gaussian.SqrtInformation(np.ascontiguousarray(graph.sqrt_info[e]))
+                noise = gtsam.noiseModel.Robust.Create(m, base)
+            else:
+                noise = _noise(gtsam, graph.sqrt_info[e], kernel if robust[e] else "none", width)
+            fg.add(gtsam.BetweenFactorPose2(int(graph.i[e]), int(graph.j[e]),
+                                            gtsam.Pose2(float(z[0]), float(z[1]), float(z[2])), noise))
+        isam.update(fg, v)
+        prev = isam.calculateEstimatePose2(k)
+        if wanted[k]:
+            p0 = isam.calculateEstimatePose2(0)
+            at_node[k] = _anchor(np.array([[p0.x(), p0.y(), p0.theta()], [prev.x(), prev.y(), prev.theta()]]),
+                                 x0[0])[1]
+    return np.array([at_node[int(k)] for k in nodes], np.float64).reshape(-1, 3)
 
 
 def move_edge(moves: np.ndarray, sigmas: np.ndarray, floor: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
@@ -320,4 +353,4 @@ def sqrt_information(cov: np.ndarray) -> np.ndarray:
     return np.transpose(low, (0, 2, 1))
 
 
-__all__ = ["PoseGraph", "relative", "residuals", "solve", "move_edge", "sqrt_information"]
+__all__ = ["KERNELS", "PoseGraph", "relative", "check_kernel", "solve", "online", "move_edge", "sqrt_information"]

@@ -19,21 +19,23 @@ one at every view). Its estimate of where it was at each node is what a graph-SL
    A **kidnapping** (``kidnap_m``): for ``kidnap_m`` metres of route from a point drawn after
    ``closure_min_travel`` metres the robot is carried: odometry reports no move and no turn
    (with the confidence of a robot standing still); only loop closures can pull it back.
-4. **Pose-graph solve** (:mod:`benchmark.conditions.pose_graph`): odometry edges (information from the
-   motion model's covariance of the *reported* moves) and closure edges, least squares with
-   SciPy from the dead-reckoning chain, node 0 fixed at the true start (the map's frame is the
-   robot's start pose). Noisy edges leave a residual.
+4. **Pose-graph solve** (:mod:`benchmark.conditions.pose_graph`, on GTSAM): odometry edges (information
+   from the motion model's covariance of the *reported* moves, Gaussian) and closure edges under a
+   robust kernel (``robust_kernel``, default ``cauchy``: a closure whose error is many sigmas off
+   weighs little), Levenberg-Marquardt from the dead-reckoning chain run to convergence (at most
+   ``max_iterations``; a solve cut off there is recorded, ``slam_converged`` 0), node 0 fixed at the
+   true start (the map's frame is the robot's start pose). Noisy edges leave a residual.
 
-The corrected node poses are the robot's one estimate: the scan map is built by inserting each
-scan (ranges measured from the true pose) at the estimated node pose
-(:func:`envs.maps.slam_map.scan_map_at_estimate`, through ``mapping=scan``), and the views take
-the same estimate. Every alpha 0, no wrong closures and no kidnapping: the true poses unchanged,
-bit for bit.
+The corrected node poses (the final optimum) are the robot's map estimate: the scan map is built by
+inserting each scan (ranges measured from the true pose) at the estimated node pose
+(:func:`envs.maps.slam_map.scan_map_at_estimate`, through ``mapping=scan``). The views take
+``views_at``: ``online``, the estimate the robot had when it took the view (iSAM2 updated node by
+node, :func:`benchmark.conditions.pose_graph.online`), or ``final``, the same final optimum as the
+map. Every alpha 0, no wrong closures and no kidnapping: the true poses unchanged, bit for bit.
 
 Leaves out: wheel slip events and bumps (heavy-tailed odometry), a scan matcher's own failure
 modes other than the wrong closures (degenerate corridors), closures found by appearance
-beyond ``closure_radius``, and the online (incremental) nature of SLAM (the views take the final,
-smoothed estimate).
+beyond ``closure_radius``, and a map rebuilt online (the map is built at the final optimum).
 """
 
 from __future__ import annotations
@@ -58,7 +60,14 @@ from benchmark.conditions.odometry import (
     wrap,
 )
 from benchmark.conditions.pose_error import pose_error_stats
-from benchmark.conditions.pose_graph import PoseGraph, move_edge, relative, solve
+from benchmark.conditions.pose_graph import (
+    PoseGraph,
+    check_kernel,
+    move_edge,
+    online,
+    relative,
+    solve,
+)
 from envs.maps.gridmap import GridMap
 from envs.maps.trajectory import straight_clear, trajectory_with_views
 
@@ -80,6 +89,11 @@ class SlamEstimate:
         wrong: (W, 2) node pairs of the wrong ones.
         chi2: the solve's final sum of squared whitened residuals; dof its degrees of freedom.
         kidnapped_m: metres of route driven while carried (the whole moves overlapping the window).
+        converged: False when the solve was cut off at its iteration cap (or GNC's weights did not settle).
+        iterations: the final Levenberg-Marquardt solve's iterations.
+        rejected: loop closures (true or wrong) the robust back end rejected or down-weighted.
+        online: (N, 3) each view's pose as the robot estimated it when taking the view
+            (``views_at=online``), or None: the views take ``estimate``.
     """
 
     true: np.ndarray
@@ -92,11 +106,15 @@ class SlamEstimate:
     chi2: float = 0.0
     dof: int = 0
     kidnapped_m: float = 0.0
+    converged: bool = True
+    iterations: int = 0
+    rejected: int = 0
+    online: np.ndarray | None = None
 
     @property
     def views(self) -> np.ndarray:
-        """(N, 3) the views' estimated poses."""
-        return self.estimate[self.view_index]
+        """(N, 3) the views' estimated poses: :attr:`online` when set, else the final estimate's."""
+        return self.estimate[self.view_index] if self.online is None else self.online
 
     def stats(self) -> dict[str, float]:
         """Row columns: ATE RMSE after rigid alignment of the whole trajectory (metres), the same
@@ -109,7 +127,9 @@ class SlamEstimate:
                    "route_m": float(self.travelled[-1]) if len(self.travelled) else 0.0,
                    "loop_closures": int(len(self.closures)), "wrong_closures": int(len(self.wrong)),
                    "kidnapped_m": self.kidnapped_m,
-                   "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0}
+                   "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0,
+                   "slam_converged": float(bool(self.converged)), "slam_iterations": int(self.iterations),
+                   "closures_rejected": int(self.rejected)}
             self.__dict__["_stats"] = got
         return dict(got)
 
@@ -138,6 +158,12 @@ class OdometrySlam:
         wrong_min_distance: metres between the two places a wrong closure joins, at least.
         kidnap_m: metres of route the robot is carried while odometry reports nothing (a kidnapping).
         spacing: metres of path between nodes when no ``mapping`` stage sets it (the scan spacing).
+        robust_kernel: the loop closures' kernel in the solve, one of
+            :data:`benchmark.conditions.pose_graph.KERNELS` (odometry edges stay Gaussian).
+        kernel_width: sigmas of a closure's whitened error: the kernel's constant (GNC: the inlier bound).
+        max_iterations: Levenberg-Marquardt iterations allowed before the solve counts as not converged.
+        views_at: ``online`` (each view the estimate the robot had when taking it) or ``final``
+            (the final optimum, as the map).
         seed: with the house id, seeds the draws.
     """
 
@@ -146,7 +172,8 @@ class OdometrySlam:
     def __init__(self, alpha1: float = 0.0, alpha2: float = 0.0, alpha3: float = 0.0, alpha4: float = 0.0,
                  closure_radius: float = 1.0, closure_min_travel: float = 5.0, closure_sigma_xy: float = 0.02,
                  closure_sigma_yaw: float = 0.5, wrong_closures: int = 0, wrong_min_distance: float = 3.0,
-                 kidnap_m: float = 0.0, spacing: float = 0.5, seed: int = 0):
+                 kidnap_m: float = 0.0, spacing: float = 0.5, robust_kernel: str = "cauchy", kernel_width: float = 3.37,
+                 max_iterations: int = 1000, views_at: str = "online", seed: int = 0):
         for key, v in (("alpha1", alpha1), ("alpha2", alpha2), ("alpha3", alpha3), ("alpha4", alpha4),
                        ("closure_radius", closure_radius), ("closure_min_travel", closure_min_travel),
                        ("closure_sigma_xy", closure_sigma_xy), ("closure_sigma_yaw", closure_sigma_yaw),
@@ -156,6 +183,13 @@ class OdometrySlam:
         _number("spacing", spacing, positive=True)
         if isinstance(seed, bool) or not isinstance(seed, int):
             raise ValueError(f"pose_error.seed = {seed!r}: expected an integer")
+        check_kernel(robust_kernel, kernel_width)
+        if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 1:
+            raise ValueError(f"pose_error.max_iterations = {max_iterations!r}: expected an integer >= 1")
+        if views_at not in ("online", "final"):
+            raise ValueError(f"pose_error.views_at = {views_at!r}: expected online or final")
+        self.robust_kernel, self.kernel_width = str(robust_kernel), float(kernel_width)
+        self.max_iterations, self.views_at = int(max_iterations), str(views_at)
         self.alphas = (float(alpha1), float(alpha2), float(alpha3), float(alpha4))
         self.closure_radius, self.closure_min_travel = float(closure_radius), float(closure_min_travel)
         self.closure_sigma_xy, self.closure_sigma_yaw = float(closure_sigma_xy), float(closure_sigma_yaw)
@@ -221,7 +255,7 @@ class OdometrySlam:
         dead = integrate(states[0], reported)
         z, info = move_edge(reported, move_sigmas(reported, self.alphas), SIGMA_FLOOR)
         n = len(states)
-        ei, ej, ez, einfo = [np.arange(n - 1)], [np.arange(1, n)], [z], [info]
+        ei, ej, ez, einfo, robust = [np.arange(n - 1)], [np.arange(1, n)], [z], [info], [np.zeros(n - 1, bool)]
         closures = self._closures(grid, states, travelled)
         wrong = self._wrong(states, travelled, rng_wrong)
         sig = np.array([max(self.closure_sigma_xy, SIGMA_FLOOR), max(self.closure_sigma_xy, SIGMA_FLOOR),
@@ -239,13 +273,18 @@ class OdometrySlam:
             ej.append(pairs[:, 1])
             ez.append(zc)
             einfo.append(np.broadcast_to(np.diag(1.0 / sig), (len(pairs), 3, 3)))
-        chi2, dof, est = 0.0, 0, dead
+            robust.append(np.ones(len(pairs), bool))  # closures carry the robust kernel
+        chi2, dof, est, solved, views = 0.0, 0, dead, {"converged": True, "iterations": 0, "outliers": 0}, None
         if len(ei) > 1:
-            graph = PoseGraph(n, np.concatenate(ei), np.concatenate(ej), np.vstack(ez), np.concatenate(einfo))
-            est, info_ = solve(graph, dead)
-            chi2, dof = info_["chi2"], info_["dof"]
+            graph = PoseGraph(n, np.concatenate(ei), np.concatenate(ej), np.vstack(ez), np.concatenate(einfo),
+                              np.concatenate(robust))
+            est, solved = solve(graph, dead, self.robust_kernel, self.kernel_width, self.max_iterations)
+            chi2, dof = solved["chi2"], solved["dof"]
+            if self.views_at == "online":
+                views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width))
         return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
-                            float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()))
+                            float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()),
+                            bool(solved["converged"]), int(solved["iterations"]), int(solved["outliers"]), views)
 
     def _kidnap(self, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(M-1,) bool moves made while carried: ``kidnap_m`` metres of route from a point drawn

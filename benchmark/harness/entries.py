@@ -143,13 +143,15 @@ def seen_from_render(render_folder: str | Path, poses: np.ndarray) -> np.ndarray
     return true_labels(obs)
 
 
-_SLAM_ARRAYS = ("true", "estimate", "odometry", "view_index", "travelled", "closures", "wrong")
-_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m")
+_SLAM_ARRAYS = ("true", "estimate", "odometry", "view_index", "travelled", "closures", "wrong", "online")
+_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m", "converged", "iterations", "rejected")
 
 
 def slam_arrays(est) -> dict[str, np.ndarray]:
-    """A :class:`benchmark.conditions.slam.SlamEstimate` as named arrays (a cache entry)."""
-    out = {k: np.asarray(getattr(est, k)) for k in _SLAM_ARRAYS}
+    """A :class:`benchmark.conditions.slam.SlamEstimate` as named arrays (a cache entry; ``online``
+    (0, 3) when the views take the final estimate)."""
+    out = {k: np.asarray(getattr(est, k)) for k in _SLAM_ARRAYS if k != "online"}
+    out["online"] = np.zeros((0, 3)) if est.online is None else np.asarray(est.online, np.float64)
     out.update({k: np.asarray(getattr(est, k)) for k in _SLAM_SCALARS})
     return out
 
@@ -176,13 +178,15 @@ def check_slam_entry(z: Mapping[str, np.ndarray], n_views: int):
     shapes_ok = (a["true"].shape == a["estimate"].shape == a["odometry"].shape == (m, 3)
                  and a["travelled"].shape == (m,) and a["view_index"].shape == (n_views,)
                  and (n_views == 0 or 0 <= a["view_index"].min() <= a["view_index"].max() < m)
-                 and all(a[k].ndim == 2 and a[k].shape[1] == 2 for k in ("closures", "wrong")))
+                 and all(a[k].ndim == 2 and a[k].shape[1] == 2 for k in ("closures", "wrong"))
+                 and a["online"].shape in ((0, 3), (n_views, 3)))
     if not shapes_ok:
         raise BadEntry(f"true {a['true'].shape}, estimate {a['estimate'].shape}, view_index {a['view_index'].shape}: "
                        f"expected (M, 3) trajectories and one node per each of {n_views} views")
     return SlamEstimate(a["true"], a["estimate"], a["odometry"], a["view_index"].astype(np.int64), a["travelled"],
                         a["closures"].astype(np.int64), a["wrong"].astype(np.int64), float(a["chi2"]), int(a["dof"]),
-                        float(a["kidnapped_m"]))
+                        float(a["kidnapped_m"]), bool(a["converged"]), int(a["iterations"]), int(a["rejected"]),
+                        a["online"] if len(a["online"]) else None)
 
 
 __all__ = ["BadEntry", "check_labels_entry", "check_slam_entry", "slam_arrays", "check_poses", "check_render", "check_seen", "check_classified",

@@ -163,6 +163,7 @@ class RobotStages:
             walk = to_map_frame(walk.astype(np.int8), scene.grid, theta, shift, fill=0).astype(bool)
             self._frames[hid] = (inst, walk)
             info["ate_rmse_m"] = est.stats()["ate_rmse_m"]
+            info["slam_converged"] = est.stats()["slam_converged"]  # 0: the solve was cut off (no verdict rests on it)
             info["map_align_deg"], info["map_align_m"] = float(np.degrees(theta)), float(np.hypot(*shift))
         union = int((free | walk).sum())
         info.update({"map_free_iou": float((free & walk).sum() / union) if union else 1.0,
