@@ -696,6 +696,73 @@ def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
     return scan_map(obstacles, scene.grid, scans, settings), scans
 
 
+@njit(cache=True, nogil=True)
+def _ranges_kernel(obstacles, rows, cols, beams, n_beams, range_px, res, max_range_m, noise, drop, normals, grazing,
+                   graze_u, persons, out):
+    h, w = obstacles.shape
+    cap = int(np.ceil(range_px)) + 2
+    lr = np.empty(cap, np.int32)
+    lc = np.empty(cap, np.int32)
+    cos_b, sin_b = beam_headings(n_beams)
+    for m in range(rows.shape[0]):
+        r0 = rows[m]
+        c0 = cols[m]
+        if r0 < 0 or r0 >= h or c0 < 0 or c0 >= w or obstacles[r0, c0]:
+            continue
+        for t in range(beams.shape[0]):
+            b = beams[t]
+            if drop[m, b]:
+                continue
+            r1, c1 = ray_end_of(r0, c0, cos_b[b], sin_b[b], range_px)
+            n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
+            k_hit, returned = beam_return(persons, m, r0, c0, 2.0 * np.pi * b / n_beams, lr, lc, n, k_hit, normals,
+                                          grazing, graze_u[m, b])
+            if not returned or k_hit < 0:
+                continue
+            d = max(np.hypot(lr[k_hit] - r0, lc[k_hit] - c0) * res + noise[m, b], 0.0)
+            if d <= max_range_m:
+                out[m, t] = d
+
+
+def scan_ranges(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray,
+                settings: ScanSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The range readings of the scans :func:`scan_map` integrates (the same beams, walk and draws,
+    ``settings.seed``'s streams), for a scan matcher.
+
+    Args:
+        obstacles: (H, W) bool, what the scan plane hits (:func:`scan_obstacles`).
+        grid: the map's geometry.
+        scan_poses: (M, 3) x, z (metres), yaw (degrees): where each scan is taken (its true pose).
+        settings: the scanner (checked); a matcher subsamples beams with a coarser ``angular_step``.
+
+    Returns:
+        ``(ranges, headings, origins)``: (M, B) metres measured by the beams (NaN: no return,
+        i.e. dropout, grazing loss, nothing within ``max_range``, a reading past it, or a scan from
+        off the map or an obstacle cell), (B,) each beam's map heading (radians, the yaw
+        convention: 0 faces +z, pi/2 faces +x; fixed in the world as :func:`beam_headings`),
+        (M, 2) world x, z of each scan's origin (the centre of its pose's cell).
+    """
+    s = settings.check()
+    poses = np.asarray(scan_poses, np.float64).reshape(-1, 3)
+    obstacles = np.ascontiguousarray(obstacles, np.bool_)
+    if obstacles.shape != grid.shape:
+        raise ValueError(f"obstacles shape {obstacles.shape} != grid shape {grid.shape}")
+    noise_rng, drop_rng = _draw_streams(s.seed)
+    noise, drop = _beam_draws(s, noise_rng, drop_rng, len(poses))
+    graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(poses))
+    normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
+    persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(poses))
+    r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
+    beams = np.arange(s.n_beams, dtype=np.int64)
+    out = np.full((len(poses), len(beams)), np.nan)
+    _ranges_kernel(obstacles, r.astype(np.int64), c.astype(np.int64), beams, s.n_beams,
+                   _range_px(s, grid.shape, grid.resolution), grid.resolution, float(s.max_range), noise, drop,
+                   normals, float(s.grazing_dropout), graze_u, persons, out)
+    res = grid.resolution
+    origins = np.column_stack([grid.origin[0] + (c + 0.5) * res, grid.origin[1] - (r + 0.5) * res])
+    return out, 2.0 * np.pi * beams / s.n_beams, origins
+
+
 # --------------------------------------------------------------------------- slow reference
 
 
@@ -888,4 +955,4 @@ def read_scan_occupancy(path_yaml: str | Path) -> np.ndarray:
 
 __all__ = ["ScanSettings", "ScanMap", "ScanMapper", "ReferenceScanMapper", "scan_obstacles", "scan_map", "robot_scan_map",
            "scan_map_reference", "write_scan_map", "read_scan_occupancy", "house_wall_height",
-           "occupancy_from_log_odds", "logit", "DEFAULT_WALL_HEIGHT", "UNKNOWN", "FREE", "OCCUPIED"]
+           "occupancy_from_log_odds", "logit", "scan_ranges", "DEFAULT_WALL_HEIGHT", "UNKNOWN", "FREE", "OCCUPIED"]

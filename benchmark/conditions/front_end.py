@@ -1,0 +1,326 @@
+"""A lidar SLAM robot's front end: laser odometry fused with wheel odometry, and loop closures
+proposed from the robot's own estimate and accepted on the scan match.
+
+The robot has a 2D scan at every pose-graph node (:func:`envs.maps.scan.scan_ranges`: measured at
+the node's *true* pose with the front end's scanner, its range noise, dropout and max range; the
+robot knows only the ranges and its beams' angles, so the points are in its own frame). Matching is
+:mod:`benchmark.conditions.scan_matching` (correlative, Olson 2009).
+
+1. **Laser odometry.** Each move between consecutive nodes: the wheels' reported move is the
+   prior and the search centre; the window is 3 sigma of the wheels' covariance (at least
+   ``min_window_xy`` metres and ``min_window_yaw`` degrees, at most ``closure_window_xy`` and
+   ``closure_window_yaw``). Scan ``j`` is matched against scan
+   ``j - 1``; a match whose score (mean likelihood of its points, 0..1) reaches
+   ``odometry_min_score`` gives the matched relative pose (the score surface's weighted mean) with
+   its covariance (floored at ``sigma_xy`` metres, ``sigma_yaw`` degrees), fused with the wheel
+   move (the product of the two Gaussians: the sum of their information). A poorer match leaves
+   the wheel move alone. So the heading comes from the scans, as in real lidar SLAM; a carried
+   (kidnapped) robot's wheels report no move with a standing robot's confidence, which the fusion
+   keeps.
+2. **The robot's estimate**: the fused moves chained from the start (its dead reckoning), with
+   each node's covariance propagated along the chain.
+3. **Loop-closure candidates** from that estimate: node ``j`` (at least ``closure_every`` metres of
+   route after the last node that looked) and each earlier node ``i`` at least
+   ``closure_min_travel`` metres of route before it whose estimated displacement ``d = t_j - t_i``
+   passes the Mahalanobis gate ``d^T (Q_ij + r^2 I)^-1 d <= closure_gate`` (``Q_ij`` the chain's
+   covariance of j relative to i in the world frame, ``r`` = ``closure_radius``: "within r metres of
+   where I was, given how unsure I am"). The ``closure_candidates`` best (smallest gate value) are
+   matched, each in a window of 3 sigma of ``Q_ij`` (at most ``closure_window_xy`` metres,
+   ``closure_window_yaw`` degrees) around the estimated relative pose.
+4. **Acceptance**: the first candidate whose score reaches ``closure_min_score`` becomes a loop
+   closure (its matched pose and covariance, floored as above). Nothing checks the truth: two
+   identical rooms, or a long corridor, can match well at the wrong place. An accepted closure whose
+   matched relative pose is farther than :data:`WRONG_XY` metres or :data:`WRONG_YAW` degrees from
+   the true one is counted wrong (``wrong_closures``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from benchmark.conditions.odometry import wrap
+from benchmark.conditions.pose_graph import relative
+from benchmark.conditions.scan_matching import LikelihoodGrid, match
+from envs.maps.gridmap import GridMap
+from envs.maps.scan import ScanSettings, scan_ranges
+
+#: an accepted closure is wrong when its matched relative pose is this far (metres) from the true one ...
+WRONG_XY = 0.3
+#: ... or its heading this far (degrees)
+WRONG_YAW = 3.0
+
+
+@dataclass(frozen=True)
+class FrontEndSettings:
+    """The front end's settings (module docstring; units in each name's description).
+
+    Attributes:
+        max_range: metres, the scanner's range.
+        angular_step: degrees between the beams matched.
+        range_noise: metres, Gaussian sigma of a range reading.
+        dropout: share of beams returning nothing, in [0, 1).
+        resolution: metres, the matcher's grid cell and translation step.
+        sigma: metres, the smoothing of a reference point.
+        step_yaw: degrees between the headings searched.
+        min_window_xy: metres searched either side of the wheel move, at least.
+        min_window_yaw: degrees searched either side of the wheel move's heading, at least.
+        odometry_min_score: mean likelihood (0..1) a consecutive match needs to be used.
+        sigma_xy: metres, the least sigma per axis of a matched edge.
+        sigma_yaw: degrees, the least heading sigma of a matched edge.
+        scan_matching: False: wheel odometry only (the matcher still tests loop closures).
+        closure_radius: metres, the place radius of the closure gate (0: no loop closures).
+        closure_min_travel: metres of route between two nodes before they may close a loop.
+        closure_gate: the Mahalanobis gate (chi-square, 2 degrees of freedom; 9.21: 99 %).
+        closure_candidates: candidates matched per node that looks, at most.
+        closure_every: metres of route between nodes that look for a closure.
+        closure_window_xy: metres, a search's half-width per axis, at most (closures and odometry).
+        closure_window_yaw: degrees, a search's heading half-width, at most (closures and odometry).
+        closure_min_score: mean likelihood (0..1) a closure match needs to be accepted.
+    """
+
+    max_range: float = 10.0
+    angular_step: float = 2.0
+    range_noise: float = 0.0
+    dropout: float = 0.0
+    resolution: float = 0.05
+    sigma: float = 0.05
+    step_yaw: float = 0.25
+    min_window_xy: float = 0.1
+    min_window_yaw: float = 2.0
+    odometry_min_score: float = 0.5
+    sigma_xy: float = 0.02
+    sigma_yaw: float = 0.25
+    scan_matching: bool = True
+    closure_radius: float = 1.0
+    closure_min_travel: float = 5.0
+    closure_gate: float = 9.21
+    closure_candidates: int = 2
+    closure_every: float = 2.0
+    closure_window_xy: float = 1.0
+    closure_window_yaw: float = 15.0
+    closure_min_score: float = 0.5
+
+    def check(self) -> FrontEndSettings:
+        """Raise a one-line ``ValueError`` naming the first out-of-range setting
+        (``pose_error.<key> = value: expected ...``); return self."""
+        def number(v) -> bool:
+            return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+        rules = {
+            "max_range": (lambda v: number(v) and v > 0, "metres > 0"),
+            "angular_step": (lambda v: number(v) and 0 < v <= 360, "degrees, 0 < angular_step <= 360"),
+            "range_noise": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "dropout": (lambda v: number(v) and 0 <= v < 1, "a share in [0, 1)"),
+            "resolution": (lambda v: number(v) and v > 0, "metres > 0"),
+            "sigma": (lambda v: number(v) and v > 0, "metres > 0"),
+            "step_yaw": (lambda v: number(v) and 0 < v <= 10, "degrees, 0 < step_yaw <= 10"),
+            "min_window_xy": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "min_window_yaw": (lambda v: number(v) and 0 <= v <= 180, "degrees in [0, 180]"),
+            "odometry_min_score": (lambda v: number(v) and 0 <= v <= 1, "a mean likelihood in [0, 1]"),
+            "sigma_xy": (lambda v: number(v) and v > 0, "metres > 0"),
+            "sigma_yaw": (lambda v: number(v) and v > 0, "degrees > 0"),
+            "scan_matching": (lambda v: isinstance(v, bool), "true or false"),
+            "closure_radius": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "closure_min_travel": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "closure_gate": (lambda v: number(v) and v > 0, "a chi-square value > 0"),
+            "closure_candidates": (lambda v: number(v) and float(v).is_integer() and v >= 1, "an integer >= 1"),
+            "closure_every": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "closure_window_xy": (lambda v: number(v) and v > 0, "metres > 0"),
+            "closure_window_yaw": (lambda v: number(v) and 0 < v <= 180, "degrees in (0, 180]"),
+            "closure_min_score": (lambda v: number(v) and 0 <= v <= 1, "a mean likelihood in [0, 1]"),
+        }
+        for key, (ok, want) in rules.items():
+            v = getattr(self, key)
+            if not ok(v):
+                raise ValueError(f"pose_error.{key} = {v!r}: expected {want}")
+        return self
+
+
+@dataclass
+class FrontEndResult:
+    """What the front end hands the back end.
+
+    Attributes:
+        z: (M-1, 3) the odometry edges' relative poses (dx, dz metres, dphi radians).
+        sqrt_info: (M-1, 3, 3) their square-root information.
+        laser: (M-1,) bool, the moves the scan match measured (fused with the wheels).
+        dead: (M, 3) SE(2) the fused moves chained from the start.
+        closures: (C, 2) accepted closure node pairs (i, j), wrong ones included.
+        closure_z: (C, 3) their matched relative poses; closure_sqrt_info (C, 3, 3).
+        wrong: (C,) bool, the wrong ones (module docstring).
+        candidates: closure candidates matched.
+    """
+
+    z: np.ndarray
+    sqrt_info: np.ndarray
+    laser: np.ndarray
+    dead: np.ndarray
+    closures: np.ndarray
+    closure_z: np.ndarray
+    closure_sqrt_info: np.ndarray
+    wrong: np.ndarray
+    candidates: int
+
+
+def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, scanner: ScanSettings) -> list[np.ndarray]:
+    """Each node's scan as (K, 2) points in the robot's own frame (x along its heading, z to its left).
+
+    Args:
+        obstacles: (H, W) bool what the scan plane hits.
+        grid: the map's geometry.
+        true_states: (M, 3) SE(2) true node states (x, z metres, phi radians).
+        scanner: the scanner.
+    """
+    s = np.asarray(true_states, np.float64)
+    yaw_deg = np.rad2deg(np.pi / 2 - s[:, 2])
+    ranges, headings, origins = scan_ranges(obstacles, grid, np.column_stack([s[:, :2], yaw_deg]), scanner)
+    out = []
+    for m in range(len(s)):
+        ok = np.isfinite(ranges[m])
+        d = ranges[m, ok]
+        wx = origins[m, 0] + d * np.sin(headings[ok]) - s[m, 0]
+        wz = origins[m, 1] + d * np.cos(headings[ok]) - s[m, 1]
+        c, sn = math.cos(s[m, 2]), math.sin(s[m, 2])
+        out.append(np.column_stack([c * wx + sn * wz, -sn * wx + c * wz]))
+    return out
+
+
+def _floored(cov: np.ndarray, st: FrontEndSettings) -> np.ndarray:
+    return cov + np.diag([st.sigma_xy ** 2, st.sigma_xy ** 2, math.radians(st.sigma_yaw) ** 2])
+
+
+def _upper(info: np.ndarray) -> np.ndarray:
+    """Upper factor U of an information matrix (U^T U = info)."""
+    return np.linalg.cholesky(info).T
+
+
+def compose(state: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """SE(2) state moved by relative pose ``z`` (in the state's frame)."""
+    c, s = math.cos(state[2]), math.sin(state[2])
+    return np.array([state[0] + c * z[0] - s * z[1], state[1] + s * z[0] + c * z[1], float(wrap(state[2] + z[2]))])
+
+
+def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, wheel_z: np.ndarray,
+                  wheel_sqrt_info: np.ndarray, travelled: np.ndarray, st: FrontEndSettings,
+                  scan_seed: int = 0) -> FrontEndResult:
+    """The front end along one route (module docstring).
+
+    Args:
+        obstacles: (H, W) bool what the scan plane hits.
+        grid: the map's geometry.
+        true_states: (M, 3) SE(2) true node states (the scans are measured there).
+        wheel_z, wheel_sqrt_info: (M-1, 3), (M-1, 3, 3) the wheels' reported moves as edges
+            (:func:`benchmark.conditions.pose_graph.move_edge`).
+        travelled: (M,) metres of route up to each node.
+        st: the settings.
+        scan_seed: seeds the scanner's draws.
+    """
+    true_states = np.asarray(true_states, np.float64)
+    n = len(true_states)
+    scanner = ScanSettings(max_range=st.max_range, angular_step=st.angular_step, range_noise=st.range_noise,
+                           dropout=st.dropout, seed=int(scan_seed))
+    points = robot_points(obstacles, grid, true_states, scanner)
+    grids: dict[int, LikelihoodGrid] = {}
+
+    def ref(k: int) -> LikelihoodGrid:
+        if k not in grids:
+            grids[k] = LikelihoodGrid(points[k], st.resolution, st.sigma)
+        return grids[k]
+
+    step = math.radians(st.step_yaw)
+    z = np.array(wheel_z, np.float64, copy=True)
+    sqrt_info = np.array(wheel_sqrt_info, np.float64, copy=True)
+    laser = np.zeros(max(n - 1, 0), bool)
+    dead = np.empty((n, 3))
+    dead[0] = true_states[0]
+    cov = np.zeros((n, 3, 3))  # each node's covariance along the chain (node 0 exact)
+    for k in range(n - 1):
+        info_w = sqrt_info[k].T @ sqrt_info[k]
+        if st.scan_matching and len(points[k]) and len(points[k + 1]):
+            cov_w = np.linalg.inv(info_w)
+            wxy = min(max(3.0 * math.sqrt(max(cov_w[0, 0], cov_w[1, 1])), st.min_window_xy), st.closure_window_xy)
+            wt = min(max(3.0 * math.sqrt(cov_w[2, 2]), math.radians(st.min_window_yaw)),
+                     math.radians(st.closure_window_yaw))
+            m, _ = match(ref(k), points[k + 1], z[k], wxy, wt, step)
+            if m.score >= st.odometry_min_score:
+                info_l = np.linalg.inv(_floored(m.cov, st))
+                info = info_l + info_w
+                diff = z[k] - m.mean
+                diff[2] = wrap(diff[2])
+                fused = m.mean + np.linalg.solve(info, info_w @ diff)
+                fused[2] = wrap(fused[2])
+                z[k], sqrt_info[k], laser[k] = fused, _upper(info), True
+                info_w = info
+        c_k = np.linalg.inv(info_w)
+        dead[k + 1] = compose(dead[k], z[k])
+        c, s = math.cos(dead[k, 2]), math.sin(dead[k, 2])
+        dxw, dzw = dead[k + 1, 0] - dead[k, 0], dead[k + 1, 1] - dead[k, 1]
+        f = np.array([[1.0, 0.0, -dzw], [0.0, 1.0, dxw], [0.0, 0.0, 1.0]])
+        g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        cov[k + 1] = f @ cov[k] @ f.T + g @ c_k @ g.T
+    pairs, zc, infos, wrong, tried = _closures(points, ref, dead, cov, true_states, travelled, st, step)
+    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried)
+
+
+def _closures(points, ref, dead, cov, true_states, travelled, st: FrontEndSettings, step: float):
+    """Loop closures proposed from the estimate and accepted on the match (module docstring, 3-4)."""
+    pairs, zs, infos = [], [], []
+    tried = 0
+    n = len(dead)
+    last = -np.inf
+    if st.closure_radius > 0 and n > 1:
+        r2 = st.closure_radius ** 2
+        for j in range(n):
+            if travelled[j] < st.closure_min_travel or travelled[j] - last < st.closure_every or not len(points[j]):
+                continue
+            cand = np.flatnonzero(travelled <= travelled[j] - st.closure_min_travel)
+            if len(cand) == 0:
+                continue
+            last = travelled[j]
+            d = dead[j, :2] - dead[cand, :2]
+            # j's covariance relative to i, world frame: P_j - F P_i F^T (F moves i's error to j)
+            f = np.zeros((len(cand), 2, 3))
+            f[:, 0, 0] = f[:, 1, 1] = 1.0
+            f[:, 0, 2], f[:, 1, 2] = -d[:, 1], d[:, 0]
+            q_full = np.empty((len(cand), 3, 3))
+            fi = np.zeros((len(cand), 3, 3))
+            fi[:, :2] = f
+            fi[:, 2, 2] = 1.0
+            q_full = cov[j] - np.einsum("nab,nbc,ndc->nad", fi, cov[cand], fi)
+            q = q_full[:, :2, :2] + r2 * np.eye(2)
+            gate = np.einsum("na,nab,nb->n", d, np.linalg.inv(q), d)
+            ok = np.flatnonzero(gate <= st.closure_gate)
+            for t in ok[np.argsort(gate[ok], kind="stable")][: st.closure_candidates]:
+                i = int(cand[t])
+                if not len(points[i]):
+                    continue
+                tried += 1
+                centre = relative(dead, np.array([i]), np.array([j]))[0]
+                # the relative pose's uncertainty in i's frame: 3 sigma of the larger position axis
+                sd_xy = math.sqrt(max(np.linalg.eigvalsh(q_full[t, :2, :2]).max(), 0.0))
+                sd_t = math.sqrt(max(q_full[t, 2, 2], 0.0))
+                wxy = min(max(3.0 * sd_xy, st.min_window_xy), st.closure_window_xy)
+                wt = min(max(3.0 * sd_t, math.radians(st.min_window_yaw)), math.radians(st.closure_window_yaw))
+                m, _ = match(ref(i), points[j], centre, wxy, wt, step)
+                if m.score >= st.closure_min_score:
+                    pairs.append((i, j))
+                    zs.append(m.best)
+                    infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
+                    break
+    pairs = np.array(pairs, np.int64).reshape(-1, 2)
+    zs = np.array(zs, np.float64).reshape(-1, 3)
+    infos = np.array(infos, np.float64).reshape(-1, 3, 3)
+    if len(pairs):
+        truth = relative(true_states, pairs[:, 0], pairs[:, 1])
+        err_xy = np.hypot(*(truth[:, :2] - zs[:, :2]).T)
+        err_t = np.abs(wrap(truth[:, 2] - zs[:, 2]))
+        wrong = (err_xy > WRONG_XY) | (err_t > math.radians(WRONG_YAW))
+    else:
+        wrong = np.zeros(0, bool)
+    return pairs, zs, infos, wrong, tried
+
+
+__all__ = ["FrontEndResult", "FrontEndSettings", "WRONG_XY", "WRONG_YAW", "compose", "robot_points", "run_front_end"]
