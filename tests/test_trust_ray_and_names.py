@@ -90,7 +90,7 @@ def test_ray_on_one_machine_runs_as_the_docs_give_it_and_leaves_no_ray_process(t
     assert left == {}, f"Ray processes outlived the run: {left}"
     job = tmp_path / "ray" / "runs" / "default"
     summary = json.loads((job / "summary.json").read_text())
-    assert summary["executor"] == "ray" and summary["n_ok"] == 2 and summary["workers"] == 2
+    assert summary["executor"] == "ray" and summary["n_ok"] == 2
     one = _bench("run.workers=1", *args, f"run.results_dir={tmp_path / 'one'}")
     assert one.returncode == 0, one.stderr[-2000:]
     assert (job / "metrics.csv").read_bytes() == (tmp_path / "one" / "runs" / "default" / "metrics.csv").read_bytes()
