@@ -296,3 +296,32 @@ def test_a_full_disk_names_the_output_bag(full_disk, fmt, name):
     assert e.value.errno == errno.ENOSPC and e.value.filename == str(full_disk / name)
     assert str(full_disk / name) in str(e.value)
     assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]  # nothing half-written left
+
+
+@pytest.mark.slow
+def test_a_disk_that_fills_during_a_bag_segment_names_the_file(bag, tmp_path, capsys):
+    """The outputs before the bag fit, the bag does not: the line names the bag file (a bare
+    ``OSError: [Errno 28] No space left on device`` before)."""
+    args = [f"bag={bag}", "bag_options.progress=false", "figure=false", "bag_options.out_format=ros1"]
+    ref = tmp_path / "ref"
+    assert segment.main([*args, f"out={ref}"]) == 0
+    page = 4096
+    pages = {p.name: -(-p.stat().st_size // page) * page for p in ref.iterdir()}
+    before_bag, the_bag = sum(v for k, v in pages.items() if k != "segmentation.bag"), pages["segmentation.bag"]
+    assert the_bag > 8 * page  # the bag is the largest output: it cannot fit in the room left below
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({r.stderr.strip() or 'not root'})")
+    try:
+        st = os.statvfs(mnt)
+        with open(mnt / "filler", "wb") as f:
+            f.write(b"\0" * (st.f_bavail * st.f_frsize - before_bag - 4 * page))
+        capsys.readouterr()
+        assert segment.main([*args, f"out={mnt / 'out'}"]) == 2
+        line = _one_line(capsys)
+        assert "No space left on device" in line and f"{mnt}/" in line and "segmentation.bag" in line, line
+        assert sorted(p.name for p in mnt.iterdir()) == ["filler"]  # no output folder, no temporary left
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)

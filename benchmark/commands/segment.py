@@ -569,6 +569,11 @@ def segment(cfg, argv: Sequence[str] = ()) -> dict[str, Any]:
         _readable(tmp)
         _check_out(out, bool(cfg.overwrite), _inputs(cfg, map_info))
         _publish(tmp, out)
+    except OSError as e:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if e.filename and e.__cause__ is not None:  # the atomic writers chain the bare error of a full disk:
+            raise OSError(e.errno, e.strerror, e.filename) from None  # the line names the file
+        raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

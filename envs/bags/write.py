@@ -212,7 +212,7 @@ def write_segmentation_bag(path: str | Path, fmt: str, frame: str, stamp_ns: int
         if e.filename:
             raise
         # a failed write (a full disk) names no file: name the one being written
-        raise OSError(e.errno, e.strerror or str(e), str(path)) from e
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from None
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return path
