@@ -273,3 +273,39 @@ def test_bad_back_end_settings_are_one_line():
         OdometrySlam(max_iterations=0)
     with pytest.raises(ValueError, match=r"pose_error.views_at = 'later': expected online or final"):
         OdometrySlam(views_at="later")
+
+
+def test_no_robustness_verdict_rests_on_an_unconverged_solve():
+    """A house whose SLAM solve was cut off under any condition (slam_converged 0) leaves every
+    cell of the robustness tables, as a failed house does, and is named with the reason."""
+    import pandas as pd
+
+    from benchmark.reports.robustness import drop_failed_houses
+
+    rows = pd.DataFrame({
+        "house_id": ["a", "a", "b", "b", "c", "c"],
+        "corruption": ["clean", "slam", "clean", "slam", "clean", "slam"],
+        "status": ["ok", "ok", "ok", "ok", "ok", "failed"],
+        "slam_converged": [np.nan, 1.0, np.nan, 0.0, np.nan, np.nan],
+    })
+    kept, dropped = drop_failed_houses(rows)
+    assert sorted(kept["house_id"].unique()) == ["a"]
+    assert dropped == ["c", "b (SLAM solve not converged)"]
+    # a CSV read back (booleans or numbers as text) says the same
+    kept, dropped = drop_failed_houses(rows.assign(slam_converged=["", "True", "", "False", "", ""]))
+    assert dropped == ["c", "b (SLAM solve not converged)"]
+    # rows without the column (no SLAM condition) lose only the failed house
+    kept, dropped = drop_failed_houses(rows.drop(columns="slam_converged"))
+    assert dropped == ["c"] and sorted(kept["house_id"].unique()) == ["a", "b"]
+
+
+def test_the_final_views_condition_is_slam_3_with_views_at_final():
+    from omegaconf import OmegaConf
+
+    from benchmark.config import compose
+    from benchmark.reports.robustness import FAMILIES, LABELLED, defined_severities
+
+    online = OmegaConf.to_container(compose(overrides=["corruption=slam_3"]).pose_error)
+    final = OmegaConf.to_container(compose(overrides=["corruption=views_final_1"]).pose_error)
+    assert online.pop("views_at") == "online" and final.pop("views_at") == "final" and online == final
+    assert "views_final" in FAMILIES and "views_final" in LABELLED and defined_severities()["views_final"] == [1]

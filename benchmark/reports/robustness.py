@@ -43,7 +43,7 @@ from benchmark import stats
 
 #: the corruption families in table order (``clean`` is severity 0 of every family that has no
 #: severity-0 rows of its own: :func:`zero_key`).
-FAMILIES = ("scan", "pose", "slam", "explore", "classifier", "realistic", "lost", "kidnap")
+FAMILIES = ("scan", "pose", "slam", "explore", "classifier", "realistic", "lost", "kidnap", "views_final")
 #: the metrics summarised (fractions in the rows, percent in the tables); matched IoU and PQ
 #: rank methods and build mCE; the paper's IoU rewards shrinking maps and builds none.
 METRICS = ("iou", "matched_iou", "pq")
@@ -51,9 +51,10 @@ RANKED = ("matched_iou", "pq")
 #: families that combine the others: reported apart, never in mCE or the mean drop.
 COMPOSITE = ("realistic",)
 #: labelled conditions: each severity is a named situation (how many wrong loop closures, how many
-#: kidnappings), not a step of one robot's ladder: reported apart, each condition in a column of
-#: its own, never in mCE or the mean drop. They may have fewer than five severities.
-LABELLED = ("lost", "kidnap")
+#: kidnappings; ``views_final``: slam_3 with the views at the final optimum instead of at capture
+#: time), not a step of one robot's ladder: reported apart, each condition in a column of its own,
+#: never in mCE or the mean drop. They may have fewer than five severities.
+LABELLED = ("lost", "kidnap", "views_final")
 #: every family reported apart from mCE and the mean drop.
 APART = (*COMPOSITE, *LABELLED)
 #: what a family's own severity 0 is, where a run has one (its rows: ``corruption`` = the family,
@@ -71,7 +72,7 @@ SANITY = ("one_room", "gt_geometry", "grid")
 FAMILY_WORDS = {"scan": "scan map", "pose": "pose error", "slam": "SLAM (one pose estimate)",
                 "explore": "exploration budget", "classifier": "classifier noise",
                 "realistic": "realistic (all combined)", "lost": "lost robot (wrong loop closures)",
-                "kidnap": "kidnapped robot"}
+                "kidnap": "kidnapped robot", "views_final": "views at the final SLAM optimum (slam_3)"}
 
 
 def zero_key(keys: Collection[tuple[str, str, int]], method: str, family: str) -> tuple[str, str, int]:
@@ -688,9 +689,17 @@ def to_latex(table: pd.DataFrame, caption: str, label: str, decimals: int = 1) -
 
 
 def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
-    """Leave out every house that failed in any (method, condition): (rows, the houses left out)."""
-    bad = sorted(set(rows.loc[rows["status"] != "ok", "house_id"].astype(str)))
-    return rows[~rows["house_id"].astype(str).isin(bad)], bad
+    """Leave out every house that failed in any (method, condition), and every house whose SLAM
+    solve did not converge in any (``slam_converged`` 0: cut off at its iteration cap; no verdict
+    rests on an unconverged solve, and a house leaves every cell so that cells stay paired):
+    (rows, the houses left out, an unconverged one named "<house> (SLAM solve not converged)")."""
+    bad = set(rows.loc[rows["status"] != "ok", "house_id"].astype(str))
+    unconverged = set()
+    if "slam_converged" in rows:
+        flag = rows["slam_converged"].astype(str).str.strip().str.lower()
+        unconverged = set(rows.loc[flag.isin(["0", "0.0", "false"]), "house_id"].astype(str)) - bad
+    names = sorted(bad) + [f"{h} (SLAM solve not converged)" for h in sorted(unconverged)]
+    return rows[~rows["house_id"].astype(str).isin(bad | unconverged)], names
 
 
 def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None = None,
