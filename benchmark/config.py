@@ -261,7 +261,7 @@ def robot_settings(cfg) -> dict:
             continue
         amounts = IDENTITY_AMOUNTS.get(g)
         if g == "pose_error" and shapes_map({g: node}):
-            amounts = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures", "kidnap_m")
+            amounts = ("alpha1", "alpha2", "alpha3", "alpha4", "kidnap_m")
         if amounts and all(not node.get(k) for k in amounts):
             continue
         out[g] = node

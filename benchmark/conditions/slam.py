@@ -7,16 +7,17 @@ one at every view). Its estimate of where it was at each node is what a graph-SL
 1. **Odometry** (:mod:`benchmark.conditions.odometry`): the moves between consecutive nodes reported with
    the coupled rot1 / trans / rot2 noise of Probabilistic Robotics (``alpha1..alpha4``), so a
    heading error bends every later move.
-2. **Loop closures**: node ``j`` is matched to an earlier node ``i`` when the robot is back
-   within ``closure_radius`` metres of where it was (true positions), has driven at least
-   ``closure_min_travel`` metres since, and the two places see each other (the digital line
-   between them is walkable). Of the nodes within reach, the nearest is matched. The match
-   measures j's pose relative to i with Gaussian error (``closure_sigma_xy`` metres per axis,
-   ``closure_sigma_yaw`` degrees): what scan matching gives.
-3. **Wrong loop closures** (the lost robot, its own condition): ``wrong_closures`` extra matches
-   between places at least ``wrong_min_distance`` metres apart that the matcher takes for the
-   same place (relative position ~0, the true relative heading), weighted like real ones.
-   A **kidnapping** (``kidnap_m``): for ``kidnap_m`` metres of route from a point drawn after
+2. **The front end** (:mod:`benchmark.conditions.front_end`, on the correlative scan matcher of
+   :mod:`benchmark.conditions.scan_matching`): a scan at every node, measured at its true pose on the
+   route grid's non-walkable cells; laser odometry (each scan matched to the previous one around the
+   wheel move, fused with it) makes the odometry edges, so the heading comes from the scans; loop
+   closures are proposed from the robot's own estimate (a Mahalanobis gate on the chained relative
+   pose, ``closure_radius`` metres) and accepted when the match scores ``closure_min_score``.
+3. **Wrong loop closures** come from places that look alike (two identical rooms, a corridor):
+   accepted matches whose matched relative pose is off the true one
+   (:data:`benchmark.conditions.front_end.WRONG_XY` m, ``WRONG_YAW`` deg) are counted
+   (``wrong_closures``). The lost robot (``lost_k``) is a front end that accepts more loosely and
+   searches wider. A **kidnapping** (``kidnap_m``): for ``kidnap_m`` metres of route from a point drawn after
    ``closure_min_travel`` metres the robot is carried: odometry reports no move and no turn
    (with the confidence of a robot standing still); only loop closures can pull it back.
 4. **Pose-graph solve** (:mod:`benchmark.conditions.pose_graph`, on GTSAM): odometry edges (information
@@ -46,30 +47,21 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from benchmark.classifiers.noise import text_key
 from benchmark.conditions.alignment import ate_rmse
+from benchmark.conditions.front_end import FrontEndSettings, run_front_end
 from benchmark.conditions.odometry import (
     from_se2,
     increments,
-    integrate,
     move_sigmas,
     noisy_moves,
     to_se2,
-    wrap,
 )
 from benchmark.conditions.pose_error import pose_error_stats
-from benchmark.conditions.pose_graph import (
-    PoseGraph,
-    check_kernel,
-    move_edge,
-    online,
-    relative,
-    solve,
-)
+from benchmark.conditions.pose_graph import PoseGraph, check_kernel, move_edge, online, solve
 from envs.maps.gridmap import GridMap
-from envs.maps.trajectory import straight_clear, trajectory_with_views
+from envs.maps.trajectory import trajectory_with_views
 
 #: sigma floor (metres, radians) for an edge measured exactly, so its information is finite
 SIGMA_FLOOR = 1e-3
@@ -150,12 +142,8 @@ class OdometrySlam:
         alpha2: rad^2 of turn noise per m^2 driven.
         alpha3: m^2 of translation noise per m^2 driven.
         alpha4: m^2 of translation noise per rad^2 turned.
-        closure_radius: metres within which a revisit is recognised (0: no loop closures).
-        closure_min_travel: metres driven between two nodes before they may close a loop.
-        closure_sigma_xy: metres, a closure's error per axis.
-        closure_sigma_yaw: degrees, a closure's heading error.
-        wrong_closures: number of wrong loop closures (a lost robot).
-        wrong_min_distance: metres between the two places a wrong closure joins, at least.
+        **front_end: the fields of :class:`benchmark.conditions.front_end.FrontEndSettings` (the
+            scanner, the matcher, laser odometry, the closure gate and acceptance), each checked.
         kidnap_m: metres of route the robot is carried while odometry reports nothing (a kidnapping).
         spacing: metres of path between nodes when no ``mapping`` stage sets it (the scan spacing).
         robust_kernel: the loop closures' kernel in the solve, one of
@@ -167,19 +155,21 @@ class OdometrySlam:
         seed: with the house id, seeds the draws.
     """
 
-    AMOUNTS = ("alpha1", "alpha2", "alpha3", "alpha4", "wrong_closures", "kidnap_m")
+    AMOUNTS = ("alpha1", "alpha2", "alpha3", "alpha4", "kidnap_m")
+    #: the dataclass ``**front_end`` goes to (the configuration check takes its fields)
+    SETTINGS = FrontEndSettings
 
     def __init__(self, alpha1: float = 0.0, alpha2: float = 0.0, alpha3: float = 0.0, alpha4: float = 0.0,
-                 closure_radius: float = 1.0, closure_min_travel: float = 5.0, closure_sigma_xy: float = 0.02,
-                 closure_sigma_yaw: float = 0.5, wrong_closures: int = 0, wrong_min_distance: float = 3.0,
                  kidnap_m: float = 0.0, spacing: float = 0.5, robust_kernel: str = "cauchy", kernel_width: float = 3.37,
-                 max_iterations: int = 1000, views_at: str = "online", seed: int = 0):
+                 max_iterations: int = 1000, views_at: str = "online", seed: int = 0, **front_end):
         for key, v in (("alpha1", alpha1), ("alpha2", alpha2), ("alpha3", alpha3), ("alpha4", alpha4),
-                       ("closure_radius", closure_radius), ("closure_min_travel", closure_min_travel),
-                       ("closure_sigma_xy", closure_sigma_xy), ("closure_sigma_yaw", closure_sigma_yaw),
-                       ("wrong_min_distance", wrong_min_distance), ("kidnap_m", kidnap_m)):
+                       ("kidnap_m", kidnap_m)):
             _number(key, v)
-        _number("wrong_closures", wrong_closures, integer=True)
+        unknown = sorted(set(front_end) - set(FrontEndSettings.__dataclass_fields__))
+        if unknown:
+            raise ValueError(f"pose_error: unknown setting(s) {unknown}; expected the odometry settings or "
+                             f"{sorted(FrontEndSettings.__dataclass_fields__)}")
+        self.front_end = FrontEndSettings(**front_end).check()
         _number("spacing", spacing, positive=True)
         if isinstance(seed, bool) or not isinstance(seed, int):
             raise ValueError(f"pose_error.seed = {seed!r}: expected an integer")
@@ -191,17 +181,14 @@ class OdometrySlam:
         self.robust_kernel, self.kernel_width = str(robust_kernel), float(kernel_width)
         self.max_iterations, self.views_at = int(max_iterations), str(views_at)
         self.alphas = (float(alpha1), float(alpha2), float(alpha3), float(alpha4))
-        self.closure_radius, self.closure_min_travel = float(closure_radius), float(closure_min_travel)
-        self.closure_sigma_xy, self.closure_sigma_yaw = float(closure_sigma_xy), float(closure_sigma_yaw)
-        self.wrong_closures, self.wrong_min_distance = int(wrong_closures), float(wrong_min_distance)
         self.kidnap_m = float(kidnap_m)
         self.spacing, self.seed = float(spacing), seed
         self._memo: OrderedDict = OrderedDict()
 
     @property
     def is_clean(self) -> bool:
-        """True when the estimate is the truth (every alpha 0, no wrong closures)."""
-        return all(a == 0 for a in self.alphas) and self.wrong_closures == 0 and self.kidnap_m == 0
+        """True when the estimate is the truth (every alpha 0, no kidnapping): the front end is not run."""
+        return all(a == 0 for a in self.alphas) and self.kidnap_m == 0
 
     # ------------------------------------------------------------------ the estimate
     def estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None) -> SlamEstimate:
@@ -246,34 +233,26 @@ class OdometrySlam:
         if self.is_clean or len(true) < 2:
             return SlamEstimate(true, true.copy(), true.copy(), view_index, travelled, none, none)
         hk = text_key("slam", house_id)
-        rng_moves, rng_close, rng_wrong = (np.random.default_rng([self.seed, hk, k]) for k in (1, 2, 3))
+        rng_moves, rng_scan = (np.random.default_rng([self.seed, hk, k]) for k in (1, 2))
         states = to_se2(true)
         moves = increments(states)
         reported = noisy_moves(moves, self.alphas, rng_moves.standard_normal(moves.shape))
         kidnapped = self._kidnap(travelled, np.random.default_rng([self.seed, hk, 4]))
         reported[kidnapped] = 0.0  # carried: the wheels report no move, no turn
-        dead = integrate(states[0], reported)
         z, info = move_edge(reported, move_sigmas(reported, self.alphas), SIGMA_FLOOR)
         n = len(states)
-        ei, ej, ez, einfo, robust = [np.arange(n - 1)], [np.arange(1, n)], [z], [info], [np.zeros(n - 1, bool)]
-        closures = self._closures(grid, states, travelled)
-        wrong = self._wrong(states, travelled, rng_wrong)
-        sig = np.array([max(self.closure_sigma_xy, SIGMA_FLOOR), max(self.closure_sigma_xy, SIGMA_FLOOR),
-                        max(math.radians(self.closure_sigma_yaw), SIGMA_FLOOR)])
-        for pairs, rng in ((closures, rng_close), (wrong, rng_wrong)):
-            if len(pairs) == 0:
-                continue
-            zc = relative(states, pairs[:, 0], pairs[:, 1])
-            if pairs is wrong:
-                zc[:, :2] = 0.0  # the matcher takes the two places for one
-            zc = zc + rng.standard_normal(zc.shape) * np.array([self.closure_sigma_xy, self.closure_sigma_xy,
-                                                                  math.radians(self.closure_sigma_yaw)])
-            zc[:, 2] = wrap(zc[:, 2])
-            ei.append(pairs[:, 0])
-            ej.append(pairs[:, 1])
-            ez.append(zc)
-            einfo.append(np.broadcast_to(np.diag(1.0 / sig), (len(pairs), 3, 3)))
-            robust.append(np.ones(len(pairs), bool))  # closures carry the robust kernel
+        # the front end: laser odometry fused with the wheels, closures from the robot's own estimate
+        fe = run_front_end(~grid.walkable, grid, states, z, info, travelled, self.front_end,
+                           int(rng_scan.integers(2 ** 31)))
+        dead = fe.dead
+        ei, ej, ez, einfo, robust = [np.arange(n - 1)], [np.arange(1, n)], [fe.z], [fe.sqrt_info], [np.zeros(n - 1, bool)]
+        if len(fe.closures):
+            ei.append(fe.closures[:, 0])
+            ej.append(fe.closures[:, 1])
+            ez.append(fe.closure_z)
+            einfo.append(fe.closure_sqrt_info)
+            robust.append(np.ones(len(fe.closures), bool))  # closures carry the robust kernel
+        closures, wrong = fe.closures[~fe.wrong], fe.closures[fe.wrong]
         chi2, dof, est, solved, views = 0.0, 0, dead, {"converged": True, "iterations": 0, "outliers": 0}, None
         if len(ei) > 1:
             graph = PoseGraph(n, np.concatenate(ei), np.concatenate(ej), np.vstack(ez), np.concatenate(einfo),
@@ -291,46 +270,11 @@ class OdometrySlam:
         uniformly between ``closure_min_travel`` metres and the end (none when the route is shorter)."""
         out = np.zeros(len(travelled) - 1, bool)
         u = rng.random()  # drawn whatever the settings
-        if self.kidnap_m <= 0 or travelled[-1] <= self.closure_min_travel + self.kidnap_m:
+        lead = self.front_end.closure_min_travel
+        if self.kidnap_m <= 0 or travelled[-1] <= lead + self.kidnap_m:
             return out
-        start = self.closure_min_travel + u * (travelled[-1] - self.kidnap_m - self.closure_min_travel)
+        start = lead + u * (travelled[-1] - self.kidnap_m - lead)
         return (travelled[1:] > start) & (travelled[:-1] < start + self.kidnap_m)
-
-    def _closures(self, grid: GridMap, states: np.ndarray, travelled: np.ndarray) -> np.ndarray:
-        """(C, 2) node pairs (i < j) closing a loop: for each j, the nearest earlier i within
-        ``closure_radius`` m, ``closure_min_travel`` m of driving before, in sight of it."""
-        if self.closure_radius <= 0 or len(states) < 2:
-            return np.zeros((0, 2), np.int64)
-        pairs = cKDTree(states[:, :2]).query_pairs(self.closure_radius, output_type="ndarray")
-        if len(pairs) == 0:
-            return np.zeros((0, 2), np.int64)
-        pairs = np.sort(pairs, axis=1)
-        pairs = pairs[travelled[pairs[:, 1]] - travelled[pairs[:, 0]] >= self.closure_min_travel]
-        d = np.hypot(*(states[pairs[:, 1], :2] - states[pairs[:, 0], :2]).T)
-        order = np.lexsort((pairs[:, 0], d, pairs[:, 1]))  # per j: nearest, then earliest
-        rows, cols = grid.world_to_cell(states[:, 0], states[:, 1])
-        out, done = [], set()
-        for i, j in pairs[order]:
-            if j in done:
-                continue
-            if straight_clear(grid.walkable, (int(rows[i]), int(cols[i])), (int(rows[j]), int(cols[j]))):
-                out.append((i, j))
-                done.add(j)
-        return np.array(out, np.int64).reshape(-1, 2)
-
-    def _wrong(self, states: np.ndarray, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """(W, 2) node pairs a lost robot takes for one place (module docstring)."""
-        out = []
-        late = np.flatnonzero(travelled >= self.closure_min_travel)
-        for _ in range(self.wrong_closures):
-            if len(late) == 0:
-                break
-            j = int(rng.choice(late))
-            far = np.hypot(*(states[:, :2] - states[j, :2]).T) >= self.wrong_min_distance
-            cand = np.flatnonzero(far & (travelled <= travelled[j] - self.closure_min_travel))
-            if len(cand):
-                out.append((int(rng.choice(cand)), j))
-        return np.array(out, np.int64).reshape(-1, 2)
 
     # ------------------------------------------------------------------ the stage
     def __call__(self, poses: np.ndarray, grid: GridMap, house_id: str, travelled: np.ndarray | None = None,
