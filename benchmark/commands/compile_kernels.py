@@ -85,6 +85,21 @@ def _scene():
     return house, rasterise_house(house, resolution=0.1)
 
 
+def _front_end(grid, poses):
+    """The SLAM front end (scan ranges, the matcher's grid and search) along the first views' route."""
+    from benchmark.conditions.front_end import FrontEndSettings, run_front_end
+    from benchmark.conditions.odometry import increments, move_sigmas, to_se2
+    from benchmark.conditions.pose_graph import move_edge
+    from envs.maps.trajectory import trajectory_with_views
+
+    true, _ = trajectory_with_views(grid.walkable, grid, poses[:6], 0.5)
+    states = to_se2(true)
+    moves = increments(states)
+    z, info = move_edge(moves, move_sigmas(moves, (1e-4, 1e-4, 1e-4, 1e-5)), 1e-3)
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(true[:, :2], axis=0).T))])
+    return run_front_end(~grid.walkable, grid, states, z, info, travelled, FrontEndSettings(closure_min_travel=1.0))
+
+
 def stages() -> list[tuple[str, Callable[[], object]]]:
     """(name, call) per stage with a kernel, on one small generated house (7 m x 6.5 m, 0.1 m/px)."""
     from benchmark.aggregators.euclidean_knn import EuclideanKNN
@@ -123,6 +138,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
             scan_obstacles(scene, 0.25, house_wall_height(house)), grid, poses[:4], poses[:4] + [0.05, 0.0, 1.0],
             ScanSettings(range_noise=0.02, dropout=0.1, seed=1))),
         ("exploration", lambda: (Frontier(budget=3.0).explore(scene), RandomWalk(budget=3.0).generate(scene))),
+        ("scan-matching front end", lambda: _front_end(grid, poses)),
         ("route", lambda: route(grid.walkable, grid, poses[:4])),
         ("map frame", lambda: to_map_frame(scene.instances, grid, 0.01, np.array([0.05, 0.0]))),
         ("coverage", lambda: view_coverage(scene, poses, 90.0, 6.0, occluders(scene, 1.2))),
