@@ -74,7 +74,7 @@ def test_place_labels_pick_graph_knn_and_say_so(tmp_path, h, gt, capsys):
     assert "aggregator graph_knn: the views are place labels" in said
     assert segment.main([f"bag={bag}", f"gt={gt}", "gt_format=label", *QUIET, "aggregator=vision_cone",
                          f"out={cone}"]) == 0
-    assert "aggregator VisionCone (aggregator= given)" in capsys.readouterr().out
+    assert "aggregator vision_cone (aggregator= given)" in capsys.readouterr().out
     a, c = _summary(auto), _summary(cone)
     assert a["aggregator"].endswith("GraphKNN") and a["aggregator_choice"].startswith("graph_knn: the views are place")
     assert c["aggregator"].endswith("VisionCone")

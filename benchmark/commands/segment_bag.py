@@ -62,7 +62,8 @@ def choose_aggregator(cfg, kind: str, argv) -> str:
     from envs.bags.views import aggregator_for  # noqa: PLC0415
 
     if explicit(argv, "aggregator"):
-        return f"{cfg.aggregator._target_.rsplit('.', 1)[-1]} (aggregator= given)"
+        given = [str(i).partition("=")[2] for i in argv if str(i).partition("=")[0].lstrip("+") == "aggregator"]
+        return f"{given[-1] if given else cfg.aggregator._target_.rsplit('.', 1)[-1]} (aggregator= given)"
     name, why = aggregator_for(kind)
     node = compose("segment", [f"aggregator={name}"]).aggregator
     if str(node._target_) != str(cfg.aggregator._target_):
