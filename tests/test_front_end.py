@@ -250,3 +250,27 @@ def test_bad_front_end_settings_are_one_line():
         OdometrySlam(step_yaw=0)
     with pytest.raises(ValueError, match=r"^pose_error: unknown setting\(s\) \['wrong_closures'\]"):
         OdometrySlam(wrong_closures=2)
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+def test_scan_matching_holds_heading_far_better_than_the_wheels_on_a_shared_house(procthor_file):
+    from benchmark.conditions.slam import OdometrySlam
+    from benchmark.viewpoints import Autotrace
+    from envs.datasets.house_files import load_houses
+    from envs.maps.scene import rasterise_house
+
+    scene = rasterise_house(next(iter(load_houses(procthor_file, 0, 1))))
+    poses = Autotrace().generate(scene)
+    slam_3 = dict(alpha1=2e-4, alpha2=1e-4, alpha3=2e-4, alpha4=5e-5, views_at="final")
+
+    def heading_error(scan_matching: bool) -> tuple[float, float]:
+        est = OdometrySlam(**slam_3, scan_matching=scan_matching).estimate(scene.grid, poses, "0", 0.5)
+        chained = np.abs((est.odometry[:, 2] - est.true[:, 2] + 180.0) % 360.0 - 180.0).mean()
+        final = np.abs((est.estimate[:, 2] - est.true[:, 2] + 180.0) % 360.0 - 180.0).mean()
+        return chained, final
+
+    laser, wheels = heading_error(True), heading_error(False)
+    # the heading the robot chains, and the solved one: the scans measure rotation, the wheels drift
+    assert laser[0] < 0.5 * wheels[0]
+    assert laser[1] < 0.3 * wheels[1] and laser[1] < 1.5
