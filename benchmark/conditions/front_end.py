@@ -63,7 +63,8 @@ class FrontEndSettings:
         range_noise: metres, Gaussian sigma of a range reading.
         dropout: share of beams returning nothing, in [0, 1).
         resolution: metres, the matcher's grid cell and translation step.
-        sigma: metres, the smoothing of a reference point.
+        sigma: metres, the smoothing of a reference point (with range noise: ``hypot(sigma, sqrt(2) range_noise)``,
+            the spread of the difference of two noisy readings of one surface).
         step_yaw: degrees between the headings searched.
         min_window_xy: metres searched either side of the wheel move, at least.
         min_window_yaw: degrees searched either side of the wheel move's heading, at least.
@@ -224,10 +225,12 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
                            dropout=st.dropout, seed=int(scan_seed))
     points = robot_points(obstacles, grid, true_states, scanner)
     grids: dict[int, LikelihoodGrid] = {}
+    # a point's spread: the matcher's own smoothing and the range noise of both scans it compares
+    smoothing = math.hypot(st.sigma, math.sqrt(2.0) * st.range_noise)
 
     def ref(k: int) -> LikelihoodGrid:
         if k not in grids:
-            grids[k] = LikelihoodGrid(points[k], st.resolution, st.sigma)
+            grids[k] = LikelihoodGrid(points[k], st.resolution, smoothing)
         return grids[k]
 
     step = math.radians(st.step_yaw)
