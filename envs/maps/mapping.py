@@ -27,6 +27,7 @@ from envs.maps.scan import (
     house_wall_height,
     robot_scan_map,
     scan_obstacles,
+    surface_shares,
 )
 from envs.maps.scene import Scene
 from envs.maps.slam_map import scan_map_at_estimate
@@ -87,7 +88,8 @@ class ScanMapping:
             true, est, views = (np.asarray(a) for a in estimate)
             obstacles = scan_obstacles(scene, self.settings.height, wall, self.settings.legs, self.settings.leg_size)
             obstacles |= closed_doors(scene, self.settings.door_closed, self.settings.seed)
-            scan = scan_map_at_estimate(obstacles, scene.grid, true, est, self.settings)
+            surfaces = surface_shares(scene, self.settings.height) if self.settings.surface_dropout > 0 else None
+            scan = scan_map_at_estimate(obstacles, scene.grid, true, est, self.settings, surfaces)
             grid = GridMap(scan.free, scene.grid.resolution, scene.grid.origin)
             return reachable_mask(scan.free, seed_cells(grid, est[views][:, :2]))
         scan, _ = robot_scan_map(scene, poses, self.settings, wall)

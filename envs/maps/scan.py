@@ -14,6 +14,11 @@ What it models (issue #25, item 1):
   returns nothing with probability ``grazing_dropout * (1 - cos i)`` (:func:`surface_normals`).
 * **People** (``people``, ``person_radius``): discs drawn anew for every scan on unblocked cells;
   a beam meeting one first returns from it (transient hits).
+* **Surfaces that return little** (``surface_dropout``, :func:`surface_shares`): a beam whose hit
+  cell has share ``q`` (glass of a window whose hole spans the scan plane: 1; the room side of a
+  wall of a dark material: :data:`DARK_SHARE`) also returns nothing with probability
+  ``surface_dropout * q``; with grazing loss ``g`` as well, ``1 - (1 - g)(1 - surface_dropout * q)``
+  (one draw per beam).
 * **The scanner** (:class:`ScanSettings`): 360 degree scans of ``round(360 / angular_step)``
   beams evenly spread, the first along the pose's yaw, from the centre of the pose's cell.
   A beam is the digital (Bresenham) line of :mod:`envs.maps.rays` from that cell to the
@@ -122,6 +127,9 @@ class ScanSettings:
         people: people standing in the house during each scan (each scan its own draw of places,
             uniform over the cells the plane does not hit): discs that return a beam first.
         person_radius: metres, a person's radius at scan height.
+        surface_dropout: share, in [0, 1]: a beam that hits a cell of surface share ``q``
+            (:func:`surface_shares`: glass 1, dark wall material :data:`DARK_SHARE`) returns nothing
+            with probability ``surface_dropout * q`` (needs the scene's shares: ``surfaces``).
     """
 
     height: Annotated[float, SCAN_HEIGHT] = 0.25
@@ -143,6 +151,7 @@ class ScanSettings:
     grazing_dropout: float = 0.0
     people: int = 0
     person_radius: float = 0.2
+    surface_dropout: float = 0.0
 
     def check(self, names: Mapping[str, str] | None = None) -> ScanSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting; return self.
@@ -198,6 +207,8 @@ class ScanSettings:
             raise error("people", self.people, "an integer >= 0")
         if not (_finite_number(self.person_radius) and 0 < self.person_radius <= 1):
             raise error("person_radius", self.person_radius, "metres, 0 < person_radius <= 1")
+        if not (_finite_number(self.surface_dropout) and 0 <= self.surface_dropout <= 1):
+            raise error("surface_dropout", self.surface_dropout, "a share in [0, 1]")
         return self
 
     @property
@@ -288,6 +299,30 @@ def closed_doors(scene: Scene, door_closed: float, seed: int = 0) -> np.ndarray:
     return out
 
 
+#: surface share of glass (a window's pane at the scan plane): at ``surface_dropout`` 1 every beam
+#: that meets it returns nothing (it passes or reflects away; a 2D laser rarely sees clean glass).
+GLASS_SHARE = 1.0
+#: surface share of a dark wall material (:data:`envs.maps.scene.DARK_MATERIAL_WORDS`): half the
+#: glass loss. Dark paint and stone reflect a few per cent of a scanner's 905 nm light against 60-90 %
+#: for white drywall, so more of their returns fall under the detection threshold.
+DARK_SHARE = 0.5
+
+
+def surface_shares(scene: Scene, height: float) -> np.ndarray:
+    """(H, W) float64 per cell the share of beams that a surface returning little loses (times
+    ``surface_dropout``): :data:`GLASS_SHARE` on the wall cells of a window whose hole spans the
+    scan plane (bottom < ``height`` < top; ``Scene.windows``), :data:`DARK_SHARE` on the room side
+    of a dark wall (``Scene.dark_walls``), 0 elsewhere (a scene without them: all 0)."""
+    out = np.zeros(scene.grid.shape, np.float64)
+    dark = getattr(scene, "dark_walls", None)
+    if dark is not None and dark.shape == out.shape:
+        out[dark] = DARK_SHARE
+    for cells, bottom, top in (getattr(scene, "windows", None) or {}).values():
+        if bottom < height < top and len(cells):
+            out[cells[:, 0], cells[:, 1]] = GLASS_SHARE
+    return out
+
+
 def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WALL_HEIGHT, legs: bool = False,
                    leg_size: float = 0.05) -> np.ndarray:
     """What a scan plane ``height`` metres above the floor hits.
@@ -375,8 +410,9 @@ def surface_normals(obstacles: np.ndarray) -> np.ndarray:
 
 
 def _grazing_draws(settings: ScanSettings, rng, m: int) -> np.ndarray:
-    """(m, n_beams) uniform draws of the grazing dropout (zeros when it is off: nothing drawn)."""
-    if settings.grazing_dropout > 0:
+    """(m, n_beams) uniform draws of the grazing and surface dropout (zeros when both are off:
+    nothing drawn)."""
+    if settings.grazing_dropout > 0 or settings.surface_dropout > 0:
         return rng.random((m, settings.n_beams))
     return np.zeros((m, settings.n_beams))
 
@@ -398,10 +434,24 @@ def people_draws(settings: ScanSettings, rng, obstacles: np.ndarray, resolution:
 
 
 def exact_scanner(settings: ScanSettings) -> bool:
-    """True when ``settings`` draw nothing per beam (no range noise, dropout, grazing loss or
-    people): two scans from one cell then measure the same ranges, beam for beam."""
+    """True when ``settings`` draw nothing per beam (no range noise, dropout, grazing or surface
+    loss, people): two scans from one cell then measure the same ranges, beam for beam."""
     s = settings
-    return s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0 and s.people == 0
+    return (s.range_noise == 0 and s.dropout == 0 and s.grazing_dropout == 0 and s.people == 0
+            and s.surface_dropout == 0)
+
+
+def _surface_array(surfaces, settings: ScanSettings, shape: tuple[int, int]) -> np.ndarray:
+    """The kernels' per-cell surface shares: ``surfaces`` as float64 where ``surface_dropout`` is on
+    (checked: the map's shape, shares in [0, 1]), else a (1, 1) zero that is never read."""
+    if settings.surface_dropout <= 0 or surfaces is None:
+        return np.zeros((1, 1))
+    out = np.ascontiguousarray(surfaces, np.float64)
+    if out.shape != tuple(shape):
+        raise ValueError(f"surface shares shape {out.shape} != grid shape {tuple(shape)}")
+    if not (np.isfinite(out).all() and (out >= 0).all() and (out <= 1).all()):
+        raise ValueError("surface shares: expected shares in [0, 1] per cell")
+    return out
 
 
 def _draw_streams(seed: int):
@@ -495,16 +545,34 @@ def grazes(normals, r, c, theta, grazing, u):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing, u):
+def beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing, u, surfaces, surface_dropout):
     """What a beam walked from cell (r0, c0) along ``theta`` returns: ``(k, returned)``, ``k``
     the index of the line cell it returns from (a person standing in its way before the hit
     :func:`walk_beam` found at ``k_hit``, else ``k_hit``; -1: nothing within range) and
-    ``returned`` False when it grazes its hit surface and returns nothing (:func:`grazes`).
+    ``returned`` False when its hit surface loses it: ``u`` below the grazing loss g
+    (:func:`grazes`) combined with the surface loss s = ``surface_dropout`` x the cell's share in
+    ``surfaces`` as ``g + s - g s`` (either loses it; g alone where ``surface_dropout`` is 0).
     Shared by the scan mapper and the mapper at a SLAM estimate."""
     kp = person_first(persons, m, r0, c0, theta, lr, lc, n if k_hit < 0 else k_hit) if persons.shape[1] > 0 else -1
     if kp >= 0:
         return kp, True  # a person stands in the beam's way: it returns from them
-    if grazing > 0.0 and k_hit >= 0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, u):
+    if k_hit < 0:
+        return k_hit, True
+    if surface_dropout > 0.0:
+        r = lr[k_hit]
+        c = lc[k_hit]
+        g = 0.0
+        if grazing > 0.0:
+            nr = normals[r, c, 0]
+            nc = normals[r, c, 1]
+            nn = np.sqrt(nr * nr + nc * nc)
+            if nn > 0.0:
+                g = grazing * (1.0 - abs(-nr * np.cos(theta) + nc * np.sin(theta)) / nn)
+        s = surface_dropout * surfaces[r, c]
+        if u < g + s - g * s:
+            return k_hit, False
+        return k_hit, True
+    if grazing > 0.0 and grazes(normals, lr[k_hit], lc[k_hit], theta, grazing, u):
         return k_hit, False
     return k_hit, True
 
@@ -512,7 +580,7 @@ def beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing, u
 @njit(cache=True, nogil=True)
 def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noise, drop, exact,
                  l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, first_scan, last,
-                 normals, grazing, graze_u, persons):
+                 normals, grazing, graze_u, persons, surfaces, surface_dropout):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -544,9 +612,9 @@ def _scan_kernel(obstacles, rows, cols, n_beams, range_px, res, max_range_m, noi
                 extra = int(1.4143 * (noise[m, b] / res + 0.125)) + 2
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, extra, lr, lc)
             k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
-                                          graze_u[m, b])
+                                          graze_u[m, b], surfaces, surface_dropout)
             if not returned:
-                continue  # a grazing beam returned nothing
+                continue  # a grazing beam, or one on glass or a dark wall, returned nothing
             n_free = n
             end_r = -1
             end_c = -1
@@ -594,16 +662,20 @@ class ScanMapper:
         obstacles: (H, W) bool, what the scan plane hits (:func:`scan_obstacles`).
         grid: the map's geometry (resolution, origin).
         settings: scanner and mapper settings (checked here).
+        surfaces: (H, W) per-cell surface shares (:func:`surface_shares`) that
+            ``settings.surface_dropout`` scales; None: no surface loss.
 
     The range noise and dropout draws come from two generators seeded from
     ``settings.seed``: the map after ``add(a); add(b)`` equals the map after ``add(a + b)``.
     """
 
-    def __init__(self, obstacles: np.ndarray, grid: GridMap, settings: ScanSettings):
+    def __init__(self, obstacles: np.ndarray, grid: GridMap, settings: ScanSettings,
+                 surfaces: np.ndarray | None = None):
         self.settings = settings.check()
         self.obstacles = np.ascontiguousarray(obstacles, dtype=np.bool_)
         if self.obstacles.shape != grid.shape:
             raise ValueError(f"obstacles shape {self.obstacles.shape} != grid shape {grid.shape}")
+        self._surfaces = _surface_array(surfaces, settings, grid.shape)
         self.grid = grid
         self.log_odds = np.zeros(grid.shape, np.float64)
         self._state = np.full(grid.shape, -1, np.int32)
@@ -637,7 +709,8 @@ class ScanMapper:
                             _range_px(s, self.grid.shape, res), res, float(s.max_range), noise, drop, exact,
                             float(s.log_odds_hit), float(s.log_odds_miss), float(s.log_odds_min),
                             float(s.log_odds_max), self.log_odds, self._state, self._touched_r, self._touched_c,
-                            self.n_scans, self._last, self._normals, float(s.grazing_dropout), graze_u, persons)
+                            self.n_scans, self._last, self._normals, float(s.grazing_dropout), graze_u, persons,
+                            self._surfaces, float(s.surface_dropout) if self._surfaces.shape == self.grid.shape else 0.0)
         self.n_scans += int(done)
         return int(done)
 
@@ -655,7 +728,8 @@ class ScanMapper:
         return ScanMap(self.log_odds.astype(np.float32), occ, occ == FREE, self.settings, self.n_scans)
 
 
-def scan_map(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray, settings: ScanSettings) -> ScanMap:
+def scan_map(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray, settings: ScanSettings,
+             surfaces: np.ndarray | None = None) -> ScanMap:
     """Build the occupancy map 360 degree scans from ``scan_poses`` give (module docstring).
 
     Args:
@@ -664,11 +738,12 @@ def scan_map(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray, setti
         scan_poses: (M, 3) x, z (metres), yaw (degrees), in scan order (see
             :func:`envs.maps.trajectory.trajectory`).
         settings: scanner and mapper settings.
+        surfaces: per-cell surface shares (:func:`surface_shares`), or None (no surface loss).
 
     Returns:
         :class:`ScanMap` on ``grid``'s cells. Deterministic for ``settings.seed``.
     """
-    mapper = ScanMapper(obstacles, grid, settings)
+    mapper = ScanMapper(obstacles, grid, settings, surfaces)
     mapper.add(scan_poses)
     return mapper.result()
 
@@ -693,12 +768,13 @@ def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
     closed = closed_doors(scene, settings.door_closed, settings.seed)
     obstacles |= closed  # a closed door blocks beams, and the route: the robot cannot pass it
     scans = trajectory(scene.grid.walkable & ~closed, scene.grid, poses, settings.spacing)
-    return scan_map(obstacles, scene.grid, scans, settings), scans
+    surfaces = surface_shares(scene, settings.height) if settings.surface_dropout > 0 else None
+    return scan_map(obstacles, scene.grid, scans, settings, surfaces), scans
 
 
 @njit(cache=True, nogil=True)
 def _ranges_kernel(obstacles, rows, cols, beams, n_beams, range_px, res, max_range_m, noise, drop, normals, grazing,
-                   graze_u, persons, out):
+                   graze_u, persons, surfaces, surface_dropout, out):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -716,7 +792,7 @@ def _ranges_kernel(obstacles, rows, cols, beams, n_beams, range_px, res, max_ran
             r1, c1 = ray_end_of(r0, c0, cos_b[b], sin_b[b], range_px)
             n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
             k_hit, returned = beam_return(persons, m, r0, c0, 2.0 * np.pi * b / n_beams, lr, lc, n, k_hit, normals,
-                                          grazing, graze_u[m, b])
+                                          grazing, graze_u[m, b], surfaces, surface_dropout)
             if not returned or k_hit < 0:
                 continue
             d = max(np.hypot(lr[k_hit] - r0, lc[k_hit] - c0) * res + noise[m, b], 0.0)
@@ -725,7 +801,7 @@ def _ranges_kernel(obstacles, rows, cols, beams, n_beams, range_px, res, max_ran
 
 
 def scan_ranges(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray,
-                settings: ScanSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                settings: ScanSettings, surfaces: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The range readings of the scans :func:`scan_map` integrates (the same beams, walk and draws,
     ``settings.seed``'s streams), for a scan matcher.
 
@@ -734,6 +810,7 @@ def scan_ranges(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray,
         grid: the map's geometry.
         scan_poses: (M, 3) x, z (metres), yaw (degrees): where each scan is taken (its true pose).
         settings: the scanner (checked); a matcher subsamples beams with a coarser ``angular_step``.
+        surfaces: per-cell surface shares (:func:`surface_shares`), or None (no surface loss).
 
     Returns:
         ``(ranges, headings, origins)``: (M, B) metres measured by the beams (NaN: no return,
@@ -752,12 +829,14 @@ def scan_ranges(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray,
     graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(poses))
     normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
     persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(poses))
+    sf = _surface_array(surfaces, s, grid.shape)
     r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
     beams = np.arange(s.n_beams, dtype=np.int64)
     out = np.full((len(poses), len(beams)), np.nan)
     _ranges_kernel(obstacles, r.astype(np.int64), c.astype(np.int64), beams, s.n_beams,
                    _range_px(s, grid.shape, grid.resolution), grid.resolution, float(s.max_range), noise, drop,
-                   normals, float(s.grazing_dropout), graze_u, persons, out)
+                   normals, float(s.grazing_dropout), graze_u, persons, sf,
+                   float(s.surface_dropout) if sf.shape == grid.shape else 0.0, out)
     res = grid.resolution
     origins = np.column_stack([grid.origin[0] + (c + 0.5) * res, grid.origin[1] - (r + 0.5) * res])
     return out, 2.0 * np.pi * beams / s.n_beams, origins
@@ -794,10 +873,12 @@ class ReferenceScanMapper:
     line walk (:func:`_reference_line`), sets per scan and a dict of log-odds. Same inputs,
     same random draws, same map."""
 
-    def __init__(self, obstacles: np.ndarray, grid: GridMap, settings: ScanSettings):
+    def __init__(self, obstacles: np.ndarray, grid: GridMap, settings: ScanSettings,
+                 surfaces: np.ndarray | None = None):
         self.settings = settings.check()
         self.obstacles = np.asarray(obstacles, bool)
         self.grid = grid
+        self.surfaces = None if surfaces is None else np.asarray(surfaces, float).tolist()
         self.cells: dict[tuple[int, int], float] = {}
         self._noise_rng, self._drop_rng = np.random.default_rng([int(settings.seed), 1]), \
             np.random.default_rng([int(settings.seed), 2])
@@ -818,7 +899,7 @@ class ReferenceScanMapper:
         blocked = self.obstacles.tolist()
         poses = np.asarray(scan_poses, float).reshape(-1, 3)
         noise, drop = self._draws(len(poses))
-        graze_u = (self._graze_rng.random((len(poses), s.n_beams)) if s.grazing_dropout > 0
+        graze_u = (self._graze_rng.random((len(poses), s.n_beams)) if s.grazing_dropout > 0 or s.surface_dropout > 0
                    else np.zeros((len(poses), s.n_beams)))
         persons = []  # per scan: [(row, col, radius px)], centres of uniformly drawn unblocked cells
         if s.people > 0:
@@ -868,16 +949,22 @@ class ReferenceScanMapper:
                 if hit is None:  # nothing within range: free evidence up to the line's end
                     passed.update(line)
                     continue
-                if s.grazing_dropout > 0 and person is not True:
+                if (s.grazing_dropout > 0 or s.surface_dropout > 0) and person is not True:
                     hr, hc = line[hit]
-                    nr = sum(dr for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
-                             and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
-                    nc = sum(dc for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
-                             and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
-                    if nr or nc:
-                        cos_i = abs(-nr * math.cos(theta) + nc * math.sin(theta)) / math.hypot(nr, nc)
-                        if graze_u[m, b] < s.grazing_dropout * (1.0 - cos_i):
-                            continue
+                    lost = 0.0  # the chance this hit returns nothing: grazing, then glass or a dark wall
+                    if s.grazing_dropout > 0:
+                        nr = sum(dr for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
+                                 and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
+                        nc = sum(dc for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr or dc) and 0 <= hr + dr < h
+                                 and 0 <= hc + dc < w and not blocked[hr + dr][hc + dc])
+                        if nr or nc:
+                            cos_i = abs(-nr * math.cos(theta) + nc * math.sin(theta)) / math.hypot(nr, nc)
+                            lost = s.grazing_dropout * (1.0 - cos_i)
+                    if s.surface_dropout > 0 and self.surfaces is not None:
+                        q = s.surface_dropout * self.surfaces[hr][hc]
+                        lost = lost + q - lost * q
+                    if graze_u[m, b] < lost:
+                        continue
                 measured = max(dist[hit] + noise[m, b], 0.0)
                 if measured > dist[hit]:
                     px = row + 0.5 - math.cos(theta) * (measured / res)
@@ -915,9 +1002,9 @@ class ReferenceScanMapper:
 
 
 def scan_map_reference(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray,
-                       settings: ScanSettings) -> ScanMap:
+                       settings: ScanSettings, surfaces: np.ndarray | None = None) -> ScanMap:
     """Slow, obviously correct :func:`scan_map` (pure Python, its own line walk); same result."""
-    mapper = ReferenceScanMapper(obstacles, grid, settings)
+    mapper = ReferenceScanMapper(obstacles, grid, settings, surfaces)
     mapper.add(scan_poses)
     return mapper.result()
 
@@ -954,5 +1041,5 @@ def read_scan_occupancy(path_yaml: str | Path) -> np.ndarray:
 
 
 __all__ = ["ScanSettings", "ScanMap", "ScanMapper", "ReferenceScanMapper", "scan_obstacles", "scan_map", "robot_scan_map",
-           "scan_map_reference", "write_scan_map", "read_scan_occupancy", "house_wall_height",
+           "scan_map_reference", "surface_shares", "GLASS_SHARE", "DARK_SHARE", "write_scan_map", "read_scan_occupancy", "house_wall_height",
            "occupancy_from_log_odds", "logit", "scan_ranges", "DEFAULT_WALL_HEIGHT", "UNKNOWN", "FREE", "OCCUPIED"]

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
+from scipy import ndimage
 
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
@@ -30,6 +31,11 @@ RASTER_BYTES_PER_PIXEL = 100
 #: Default ``max_map_pixels``: the largest map (H x W pixels) rasterised, so that the
 #: rasterisation's arrays fit in 2 GB (20 M pixels x 100 B; at 0.05 m/px about 223 x 223 m).
 MAX_MAP_PIXELS = 2_000_000_000 // RASTER_BYTES_PER_PIXEL
+
+#: words that mark a dark wall material in a ProcTHOR wall's ``material.name`` (case ignored):
+#: DarkGranite, DarkTiles, Porcelain_Black_Mat, ... (about 4 % of the shared houses' wall sides).
+#: Dark surfaces reflect little of a laser scanner's near-infrared light and return less often.
+DARK_MATERIAL_WORDS = ("dark", "black")
 
 
 def check_max_map_pixels(value, setting: str = "max_map_pixels") -> int | None:
@@ -104,6 +110,11 @@ class Scene:
             ``metadata.agent``, or None when the house gives none.
         doors: door id -> (K, 2) int (row, col) cells its opening cut out of the wall band
             (what a closed door fills again; :func:`envs.maps.scan.closed_doors`).
+        windows: window id -> ((K, 2) int (row, col) wall-band cells over the window's hole, the
+            hole's bottom and top above the floor in metres): glass where a scan plane lies
+            between them (:func:`envs.maps.scan.surface_shares`).
+        dark_walls: (H, W) bool wall-band cells on the room side of a wall whose material is dark
+            (:data:`DARK_MATERIAL_WORDS` in its name), or None (no wall layer).
     """
 
     house_id: str
@@ -118,6 +129,8 @@ class Scene:
     object_map: np.ndarray | None = None
     start: tuple[float, float, float] | None = None
     doors: dict[str, np.ndarray] = field(default_factory=dict)
+    windows: dict[str, tuple[np.ndarray, float, float]] = field(default_factory=dict)
+    dark_walls: np.ndarray | None = None
 
     @property
     def semantic(self) -> np.ndarray:
@@ -315,6 +328,34 @@ def rasterise_house(
                     cut[sl] |= walls[sl] & band
                     walls[sl] &= ~band
         doors[str(door.get("id", k))] = np.argwhere(cut)
+    windows: dict[str, tuple[np.ndarray, float, float]] = {}
+    for k, window in enumerate(data.get("windows", []) or []):
+        hole = window.get("holePolygon") or []
+        if len(hole) < 2:
+            continue
+        t0, t1 = sorted((float(hole[0]["x"]), float(hole[-1]["x"])))
+        y0, y1 = sorted((float(hole[0].get("y", 0.0)), float(hole[-1].get("y", 0.0))))
+        glass = np.zeros((h, w), bool)
+        for key in ("wall0", "wall1"):
+            if window.get(key) in wall_seg:
+                p0, p1 = wall_seg[window[key]]
+                sl, band = _segment_band(grid0, p0, p1, half + 1.5 * resolution, (t0, t1))
+                if sl is not None:
+                    glass[sl] |= walls[sl] & band
+        windows[str(window.get("id", k))] = (np.argwhere(glass), y0, y1)
+    dark_walls = np.zeros((h, w), bool)
+    room_index = {str(r["id"]): i for i, r in enumerate(data["rooms"])}
+    for wall in data.get("walls", []) or []:
+        name = str((wall.get("material") or {}).get("name", "")) if isinstance(wall.get("material"), dict) \
+            else str(wall.get("material") or "")
+        i = room_index.get(str(wall.get("roomId")))
+        if i is None or wall.get("empty") or half <= 0 or not any(s in name.lower() for s in DARK_MATERIAL_WORDS):
+            continue
+        p0, p1 = wall_seg[wall["id"]]
+        sl, band = _segment_band(grid0, p0, p1, half)
+        if sl is not None:  # the wall cells its room's beams meet: those next to the room's floor
+            facing = ndimage.binary_dilation((rooms[sl] == i) & ~walls[sl], np.ones((3, 3), bool))
+            dark_walls[sl] |= walls[sl] & band & facing
 
     # objects
     object_map = np.full((h, w), -1, dtype=np.int32)
@@ -339,7 +380,8 @@ def rasterise_house(
     return Scene(
         house_id=hid, grid=grid, rooms=rooms, instances=instances, instance_classes=instance_classes,
         room_ids=[str(r["id"]) for r in data["rooms"]], classes=tuple(classes), walls=walls,
-        objects=objects, object_map=object_map, start=_agent_start(data), doors=doors,
+        objects=objects, object_map=object_map, start=_agent_start(data), doors=doors, windows=windows,
+        dark_walls=dark_walls,
     )
 
 

@@ -40,6 +40,7 @@ from envs.maps.scan import (
     _grazing_draws,
     _mark,
     _range_px,
+    _surface_array,
     beam_headings,
     beam_return,
     exact_scanner,
@@ -52,7 +53,7 @@ from envs.maps.scan import (
 @njit(cache=True, nogil=True)
 def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_px, res, max_range_m, noise, drop,
                      l_hit, l_miss, l_min, l_max, log_odds, state, touched_r, touched_c, normals, grazing, graze_u,
-                     persons, exact):
+                     persons, exact, surfaces, surface_dropout):
     h, w = obstacles.shape
     cap = int(np.ceil(range_px)) + 2
     lr = np.empty(cap, np.int32)
@@ -96,9 +97,9 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
                 r1, c1 = ray_end_of(r0, c0, cos_b[b], sin_b[b], range_px)
                 n, k_hit = walk_beam(obstacles, r0, c0, r1, c1, 0, lr, lc)
                 k_hit, returned = beam_return(persons, m, r0, c0, theta, lr, lc, n, k_hit, normals, grazing,
-                                              graze_u[m, b])
+                                              graze_u[m, b], surfaces, surface_dropout)
                 if not returned:
-                    continue  # a grazing beam returned nothing
+                    continue  # a grazing beam, or one on glass or a dark wall, returned nothing
                 hit = k_hit >= 0
                 d_m = 0.0
                 d_true = 0.0
@@ -156,7 +157,7 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
 
 
 def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.ndarray, est_poses: np.ndarray,
-                         settings: ScanSettings) -> ScanMap:
+                         settings: ScanSettings, surfaces: np.ndarray | None = None) -> ScanMap:
     """The occupancy map of scans measured at ``true_poses`` and inserted at ``est_poses``.
 
     Args:
@@ -166,6 +167,8 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
         est_poses: (M, 3) the same scans' estimated poses (same units, same order).
         settings: scanner and mapper settings (the draws follow ``settings.seed`` as in
             :func:`envs.maps.scan.scan_map`).
+        surfaces: per-cell surface shares (:func:`envs.maps.scan.surface_shares`) that
+            ``settings.surface_dropout`` scales, or None (no surface loss).
 
     Returns:
         :class:`envs.maps.scan.ScanMap` on ``grid``'s cells, in the estimate's frame.
@@ -183,6 +186,7 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
     graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(true))
     normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
     persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(true))
+    sf = _surface_array(surfaces, s, grid.shape)
     r, c = grid.world_to_cell(true[:, 0], true[:, 1])
     er, ec = grid.world_to_cell(est[:, 0], est[:, 1])
     dyaw = np.deg2rad(est[:, 2] - true[:, 2])
@@ -194,7 +198,8 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
                             grid.resolution, float(s.max_range), noise, drop, float(s.log_odds_hit),
                             float(s.log_odds_miss), float(s.log_odds_min), float(s.log_odds_max), log_odds, state,
                             np.empty(size, np.int32), np.empty(size, np.int32), normals,
-                            float(s.grazing_dropout), graze_u, persons, exact_scanner(s))
+                            float(s.grazing_dropout), graze_u, persons, exact_scanner(s), sf,
+                            float(s.surface_dropout) if sf.shape == grid.shape else 0.0)
     occ = occupancy_from_log_odds(log_odds, s)
     return ScanMap(log_odds.astype(np.float32), occ, occ == FREE, s, int(done))
 
