@@ -20,12 +20,12 @@ metres: x forward along the heading, z to its left, as :mod:`benchmark.condition
    whole grid cells from the centre. The score of a pose is
    ``L = sum over b's points of grid[cell of (R(z_theta) p + z_xy)]``, a point's cell taken once per
    heading at the window centre (``floor``) and shifted by ``(i, j)`` cells.
-3. **Branch and bound** (Olson's multi-resolution search, exact): the window is cut into blocks
-   of :data:`BLOCK` x :data:`BLOCK` translations; a block's bound uses a grid whose cell holds the
-   maximum over the block's cells (never below any pose's score in the block). Blocks are
-   evaluated pose by pose from the highest bound down until no bound beats the best score found:
-   the best pose is the exhaustive search's (``exhaustive=True`` evaluates every pose, for the
-   tests).
+3. **Branch and bound** (Olson's multi-resolution search, exact): a window wider than :data:`SMALL`
+   translations a side is cut into blocks of 16 x 16 translations, each cut into blocks of 4 x 4;
+   a block's bound reads a grid whose cell holds the maximum over the block's cells (never below
+   any pose's score in the block). Blocks are visited from the highest bound down, level by level,
+   until no bound beats the best score found: the best pose is the exhaustive search's
+   (``exhaustive=True`` visits every block, for the tests). A small window is scored pose by pose.
 4. **Answer** (:class:`Match`): the best pose and its score ``L``; ``score`` the mean ``g`` of ``b``'s
    points there (0..1, what acceptance thresholds are stated on); the mean and covariance of the
    poses evaluated, each weighted ``exp(L - L_best)`` (Olson's eq. 15; poses left unevaluated by the
@@ -47,8 +47,8 @@ from envs.kernel_cache import njit
 
 #: outlier share of a point's likelihood: a point landing nowhere costs log(EPS), not -inf
 EPS = 0.05
-#: translations per block side in the branch-and-bound search
-BLOCK = 4
+#: translations per side of a window searched pose by pose (no bound): small windows
+SMALL = 8
 
 
 @dataclass(frozen=True)
@@ -74,13 +74,9 @@ class Match:
 
 @njit(cache=True, nogil=True)
 def _rasterise(points, x0, y0, res, sigma, h, w, eps):
-    """(h, w) log-likelihood grid of ``points`` (module docstring, step 1) and its block-max grid:
-    ``pooled[r + BLOCK - 1, c + BLOCK - 1]`` is the maximum of ``grid`` over rows ``r .. r + BLOCK - 1``
-    and columns ``c .. c + BLOCK - 1`` (cells off the grid count as ``log(eps)``). Only the cells
-    within ``3 sigma`` of a point are computed; every other cell is ``log(eps)``."""
-    low = np.log(eps)
-    grid = np.full((h, w), low)
-    pooled = np.full((h + 3, w + 3), low)  # BLOCK = 4
+    """(h, w) log-likelihood grid of ``points`` (module docstring, step 1): only the cells within
+    ``3 sigma`` of a point are computed; every other cell is ``log(eps)``."""
+    grid = np.full((h, w), np.log(eps))
     rad = int(np.ceil(3.0 * sigma / res))
     cut = 9.0 * sigma * sigma
     for p in range(points.shape[0]):
@@ -97,12 +93,35 @@ def _rasterise(points, x0, y0, res, sigma, h, w, eps):
                     v = np.log(eps + (1.0 - eps) * np.exp(-d2 / (2.0 * sigma * sigma)))
                     if v > grid[r, c]:
                         grid[r, c] = v
-                        # the blocks whose first cell is within 3 cells before (r, c) hold it
-                        for a in range(4):
-                            for b in range(4):
-                                if v > pooled[r + a, c + b]:
-                                    pooled[r + a, c + b] = v
-    return grid, pooled
+    return grid
+
+
+@njit(cache=True, nogil=True)
+def _pool(src, pad, stride, low):
+    """Block maxima: ``out[R, C]`` is the maximum of ``src[R - a, C - b]`` over ``a, b`` in
+    ``0, stride, 2 stride, 3 stride`` (entries off ``src`` count as ``low``); ``out`` is ``src``'s shape
+    plus ``pad`` = 3 ``stride`` rows and columns. From the grid with stride 1: the maximum over the
+    4 x 4 cells ending at (R, C); from that with stride 4: over the 16 x 16 cells ending there."""
+    h, w = src.shape
+    rows = np.full((h + pad, w), low)
+    for r in range(h + pad):
+        for c in range(w):
+            m = low
+            for a in range(4):
+                rr = r - a * stride
+                if 0 <= rr < h and src[rr, c] > m:
+                    m = src[rr, c]
+            rows[r, c] = m
+    out = np.full((h + pad, w + pad), low)
+    for r in range(h + pad):
+        for c in range(w + pad):
+            m = low
+            for b in range(4):
+                cc = c - b * stride
+                if 0 <= cc < w and rows[r, cc] > m:
+                    m = rows[r, cc]
+            out[r, c] = m
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -163,69 +182,102 @@ def _cells(points, ct, st, cx, cy, x0, y0, res, rows, cols):
         cols[p] = int(np.floor((x - x0) / res))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _bound(pooled, rows, cols, dr, dc, low):
+    """Sum over the points of ``pooled`` at each point's cell shifted by (dr, dc) (``low`` off it)."""
+    h, w = pooled.shape
+    s = 0.0
+    for p in range(rows.shape[0]):
+        r = rows[p] + dr
+        c = cols[p] + dc
+        if 0 <= r < h and 0 <= c < w:
+            s += pooled[r, c]
+        else:
+            s += low
+    return s
+
+
 @njit(cache=True, nogil=True)
-def _search(grid, pooled, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, exhaustive, low, out):
-    """The branch-and-bound search (module docstring, steps 2-3). ``out`` (n_theta, 2 kx + 1, 2 kx + 1)
-    receives the score of every evaluated pose (others stay -inf). Returns (best k, i, j, L, evaluated)
-    as indices into ``out``."""
-    h, w = grid.shape
+def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bounded, exhaustive, low, out):
+    """The search (module docstring, steps 2-3). ``out`` (n_theta, 2 kx + 1, 2 kx + 1) receives the
+    score of every evaluated pose (others stay -inf). ``bounded``: branch and bound over blocks of
+    16 x 16 translations (bounds from ``p16``), then 4 x 4 (``p4``), then poses, each level visited from
+    the highest bound down while a bound can beat the best (``exhaustive``: every block); else every
+    pose in turn. Returns (best k, i, j, L, evaluated) as indices into ``out``; ties go to the lowest
+    (k, i, j)."""
     n = points.shape[0]
     nt = 2 * kt + 1
     nx = 2 * kx + 1
-    nb = (nx + 3) // 4  # blocks per side (BLOCK = 4)
     rows = np.empty(n, np.int64)
     cols = np.empty(n, np.int64)
-    bounds = np.empty(nt * nb * nb, np.float64)
-    for k in range(nt):
-        th = ctheta + (k - kt) * step
-        _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
-        for bi in range(nb):
-            for bj in range(nb):
-                s = 0.0
-                for p in range(n):
-                    r = rows[p] + bj * 4 - kx + 3  # pooled's index of the block's first cell (j: rows)
-                    c = cols[p] + bi * 4 - kx + 3  # (i: columns)
-                    if 0 <= r < h + 3 and 0 <= c < w + 3:
-                        s += pooled[r, c]
-                    else:
-                        s += low
-                bounds[(k * nb + bi) * nb + bj] = s
-    order = np.argsort(-bounds, kind="mergesort")
     best = -np.inf
     bk = 0
     bi_ = 0
     bj_ = 0
     evaluated = 0
+    if not bounded:
+        for k in range(nt):
+            th = ctheta + (k - kt) * step
+            _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
+            for i in range(nx):
+                for j in range(nx):
+                    s = _bound(grid, rows, cols, j - kx, i - kx, low)
+                    out[k, i, j] = s
+                    evaluated += 1
+                    if s > best:
+                        best = s
+                        bk = k
+                        bi_ = i
+                        bj_ = j
+        return bk, bi_, bj_, best, evaluated
+    n16 = (nx + 15) // 16  # 16-blocks per side
+    n4 = (nx + 3) // 4  # 4-blocks per side
+    top = np.empty(nt * n16 * n16, np.float64)
+    for k in range(nt):
+        th = ctheta + (k - kt) * step
+        _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
+        for a in range(n16):
+            for b in range(n16):
+                # p16's index of the block's first cell: + 15 (j: rows, i: columns)
+                top[(k * n16 + a) * n16 + b] = _bound(p16, rows, cols, b * 16 - kx + 15, a * 16 - kx + 15, low)
+    order = np.argsort(-top, kind="mergesort")
+    mid = np.empty(16, np.float64)
+    mid_i = np.empty(16, np.int64)
+    mid_j = np.empty(16, np.int64)
     last_k = -1
     for o in range(order.shape[0]):
         q = order[o]
-        if not exhaustive and bounds[q] < best:
+        if not exhaustive and top[q] < best:
             break
-        k = q // (nb * nb)
-        bi = (q // nb) % nb
-        bj = q % nb
+        k = q // (n16 * n16)
+        a = (q // n16) % n16
+        b = q % n16
         if k != last_k:
             th = ctheta + (k - kt) * step
             _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
             last_k = k
-        for i in range(bi * 4, min(bi * 4 + 4, nx)):
-            for j in range(bj * 4, min(bj * 4 + 4, nx)):
-                s = 0.0
-                for p in range(n):
-                    r = rows[p] + j - kx
-                    c = cols[p] + i - kx
-                    if 0 <= r < h and 0 <= c < w:
-                        s += grid[r, c]
-                    else:
-                        s += low
-                out[k, i, j] = s
-                evaluated += 1
-                # ties: the lowest (k, i, j), whatever the order blocks are visited in
-                if s > best or (s == best and (k, i, j) < (bk, bi_, bj_)):
-                    best = s
-                    bk = k
-                    bi_ = i
-                    bj_ = j
+        m = 0
+        for bi in range(a * 4, min(a * 4 + 4, n4)):
+            for bj in range(b * 4, min(b * 4 + 4, n4)):
+                mid[m] = _bound(p4, rows, cols, bj * 4 - kx + 3, bi * 4 - kx + 3, low)
+                mid_i[m] = bi
+                mid_j[m] = bj
+                m += 1
+        sub = np.argsort(-mid[:m], kind="mergesort")
+        for t in range(m):
+            u = sub[t]
+            if not exhaustive and mid[u] < best:
+                break
+            for i in range(mid_i[u] * 4, min(mid_i[u] * 4 + 4, nx)):
+                for j in range(mid_j[u] * 4, min(mid_j[u] * 4 + 4, nx)):
+                    s = _bound(grid, rows, cols, j - kx, i - kx, low)
+                    out[k, i, j] = s
+                    evaluated += 1
+                    if s > best or (s == best and (k, i, j) < (bk, bi_, bj_)):
+                        best = s
+                        bk = k
+                        bi_ = i
+                        bj_ = j
     return bk, bi_, bj_, best, evaluated
 
 
@@ -246,8 +298,16 @@ class LikelihoodGrid:
         hi = pts.max(axis=0) + margin if len(pts) else np.ones(2)
         self.x0, self.y0 = float(lo[0]), float(lo[1])
         w, h = (int(math.ceil(v)) for v in (hi - lo) / self.resolution)
-        self.grid, self.pooled = _rasterise(pts, self.x0, self.y0, self.resolution, self.sigma, max(h, 1), max(w, 1),
-                                            EPS)
+        self.grid = _rasterise(pts, self.x0, self.y0, self.resolution, self.sigma, max(h, 1), max(w, 1), EPS)
+        self._pools: tuple[np.ndarray, np.ndarray] | None = None
+
+    def pools(self) -> tuple[np.ndarray, np.ndarray]:
+        """The block maxima over 4 x 4 and 16 x 16 cells the branch and bound reads (made on first use)."""
+        if self._pools is None:
+            low = math.log(EPS)
+            p4 = _pool(self.grid, 3, 1, low)
+            self._pools = (p4, _pool(p4, 12, 4, low))
+        return self._pools
 
 
 def match(ref: LikelihoodGrid, points: np.ndarray, centre, window_xy: float, window_theta: float, step: float,
@@ -274,7 +334,9 @@ def match(ref: LikelihoodGrid, points: np.ndarray, centre, window_xy: float, win
     cx, cy, ct = (float(v) for v in centre)
     out = np.full((2 * kt + 1, 2 * kx + 1, 2 * kx + 1), -np.inf)
     low = math.log(EPS)
-    k, i, j, best, n = _search(ref.grid, ref.pooled, ref.x0, ref.y0, res, pts, cx, cy, ct, kx, kt, float(step),
+    bounded = 2 * kx + 1 > SMALL
+    p4, p16 = ref.pools() if bounded else (ref.grid, ref.grid)
+    k, i, j, best, n = _search(ref.grid, p4, p16, ref.x0, ref.y0, res, pts, cx, cy, ct, kx, kt, float(step), bounded,
                                bool(exhaustive), low, out)
     mean, cov = _moments(out, best, cx, cy, ct, kx, kt, res, float(step))
     bp = np.array([cx + (i - kx) * res, cy + (j - kx) * res, ct + (k - kt) * step])
@@ -290,4 +352,4 @@ def mean_likelihood(ref: LikelihoodGrid, points: np.ndarray, pose) -> float:
                          float(pose[2]), EPS))
 
 
-__all__ = ["BLOCK", "EPS", "LikelihoodGrid", "Match", "match", "mean_likelihood"]
+__all__ = ["EPS", "SMALL", "LikelihoodGrid", "Match", "match", "mean_likelihood"]
