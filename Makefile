@@ -170,12 +170,13 @@ install-sizes-publish: setup-test  ## .venv's size by install step (core, docs, 
 # fails when it writes other numbers); the measured ones (timings, memory, sizes) are written by
 # the *-publish targets: perf, scaling, scaling-10k, segment-memory, compile, install-sizes, bench, robustness,
 # robustness-timing
-docs-numbers: setup  ## the numbers the docs include -> results/published/: autotrace coverage, the default confusion matrix, robot coverage, SLAM levels, map calibration, house statistics, clutter tables, tables examples, SeLRoS Table V, leaderboard, objects accuracy, sensitivity (ROSE2=<checkout> adds ROSE²)
+docs-numbers: setup  ## the numbers the docs include -> results/published/: autotrace coverage, the default confusion matrix, robot coverage, SLAM levels, map calibration, the scanner fitted to real logs, house statistics, clutter tables, tables examples, SeLRoS Table V, leaderboard, objects accuracy, sensitivity (ROSE2=<checkout> adds ROSE²)
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.robot_coverage --n 20 --out results/published/robot_coverage.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.coverage --range 0:150 --out results/published/coverage.md
 	$(PY) -m benchmark.commands.view_confusion --markdown results/published/oracle_confusion.md classifier=objects env.seed_start=1000 env.n_houses=50 run.progress=false
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.maintainer.slam_levels --n 10 --out results/published/slam_levels.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.map_stats --calibrate --n 5 --out results/published/map_calibration.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.calibrate --out results/published/calibration.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.house_stats --synthetic 500 --out results/published/house_stats.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.clutter_tables --offices 7 --houses 40 --out results/published/clutter_tables.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.tables_examples --small 2 --large 3 --houses 4 --out results/published/tables_examples.md
