@@ -181,7 +181,7 @@ def test_the_report_and_the_published_blocks_expect_the_same_severities(tmp_path
     assert expected["scan"] == [1, 2, 3, 4, 5] and expected["explore"] == [0, 1, 2, 3, 4, 5]
     section = _robustness_section([f], [(None, None, load_rows([f]))])
     assert GONE_LINE.replace("(", "").replace(")", "") in section.replace("(", "").replace(")", "")
-    assert ">scan map</th>" not in section and ">pose error</th>" in section
+    assert ">scan map</th>" not in section and ">views-only pose noise, perfect map (ablation)</th>" in section
     # a sweep record that asked for scan 1..3 only: then 1..3 is the whole family
     (tmp_path / "run" / "multirun.yaml").write_text(json.dumps(
         {"hydra": {"overrides": {"task": []}, "sweeper": {"params": {

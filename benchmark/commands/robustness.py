@@ -111,7 +111,8 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     md = ["# Robustness to robot conditions", "",
           f"Matched IoU and PQ rank the methods; the paper's IoU is shown beside them but builds no mCE (it "
           f"rewards maps that shrink). Corruption error (CE), relative CE and their means over the families "
-          f"(mCE, rel mCE; `realistic`, the combination of the others, is reported apart and in neither) are "
+          f"(mCE, rel mCE; `realistic`, the combination of the others, is reported apart and in neither, and so is "
+          f"the ablation `pose`, views-only pose noise on a perfect map, which no robot has) are "
           f"relative to {ref_words}: 100 = as robust as it, lower is better; relative CE subtracts each "
           f"method's clean error, so clean accuracy cancels. Error = 100 - metric; drop = clean - mean over "
           f"the family's severities. Metrics in percent, mean over houses with its 95 % interval "

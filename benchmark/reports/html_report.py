@@ -482,6 +482,8 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
            "the mean"
            + ("; the labelled conditions <code>lost</code> and <code>kidnap</code> (each severity a situation of "
               "its own) apart too" if rows["corruption"].astype(str).isin(rb.LABELLED).any() else "")
+           + ("; the ablation <code>pose</code> (views-only pose noise on a perfect map, which no robot has) apart "
+              "too" if rows["corruption"].astype(str).isin(rb.ABLATION).any() else "")
            + ") and the mean drop from the clean score"
            + (" (from a family's own severity 0 where the run has one: named below)"
               if ((rows["corruption"].astype(str) != "clean") & (rows["severity"] == 0)).any() else "")

@@ -376,7 +376,8 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
         fams = [f for f in rb.FAMILIES if f in t.columns and f not in rb.APART]
         comp = [f for f in rb.FAMILIES if f in t.columns and f in rb.APART]
         cols = ["clean", *fams, "mCE", "rel mCE", *comp]
-        labels = {**{f: rb.FAMILY_WORDS[f] for f in fams}, **{f: f"{f} (apart)" for f in comp}}
+        labels = {**{f: rb.FAMILY_WORDS[f] for f in fams},
+                  **{f: rb.FAMILY_WORDS[f] if f in rb.ABLATION else f"{f} (apart)" for f in comp}}
         ref = p["reference"]
         pq_lines = [n for n in pq["notes"] if n.startswith(("mCE", "rel mCE"))]
         sig = p["curves"][p["curves"]["significant"]] if len(p["curves"]) else p["curves"]
@@ -386,7 +387,9 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
                 f"mCE and relative mCE relative to {ref or 'no method (none is degraded by every family)'}, lower is "
                 f"better; `realistic` combines the others and is in neither mean"
                 + ("".join(f"; `{f}` is a labelled condition (each severity a situation of its own), apart too"
-                           for f in comp if f in rb.LABELLED)) + "):",
+                           for f in comp if f in rb.LABELLED))
+                + ("".join(f"; `{f}` is an ablation ({rb.FAMILY_WORDS[f]}: the map stays at the true poses), apart too"
+                           for f in comp if f in rb.ABLATION)) + "):",
                 "", rb.to_markdown(t.loc[ranked], columns=cols, labels=labels).rstrip(), "",
                 *[f"- {x}" for x in p["notes"]], *[f"- PQ {x}" for x in pq_lines],
                 f"- Curves that rise with severity: {n_rise} of {len(ranked) * len(fams + comp)} method x condition "

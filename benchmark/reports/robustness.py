@@ -18,8 +18,9 @@ paper's IoU is shown but builds no mCE, since it rewards maps that shrink):
   relative CE_f(M) = 100 x sum_s (E_{s,f}(M) - E_{0,f}(M)) / sum_s (E_{s,f}(R) - E_{0,f}(R))
   (the method's own severity-0 error cancels);
 * mCE and relative mCE (M) = their mean over the families but those reported apart
-  (:data:`APART`: ``realistic``, the composite of the others, and the labelled conditions ``lost``
-  and ``kidnap``, whose severities are named situations, not a ladder of one robot):
+  (:data:`APART`: ``realistic``, the composite of the others; the labelled conditions ``lost``,
+  ``kidnap`` and ``views_final``, whose severities are named situations, not a ladder of one robot;
+  and the ablation ``pose``, views-only pose noise on a perfect map, which no robot has):
   100 = as robust as the reference, lower is better;
 * R is a method that every family degrades (by default chosen so: :func:`pick_reference`); a
   family that leaves the reference untouched gets no CE (it would measure clean accuracy);
@@ -55,8 +56,13 @@ COMPOSITE = ("realistic",)
 #: time), not a step of one robot's ladder: reported apart, each condition in a column of its own,
 #: never in mCE or the mean drop. They may have fewer than five severities.
 LABELLED = ("lost", "kidnap", "views_final")
+#: ablations: a model no robot has, kept to show what it alone changes, reported apart, never in
+#: mCE or the mean drop. ``pose``: views-only pose noise on a perfect map (``pose_error=slam``: the
+#: views move by independent noise and drift while the map stays the floor plan at the true poses),
+#: where a robot builds its map at its own estimate (``slam``, ``realistic``).
+ABLATION = ("pose",)
 #: every family reported apart from mCE and the mean drop.
-APART = (*COMPOSITE, *LABELLED)
+APART = (*COMPOSITE, *LABELLED, *ABLATION)
 #: what a family's own severity 0 is, where a run has one (its rows: ``corruption`` = the family,
 #: ``severity`` 0); a family without such rows starts from the clean rows.
 OWN_ZERO_WORDS = {"explore": "the unlimited frontier run (every method on the explorer's own map), not clean"}
@@ -69,7 +75,8 @@ REFERENCE = "auto"
 GEOMETRIC = ("distance", "morphological", "voronoi")
 SANITY = ("one_room", "gt_geometry", "grid")
 #: words for the families, in tables and figures.
-FAMILY_WORDS = {"scan": "scan map", "pose": "pose error", "slam": "SLAM (one pose estimate)",
+FAMILY_WORDS = {"scan": "scan map", "pose": "views-only pose noise, perfect map (ablation)",
+                "slam": "SLAM (one pose estimate)",
                 "explore": "exploration budget", "classifier": "classifier noise",
                 "realistic": "realistic (all combined)", "lost": "lost robot (wrong loop closures)",
                 "kidnap": "kidnapped robot", "views_final": "views at the final SLAM optimum (slam_3)"}
@@ -380,6 +387,11 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
         means = {(r.method, r.corruption, int(r.severity)): np.array([r.value])
                  for r in cells.itertuples(index=False)}
     notes = [own_zero_note(f) for f in own_zero_families(means, fams)]
+    ablations = [f for f in fams if f in ABLATION]
+    if ablations:
+        notes.append(f"{', '.join(FAMILY_WORDS.get(f, f) for f in ablations)}: an ablation, not a robot condition (the "
+                     f"views move while the map stays at the true poses; a robot builds its map at its own estimate: "
+                     f"slam, realistic), reported apart: in neither mCE nor the mean drop.")
     labelled = [f for f in fams if f in LABELLED]
     if labelled:
         notes.append(f"{', '.join(FAMILY_WORDS.get(f, f) for f in labelled)}: labelled conditions (each severity a "
@@ -782,7 +794,7 @@ def family_figure(cells: pd.DataFrame, family: str, path: Path, metric_words: st
     return save(fig, path.with_suffix(".png"), formats=("png", "pdf"))
 
 
-__all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "APART", "OWN_ZERO_WORDS", "RobustnessError", "cell_means", "complete_families",
+__all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "ABLATION", "APART", "OWN_ZERO_WORDS", "RobustnessError", "cell_means", "complete_families",
            "drop_failed_houses", "house_values", "numbers", "pick_reference", "power_lines", "power_report",
            "rank_notes", "family_note", "view_geometric_verdicts", "rising_curves", "summarise", "summary_table",
            "defined_severities", "recorded_severities", "expected_severities", "to_markdown", "to_latex", "family_figure",
