@@ -233,7 +233,7 @@ def test_the_compose_rule_catches_a_composing_stage():
 #: the layers of ``envs``, lowest first: a module imports only its own layer and those below
 #: (the first: standard-library helpers, such as the value ranges of envs.ranges that stage
 #: classes of every layer annotate their parameters with).
-ENVS_LAYERS = (("envs.atomic", "envs.digest", "envs.kernel_cache", "envs.memo", "envs.npz", "envs.ranges"), ("envs.world",), ("envs.maps",), ("envs.render",),
+ENVS_LAYERS = (("envs.atomic", "envs.digest", "envs.files", "envs.kernel_cache", "envs.memo", "envs.npz", "envs.ranges"), ("envs.world",), ("envs.maps",), ("envs.render",),
                ("envs.datasets", "envs.bags"))
 
 

@@ -392,9 +392,9 @@ def _inputs(cfg, map_info: dict | None = None) -> list[tuple[str, Path]]:
 
 def _check_inputs(inputs: list[tuple[str, Path]]) -> None:
     """Each existing input that must be a file is a regular file (or a link to one), checked
-    without opening it (:func:`envs.bags.source.regular_file`); a missing one is left to its
+    without opening it (:func:`envs.files.regular_file`); a missing one is left to its
     reader, which names it."""
-    from envs.bags.source import regular_file  # noqa: PLC0415
+    from envs.files import regular_file  # noqa: PLC0415
 
     for key, p in inputs:
         if key in INPUT_FILES and p.exists():

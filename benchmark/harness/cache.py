@@ -21,6 +21,7 @@ import contextvars
 import hashlib
 import json
 import os
+import stat
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
@@ -31,6 +32,7 @@ from filelock import FileLock
 
 from envs.atomic import atomic_write_text
 from envs.digest import file_digest  # noqa: F401 (re-exported: cache keys of files)
+from envs.files import file_kind, link_note
 from envs.npz import ChecksumError, load_npz, save_npz  # noqa: F401 - the cache's readers and writers of .npz entries
 
 
@@ -76,6 +78,8 @@ def file_fingerprint(path: str | Path) -> str:
         st = p.stat()
     except FileNotFoundError:
         raise FileNotFoundError(f"input file {p} does not exist") from None
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISDIR(st.st_mode)):  # a FIFO blocks, /dev/zero never ends
+        raise ValueError(f"input file {p}{link_note(p)} is {file_kind(st.st_mode)}; expected a regular file or a folder")
     if p.is_dir():
         listing = []
         for root, dirs, files in os.walk(p):
@@ -105,7 +109,7 @@ def _looks_like_path(value: str) -> bool:
     return value not in (".", "..") and ("/" in value or os.sep in value or Path(value).suffix != "")
 
 
-def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
+def config_inputs(node: Any, house_id: str | None = None, where: str = "") -> dict[str, str]:
     """Fingerprints of the input files a stage's config names.
 
     Every string value of ``node`` (a plain dict/list tree) that looks like a path (has a
@@ -116,7 +120,7 @@ def config_inputs(node: Any, house_id: str | None = None) -> dict[str, str]:
     Returns:
         {dotted config key: fingerprint}, sorted by key.
     """
-    return leaf_inputs(path_leaves(node), house_id)
+    return leaf_inputs(path_leaves(node), house_id, where)
 
 
 def path_leaves(node: Any) -> tuple[tuple[str, str], ...]:
@@ -139,16 +143,20 @@ def path_leaves(node: Any) -> tuple[tuple[str, str], ...]:
     return tuple(sorted(out, key=lambda kv: kv[0]))  # (stable: a repeated key keeps its walk order)
 
 
-def leaf_inputs(leaves: Sequence[tuple[str, str]], house_id: str | None = None) -> dict[str, str]:
+def leaf_inputs(leaves: Sequence[tuple[str, str]], house_id: str | None = None, where: str = "") -> dict[str, str]:
     """{key: fingerprint} of the files ``leaves`` (:func:`path_leaves`) name that exist, with
-    ``{house_id}`` filled in: :func:`config_inputs` of the node they came from."""
+    ``{house_id}`` filled in: :func:`config_inputs` of the node they came from. ``where``: the
+    config group of that node (``env``), for the message naming a file that is no regular file."""
     out: dict[str, str] = {}
     for key, s in leaves:
         if house_id is not None and "{house_id}" in s:
             s = s.replace("{house_id}", str(house_id))
         p = Path(s).expanduser()
         if p.exists():
-            out[key] = file_fingerprint(p)
+            try:
+                out[key] = file_fingerprint(p)
+            except ValueError as e:  # a FIFO or a device: named with the config key that names it
+                raise ValueError(f"{where + '.' if where else ''}{key}: {e}") from None
     return out
 
 

@@ -331,7 +331,7 @@ class Pipeline(RobotStages):
         files they name checked for each house."""
         if group not in self._leaves:
             self._leaves[group] = path_leaves(self.inputs.get(group))
-        return leaf_inputs(self._leaves[group], hid)
+        return leaf_inputs(self._leaves[group], hid, group)
 
     def scene(self, hid: str):
         """``env.scene(hid)``; with ``env_key`` set (the runner's key of a shared environment),

@@ -165,7 +165,7 @@ def _environment(node: DictConfig) -> tuple[Any, str]:
     """``instantiate(cfg.env)``, reused across jobs of this process while its config and the
     files it names (house file, annotation folder) are unchanged. Returns (env, its key)."""
     plain = _plain(node)
-    key = config_key(plain, config_inputs(plain))
+    key = config_key(plain, config_inputs(plain, where="env"))
     if key not in _ENVS:
         if len(_ENVS) >= 4:
             _ENVS.pop(next(iter(_ENVS)))

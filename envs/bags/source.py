@@ -11,15 +11,15 @@ end), and no message is decoded whose serialised size is over :data:`MAX_MESSAGE
 
 from __future__ import annotations
 
-import os
 import sqlite3
-import stat
 import struct
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from envs.files import regular_file
 
 #: The largest serialised message decoded (bytes): 128 MiB holds a 20 M cell OccupancyGrid (20 MB)
 #: or an 8K raw RGB image (100 MB); a message over it is one line naming it, never decoded.
@@ -33,44 +33,6 @@ INSTALL_HINT = "reading ROS bags needs rosbags: make setup installs it (or pip i
 
 class BagError(ValueError):
     """A bag that cannot be used: the message is one line naming the file, topic or stamp."""
-
-
-def _kind(mode: int) -> str:
-    for test, name in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return name
-    return "not a regular file"
-
-
-def regular_file(path: str | Path, what: str, error: type[Exception] = ValueError) -> Path:
-    """``path`` (``~`` expanded) when it is a regular file, or a symbolic link to one: checked
-    with ``stat``, never opened, so that a FIFO (which blocks whoever opens it) or a device
-    (``/dev/zero`` reads without end) is refused before any reader touches it. The one check of
-    the input files of ``roomseg-segment`` and of every file a bag is read from.
-
-    Args:
-        path: the file.
-        what: how the user named it, for the message (``bag``, ``map``, ``labels``).
-        error: the exception raised for a file that is not regular.
-
-    Raises:
-        FileNotFoundError: ``path`` does not exist (one line naming it).
-        error: ``path`` is a folder, FIFO, device or socket (one line naming it, and the link's
-            target when it is a symbolic link).
-    """
-    p = Path(path).expanduser()
-    try:
-        st = os.stat(p)
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{what}={p} does not exist; expected a regular file") from None
-    except OSError as e:
-        raise error(f"{what}={p}: cannot stat it ({e.strerror}); expected a regular file") from None
-    if not stat.S_ISREG(st.st_mode):
-        link = f" (a symbolic link to {os.path.realpath(p)})" if p.is_symlink() else ""
-        raise error(f"{what}={p}{link} is {_kind(st.st_mode)}; expected a regular file")
-    return p
 
 
 def require_rosbags():

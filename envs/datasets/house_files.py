@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from envs.files import regular_file
 from envs.world.classes import ROOM_TYPE_TO_CLASS
 from envs.world.house import House, HouseError, validate_house
 
@@ -225,6 +226,8 @@ def iter_house_records(path: str | Path, prefix: str | None = None, split: str |
         raise FileNotFoundError(f"house file not found: {path}")
     name = path.name
     prefix = prefix or name.split(".")[0]
+    if not path.is_dir():  # a FIFO or a device (/dev/zero) is refused by stat before anything opens it
+        regular_file(path, "house file")
     if path.is_dir():
         _no_split(path, split)
         records = _folder(path)
