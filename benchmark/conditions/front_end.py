@@ -284,15 +284,10 @@ def _closures(points, ref, dead, cov, true_states, travelled, st: FrontEndSettin
                 continue
             last = travelled[j]
             d = dead[j, :2] - dead[cand, :2]
-            # j's covariance relative to i, world frame: P_j - F P_i F^T (F moves i's error to j)
-            f = np.zeros((len(cand), 2, 3))
-            f[:, 0, 0] = f[:, 1, 1] = 1.0
+            # j's covariance relative to i, world frame: P_j - F P_i F^T (F carries i's error to j)
+            f = np.broadcast_to(np.eye(3), (len(cand), 3, 3)).copy()
             f[:, 0, 2], f[:, 1, 2] = -d[:, 1], d[:, 0]
-            q_full = np.empty((len(cand), 3, 3))
-            fi = np.zeros((len(cand), 3, 3))
-            fi[:, :2] = f
-            fi[:, 2, 2] = 1.0
-            q_full = cov[j] - np.einsum("nab,nbc,ndc->nad", fi, cov[cand], fi)
+            q_full = cov[j] - np.einsum("nab,nbc,ndc->nad", f, cov[cand], f)
             q = q_full[:, :2, :2] + r2 * np.eye(2)
             gate = np.einsum("na,nab,nb->n", d, np.linalg.inv(q), d)
             ok = np.flatnonzero(gate <= st.closure_gate)
