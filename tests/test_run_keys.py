@@ -35,7 +35,7 @@ def test_bench_refuses_unknown_run_keys_in_one_line_before_any_work(tmp_path, ar
                          text=True, timeout=300)
     assert out.returncode == 2, out.stderr[-2000:]
     assert out.stderr.strip().splitlines() == [
-        f"roomseg-bench: error: run.limt: unknown key (with or without +); {_valid_line()}"]
+        f"roomseg-bench: error: run.limt: unknown key (with or without +); {_valid_line()}; did you mean 'run.limit'?"]
     assert not res.exists()  # no folder, no row, no cache entry
 
 
