@@ -192,3 +192,20 @@ def test_calibrate_without_the_logs_is_one_line(tmp_path, capsys):
     assert err == [f"error: FileNotFoundError: real log not found: {tmp_path / 'intel-corrected.log.gz'} "
                    "(expected the shared logs; set --logs)"]
     assert not (tmp_path / "c.md").exists()
+
+
+def test_odometry_edge_residuals_known_answer(tmp_path):
+    """Three poses 1 m apart read from a TORO file, the last one 0.1 m further than its edge says:
+    the two odometry edges are off by 0 and 0.1 m; the loop edge (0, 2) is not an odometry edge."""
+    from benchmark.conditions.calibration import odometry_edge_residuals
+    from envs.logs.g2o import read_toro
+
+    info = "1 0 1 1 0 0"
+    path = tmp_path / "g.graph"
+    path.write_text("VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nVERTEX2 2 2 0 0\n"
+                    f"EDGE2 0 1 1 0 0 {info}\nEDGE2 1 2 1 0 0 {info}\nEDGE2 0 2 2 0 0.5 {info}\n")
+    g = read_toro(path)
+    r = odometry_edge_residuals(g, np.array([[0, 0, 0], [1, 0, 0], [2.1, 0, 0]]))
+    assert r["edges"] == 2
+    assert r["trans_mean_m"] == pytest.approx(0.05) and r["trans_median_m"] == pytest.approx(0.05)
+    assert r["rot_mean_deg"] == pytest.approx(0.0) and r["move_m"] == pytest.approx(1.0)

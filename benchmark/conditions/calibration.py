@@ -337,6 +337,30 @@ def fit_log(poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range
     return fit_scans(ranges, expected, cos_i, gate, quantisation=resolution / math.sqrt(12.0)), lm
 
 
+
+
+# --------------------------------------------------------------------------- the front end
+
+
+def odometry_edge_residuals(graph, states: np.ndarray) -> dict:
+    """What a real scan matcher's odometry edges are off by: over the edges of ``graph`` (an
+    :class:`envs.logs.g2o.PoseGraphFile`) between consecutive vertex ids, the translational (m) and
+    rotational (deg) residual at ``states`` (the solved graph), mean, standard deviation and
+    median, with the mean move (m) and turn (deg) an edge measures. A residual at the solve is a
+    lower bound of the edge's error against the truth (the solve spreads part of it over the
+    graph)."""
+    e = graph.errors(states)
+    odo = (graph.ids[graph.j] - graph.ids[graph.i]) == 1
+    if not odo.any():
+        raise ValueError(f"{graph.path}: no edge between consecutive vertices: expected odometry edges")
+    t = np.hypot(e[odo, 0], e[odo, 1])
+    r = np.rad2deg(np.abs(e[odo, 2]))
+    return {"edges": int(odo.sum()), "trans_mean_m": float(t.mean()), "trans_std_m": float(t.std()),
+            "trans_median_m": float(np.median(t)), "rot_mean_deg": float(r.mean()), "rot_std_deg": float(r.std()),
+            "rot_median_deg": float(np.median(r)), "move_m": float(np.hypot(graph.z[odo, 0], graph.z[odo, 1]).mean()),
+            "turn_deg": float(np.rad2deg(np.abs(graph.z[odo, 2])).mean())}
+
+
 __all__ = ["expected_hits", "incidence_cos", "cell_ranges", "projected_ranges", "fit_dropout",
            "dropout_correlation", "fit_range_noise", "noise_by_incidence", "ScanFit", "fit_scans", "LogMap",
-           "beam_world", "log_map", "log_scan_arrays", "fit_log", "MAD_TO_SIGMA"]
+           "beam_world", "log_map", "log_scan_arrays", "fit_log", "MAD_TO_SIGMA", "odometry_edge_residuals"]
