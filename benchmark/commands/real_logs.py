@@ -107,8 +107,10 @@ def solve_graph(path: Path) -> dict:
         states, info = solve(graph, g.initial, kernel="none")
         row.update(chi2=info["chi2"], g2o_chi2=g.chi2(states), iterations=info["iterations"],
                    converged=info["converged"], note="")
-        if info["iterations"] == 0 and chi2_initial > 0:
-            row["note"] = "no step lowered the cost (GTSAM: ill-posed linear system)"
+        if info["iterations"] == 0 and chi2_initial > 0:  # the back end counts that as converged
+            row["converged"] = False
+            row["note"] = ("no step taken: every damped step failed (near-singular information matrices make the "
+                           "linear system ill-posed for GTSAM's Cholesky)")
     except RuntimeError as e:
         row.update(chi2=None, g2o_chi2=None, iterations=None, converged=False,
                    note=str(e).strip().splitlines()[0])
