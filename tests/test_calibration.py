@@ -209,3 +209,32 @@ def test_odometry_edge_residuals_known_answer(tmp_path):
     assert r["edges"] == 2
     assert r["trans_mean_m"] == pytest.approx(0.05) and r["trans_median_m"] == pytest.approx(0.05)
     assert r["rot_mean_deg"] == pytest.approx(0.0) and r["move_m"] == pytest.approx(1.0)
+
+
+@pytest.mark.slow
+def test_the_published_calibration_is_what_the_command_writes(tmp_path, monkeypatch, capsys):
+    """results/published/calibration.md, which docs/calibration.md includes, is what the command its
+    first line names (a line of make docs-numbers) writes again, line for line."""
+    import re
+    import shlex
+    from pathlib import Path
+
+    from benchmark.commands import calibrate
+
+    root = Path(__file__).resolve().parents[1]
+    shared = root.parent / "shared" / "data"
+    if not (shared / "real_logs").is_dir() or not (root.parent / "realdata").is_dir():
+        pytest.skip("the shared real logs or the real pose graphs are absent")
+    published = root / "results" / "published" / "calibration.md"
+    assert '--8<-- "results/published/calibration.md"' in (root / "docs" / "calibration.md").read_text(encoding="utf-8")
+    want = published.read_text(encoding="utf-8").splitlines()
+    command = re.fullmatch(r"Written by `python -m benchmark\.commands\.calibrate (.*)`\.", want[0]).group(1)
+    assert f"-m benchmark.commands.calibrate {command}\n" in (root / "Makefile").read_text(encoding="utf-8")
+    args = shlex.split(command)
+    out = tmp_path / "calibration.md"
+    args[args.index("--out") + 1] = str(out)
+    monkeypatch.chdir(root)
+    monkeypatch.setenv("ROOMSEG_SHARED_DATA", str(shared))
+    assert calibrate.main(args) == 0
+    capsys.readouterr()
+    assert out.read_text(encoding="utf-8").splitlines()[1:] == want[1:]
