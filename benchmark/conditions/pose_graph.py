@@ -259,20 +259,23 @@ def solve(graph: PoseGraph, initial: np.ndarray, kernel: str = "cauchy", width: 
 
 def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str = "cauchy",
            width: float = 3.37) -> np.ndarray:
-    """The estimate the robot had of each of ``nodes`` when it reached it: iSAM2 updated node by
-    node in travel order (node k joins with every edge whose later node is k), each node's pose
-    read right after its own update, moved rigidly like :func:`solve`'s to put node 0 at
-    ``initial[0]``.
+    """The estimate the robot had of each of ``nodes`` when it reached it: iSAM2 updated in travel
+    order (node k joins with every edge whose later node is k), each node's pose read right after
+    it joined.
 
-    ``kernel`` as :func:`solve`'s on the robust edges; GNC is a batch method (it needs every
-    closure at once), so online a closure under ``"gnc"`` carries its end point, the truncated
-    quadratic (GTSAM's ``TruncatedLeastSquares``, inlier bound ``width`` sigmas), as a robot
-    that rejects a closure inconsistent with its estimate at that moment.
+    A node whose only new edge is the odometry edge from node k - 1 changes no earlier estimate:
+    its pose is its predecessor's current estimate composed with that edge's measurement (what
+    iSAM2 would give it), and it enters iSAM2 with the next node that brings a loop closure (or
+    more than one edge); iSAM2 is updated only there. ``kernel`` as :func:`solve`'s on the robust
+    edges; GNC is a batch method (it needs every closure at once), so online a closure under
+    ``"gnc"`` carries its end point, the truncated quadratic (GTSAM's ``TruncatedLeastSquares``,
+    inlier bound ``width`` sigmas): a robot that rejects a closure inconsistent with its estimate
+    at that moment.
 
     Args:
         graph: the edges; every edge joins two nodes, the later one determines when it is added.
-        initial: (n, 3) dead reckoning: a new node starts at its predecessor's estimate
-            composed with the dead-reckoning move.
+        initial: (n, 3) dead reckoning: node 0's pose (held there), and a node that joins with
+            a loop closure starts at its predecessor's estimate composed with the dead-reckoning move.
         nodes: (V,) node indices wanted (the views' nodes).
 
     Returns:
@@ -295,21 +298,15 @@ def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str
     params.setRelinearizeThreshold(RELINEARIZE_THRESHOLD)
     params.relinearizeSkip = RELINEARIZE_SKIP
     isam = gtsam.ISAM2(params)
-    wanted = np.zeros(n, bool)
-    wanted[nodes] = True
-    at_node = {}
-    prev = None
-    for k in range(n):
-        fg = gtsam.NonlinearFactorGraph()
-        v = gtsam.Values()
-        if k == 0:
-            fg.add(_prior(gtsam, x0[0]))
-            guess = gtsam.Pose2(*map(float, x0[0]))
-        else:
-            a, b = gtsam.Pose2(*map(float, x0[k - 1])), gtsam.Pose2(*map(float, x0[k]))
-            guess = prev.compose(a.between(b))
-        v.insert(k, guess)
-        for e in order[bounds[k]:bounds[k + 1]]:
+    out = np.zeros((n, 3))
+    fg, v = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    fg.add(_prior(gtsam, x0[0]))
+    prev = gtsam.Pose2(*map(float, x0[0]))
+    v.insert(0, prev)
+    out[0] = x0[0]
+    for k in range(1, n):
+        edges = order[bounds[k]:bounds[k + 1]]
+        for e in edges:
             z = graph.z[e]
             if robust[e] and kernel == "gnc":
                 base = gtsam.noiseModel.Gaussian.SqrtInformation(np.ascontiguousarray(graph.sqrt_info[e]))
@@ -318,13 +315,17 @@ def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str
                 noise = _noise(gtsam, graph.sqrt_info[e], kernel if robust[e] else "none", width)
             fg.add(gtsam.BetweenFactorPose2(int(graph.i[e]), int(graph.j[e]),
                                             gtsam.Pose2(float(z[0]), float(z[1]), float(z[2])), noise))
-        isam.update(fg, v)
-        prev = isam.calculateEstimatePose2(k)
-        if wanted[k]:
-            p0 = isam.calculateEstimatePose2(0)
-            at_node[k] = _anchor(np.array([[p0.x(), p0.y(), p0.theta()], [prev.x(), prev.y(), prev.theta()]]),
-                                 x0[0])[1]
-    return np.array([at_node[int(k)] for k in nodes], np.float64).reshape(-1, 3)
+        if len(edges) == 1 and graph.i[edges[0]] == k - 1 and graph.j[edges[0]] == k:
+            prev = prev.compose(gtsam.Pose2(*map(float, graph.z[edges[0]])))  # odometry alone
+            v.insert(k, prev)
+        else:
+            a, b = gtsam.Pose2(*map(float, x0[k - 1])), gtsam.Pose2(*map(float, x0[k]))
+            v.insert(k, prev.compose(a.between(b)))
+            isam.update(fg, v)
+            fg, v = gtsam.NonlinearFactorGraph(), gtsam.Values()
+            prev = isam.calculateEstimatePose2(k)
+        out[k] = prev.x(), prev.y(), prev.theta()
+    return out[nodes]
 
 
 def move_edge(moves: np.ndarray, sigmas: np.ndarray, floor: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
