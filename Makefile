@@ -6,7 +6,7 @@ PIP := $(VENV)/bin/pip
 # torch/torchvision are pinned to builds that install offline on the project's machines.
 TORCH_PIN ?= torch==2.14.1 torchvision==0.29.1
 
-.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish robustness-timing-publish rose2-env leaderboard scaling scaling-publish scaling-10k-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
+.PHONY: help setup setup-test setup-docs setup-gpu test test-fast lint bench bench-publish perf sensitivity sensitivity-publish tables figures report readme-tables gpu-check docs robustness robustness-publish robustness-timing-publish rose2-env ipa-env leaderboard scaling scaling-publish scaling-10k-publish perf-publish segment-memory-publish compile-publish install-sizes-publish docs-numbers clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -128,6 +128,36 @@ rose2-env:  ## ROSE²'s isolated environment in .venv-rose2 (then: segmenter=ros
 	python3 -m venv $(ROSE2_VENV)
 	$(ROSE2_VENV)/bin/pip install -q $(ROSE2_PIN)
 	@echo "ROSE2 environment ready in $(ROSE2_VENV); point segmenter.checkout (or ROOMSEG_ROSE2) at your ROSE2 checkout$(if $(ROSE2), ($(ROSE2)),)"
+
+# ipa_room_segmentation (segmenter=ipa_morphological, ipa_distance, ipa_voronoi, ipa_semantic,
+# ipa_vrf): the authors' C++ (ipa320/ipa_coverage_planning at IPA_COMMIT) built without ROS into
+# one driver, $(IPA_ENV)/bin/ipa_segment (native/ipa/, docs/baselines.md). IPA_SRC: your checkout
+# or clone of it (a folder or git repository); unset: git clone IPA_URL (needs the network).
+# OpenGM (header-only, VRF only) likewise from OPENGM_SRC or OPENGM_URL at OPENGM_COMMIT; the
+# other four build without it when IPA_VRF=0. Debian packages: cmake g++ libopencv-dev
+# libboost-filesystem-dev libdlib-dev. Nothing fetched is committed: $(IPA_ENV) is git-ignored.
+IPA_ENV ?= .ipa-env
+IPA_URL ?= https://github.com/ipa320/ipa_coverage_planning.git
+IPA_COMMIT ?= f8a1dae4a09693f36a84fd92b6f9772d4c6faff1
+OPENGM_URL ?= https://github.com/opengm/opengm.git
+OPENGM_COMMIT ?= decdacf4caad223b0ab5478d38a855f8767a394f
+IPA_VRF ?= 1
+IPA_JOBS ?= 2
+ipa-env:  ## ipa_room_segmentation's five algorithms built without ROS into .ipa-env/bin/ipa_segment (IPA_SRC=<checkout>, OPENGM_SRC=<checkout>)
+	@set -e; env=$(abspath $(IPA_ENV)); mkdir -p $$env/bin; \
+	fetch() { src="$$1"; url="$$2"; commit="$$3"; dest="$$4"; \
+	  if [ -n "$$src" ] && ! git -C "$$src" rev-parse --git-dir >/dev/null 2>&1; then \
+	    [ -d "$$src" ] || { echo "$$5=$$src: no such folder" >&2; exit 2; }; echo "$$(cd "$$src" && pwd)"; return; fi; \
+	  if [ ! -d "$$dest" ]; then git clone -q --no-checkout "$${src:-$$url}" "$$dest" >&2; fi; \
+	  git -C "$$dest" checkout -q "$$commit" >&2 || { echo "$$5: commit $$commit not in $${src:-$$url}" >&2; exit 2; }; echo "$$dest"; }; \
+	ipa=$$(fetch "$(IPA_SRC)" "$(IPA_URL)" "$(IPA_COMMIT)" "$$env/ipa_coverage_planning" IPA_SRC); \
+	opengm=; if [ "$(IPA_VRF)" = 1 ]; then opengm=$$(fetch "$(OPENGM_SRC)" "$(OPENGM_URL)" "$(OPENGM_COMMIT)" "$$env/opengm" OPENGM_SRC)/include; fi; \
+	cmake -S native/ipa -B $$env/build -DIPA_SRC="$$ipa" -DOPENGM_INCLUDE="$$opengm" >/dev/null; \
+	cmake --build $$env/build -j $(IPA_JOBS); \
+	cp $$env/build/ipa_segment $$env/bin/ipa_segment; \
+	commit=$$(git -C "$$ipa" rev-parse HEAD 2>/dev/null || echo unknown); \
+	printf '{"ipa_src": "%s", "ipa_commit": "%s", "vrf": %s}\n' "$$ipa" "$$commit" "$$( [ -n "$$opengm" ] && echo true || echo false)" > $$env/build.json; \
+	echo "ipa_room_segmentation built: $$env/bin/ipa_segment (ipa_coverage_planning $$commit$$( [ -n "$$opengm" ] || echo ', without VRF'))"
 
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/
 	$(PY) -m benchmark.commands.maintainer.readme_tables write
