@@ -271,16 +271,21 @@ def test_subsequence_finds_the_views_as_the_loop_before():
 @pytest.mark.slow
 @pytest.mark.shared_data
 def test_severities_on_shared_houses_grow_from_centimetres(shared_scenes):
-    """ATE (m) of the slam_1..5 settings on the first two shared houses grows with severity,
-    from centimetres (published graph SLAM) to a clearly degraded estimate."""
+    """ATE (m) of the slam_1, slam_3 and slam_5 settings (odometry and the front end's scanner) on the
+    first two shared houses grows with severity, from centimetres (published graph SLAM) to
+    decimetres. The wheels' noise alone no longer degrades it much: the scans measure the
+    rotation (tests/test_front_end.py), so slam_5 degrades through its scanner too."""
+    from benchmark.commands.maintainer.slam_levels import level_settings
     from benchmark.viewpoints import Autotrace
 
-    levels = [1e-5, 4e-5, 2e-4, 1e-3, 2.5e-3]
+    levels = [level_settings(f"slam_{k}") for k in (1, 3, 5)]
+    worst = []
     for scene in shared_scenes[:2]:
         poses = Autotrace().generate(scene)
-        ate = [OdometrySlam(alpha1=a, alpha2=a / 2, alpha3=a, alpha4=a / 4).estimate(scene.grid, poses, "0")
-               .stats()["ate_rmse_m"] for a in levels]
-        assert ate[0] < 0.1 and ate[-1] > 0.3 and ate[0] < ate[2] < ate[-1]
+        ate = [OdometrySlam(**st).estimate(scene.grid, poses, "0").stats()["ate_rmse_m"] for st in levels]
+        assert ate[0] < 0.1 and ate[0] < ate[1] < ate[-1] and ate[-1] > 2 * ate[0]  # measured 0.02, 0.05-0.06, 0.08-0.25
+        worst.append(ate[-1])
+    assert np.mean(worst) > 0.1
 
 
 @pytest.mark.slow
