@@ -104,9 +104,16 @@ def test_calibration_table_puts_real_and_simulated_maps_side_by_side(procthor_fi
     real = procthor_file.parents[1] / "real_maps"
     if not real.is_dir():
         pytest.skip(f"real maps not found at {real}")
+    logs = procthor_file.parents[1] / "real_logs"
+    if not logs.is_dir():
+        pytest.skip(f"real logs not found at {logs}")
     fig = tmp_path / "cal.png"
-    assert main(["--calibrate", "--n", "1", "--real-dir", str(real), "--figure", str(fig)]) == 0
+    assert main(["--calibrate", "--n", "1", "--real-dir", str(real), "--real-logs-dir", str(logs), "--figure",
+                 str(fig)]) == 0
     lines = capsys.readouterr().out.splitlines()
     names = [line.split("|")[1].strip() for line in lines if line.startswith("| ") and "map" not in line[:8]]
     assert {"intel_map.png", "lab_c_scan.png", "scan_0", "scan_5", "slam_1", "slam_5"} <= set(names)
+    # the raw maps of the four corrected CARMEN logs, beside the cleaned ones
+    assert {"intel-corrected (raw)", "aces-corrected (raw)", "csail-corrected (raw)",
+            "freiburg-079-corrected (raw)"} <= set(names)
     assert fig.read_bytes()[:4] == b"\x89PNG"

@@ -5,8 +5,10 @@ speckle per m^2, clutter blobs, unknown share inside the outline, wall straightn
 * ``map_stats MAP [MAP ...]``: one row per map: a ROS ``map_server`` YAML (read in trinary mode), or
   an image (PNG, PGM) read by grey thresholds (``--free-min``, ``--occupied-max``) at
   ``--resolution`` metres per pixel.
-* ``map_stats --calibrate``: the four real laser maps of ``../shared/data/real_maps`` (``--real-dir``)
-  beside the scan maps the simulated robot builds at each severity of the ``scan`` family
+* ``map_stats --calibrate``: the four real laser maps of ``../shared/data/real_maps`` (``--real-dir``),
+  cleaned by their authors, and the raw maps the project's own mapper builds from the four corrected
+  CARMEN logs of ``../shared/data/real_logs`` (``--real-logs-dir``; :mod:`envs.logs.raw_map`: the scan
+  mapper's update rule on the logged ranges at the logged poses, nothing edited), beside the scan maps the simulated robot builds at each severity of the ``scan`` family
   (``conf/corruption/scan_k.yaml``, along the route each level sets: ``scan_0`` the autotrace
   views, ``scan_1..5`` a frontier mapping run) and the ``slam`` family (``slam_k``, autotrace
   views) on the first ``--n`` shared houses (0.05 m per pixel), means over houses; ``--figure PATH`` draws the real
@@ -111,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--occupied-max", type=int, default=50, help="grey level at or below which a pixel is occupied")
     ap.add_argument("--calibrate", action="store_true", help="the real maps beside simulated ones")
     ap.add_argument("--real-dir", type=Path, default=None, help="folder of the real maps (../shared/data/real_maps)")
+    ap.add_argument("--real-logs-dir", type=Path, default=None,
+                    help="folder of the real CARMEN logs whose raw maps join --calibrate (../shared/data/real_logs)")
     ap.add_argument("--n", type=int, default=5, help="shared houses for the simulated maps")
     ap.add_argument("--figure", type=Path, default=None, help="PNG of the real and simulated maps (with --calibrate)")
     ap.add_argument("--out", type=Path, default=None,
@@ -135,6 +139,9 @@ def main(argv: list[str] | None = None) -> int:
                 occ, res = read_occupancy(real / name, REAL_RESOLUTION, free_min, occupied_max)
                 rows.append({"map": name, **map_stats(occ, res)})
                 panels[name] = occ
+            from benchmark.commands.real_logs import maps_rows
+
+            rows.extend(maps_rows(a.real_logs_dir or data_dir() / "real_logs", None))
             sim, first = simulated_maps(a.n)
             means = pd.DataFrame(sim).groupby("map", sort=False)[COLUMNS].mean().reset_index()
             rows.extend(means.to_dict("records"))
@@ -146,7 +153,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     text = pd.DataFrame(rows)[["map", *COLUMNS]].to_markdown(index=False, floatfmt=".3f")
     if a.calibrate:
-        text += (f"\n\nReal maps at {REAL_RESOLUTION} m/px; simulated: means over {a.n} shared houses (autotrace "
+        text += (f"\n\nReal maps at {REAL_RESOLUTION} m/px (the *.png maps cleaned by their authors; '(raw)': the "
+                 f"project's mapper on the corrected CARMEN log, 10 m max range, nothing edited); simulated: means over {a.n} shared houses (autotrace "
                  f"views, 0.05 m/px). wall_thickness_m mean; speckle and clutter per m^2 of free space; "
                  f"clutter_median_m2 median blob area; unknown_inside share of the outline; wall_straight share of "
                  f"wall skeleton on straight segments >= 1 m.")
@@ -160,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
                     if a.maps and getattr(a, k) != v]
         if a.calibrate:
             command += ["--calibrate", f"--n {a.n}"] + ([f"--real-dir {a.real_dir}"] if a.real_dir else [])
+            command += [f"--real-logs-dir {a.real_logs_dir}"] if a.real_logs_dir else []
         err = write_published(a.out, " ".join([*command, f"--out {a.out}"]), text)
         if err is not None:
             print(f"error: {err}", file=sys.stderr)
