@@ -67,7 +67,8 @@ def test_robustness_experiment_runs_and_summarises(tmp_path):
     configs = page[page.index('id="config-filters"'):]
     configs = configs[:configs.index("</table>")]
     assert ">robot condition</th>" in configs and '<th class="num">severity</th>' in configs
-    for words in ("scan map", "pose error", "exploration budget", "classifier noise", "realistic (all combined)"):
+    for words in ("scan map", "views-only pose noise, perfect map (ablation)", "exploration budget", "classifier noise",
+                  "realistic (all combined)"):
         assert f">{words}</option>" in configs and f"<td>{words}</td>" in configs
     assert configs.count('data-condition="scan" data-severity="2"') == 4  # 4 methods at scan severity 2
     assert configs.count("<tr data-condition=") == 44 and "44 of 44 configurations" in configs
