@@ -46,7 +46,7 @@ What it models (issue #25, item 1):
 
 What it leaves out: the robot's own pose error while mapping (scans are placed at the true
 poses; pose error is a separate option applied to the views), beam width and incidence angle,
-glass and mirrors, people moving during a scan, the scanner's own height above a sloped floor, table legs (without ``legs``),
+what lies behind glass (a pane only loses beams: ``surface_dropout``), mirrors, people moving during a scan, the scanner's own height above a sloped floor, table legs (without ``legs``),
 and the time a scan takes (all beams of a scan share one pose).
 
 The fast path is :class:`ScanMapper` (a numba kernel over :func:`envs.maps.rays.walk_beam`,
