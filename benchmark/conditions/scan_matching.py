@@ -74,11 +74,12 @@ class Match:
 
 @njit(cache=True, nogil=True)
 def _rasterise(points, x0, y0, res, sigma, h, w, eps):
-    """(h, w) log-likelihood grid of ``points`` (module docstring, step 1): only the cells within
-    ``3 sigma`` of a point are computed; every other cell is ``log(eps)``."""
-    grid = np.full((h, w), np.log(eps))
-    rad = int(np.ceil(3.0 * sigma / res))
+    """(h, w) log-likelihood grid of ``points`` (module docstring, step 1): each cell's squared
+    distance to its nearest point within ``3 sigma`` first, then one likelihood per cell reached
+    (the likelihood falls with the distance); every other cell is ``log(eps)``."""
     cut = 9.0 * sigma * sigma
+    d2min = np.full((h, w), np.inf)
+    rad = int(np.ceil(3.0 * sigma / res))
     for p in range(points.shape[0]):
         px = points[p, 0]
         py = points[p, 1]
@@ -89,10 +90,17 @@ def _rasterise(points, x0, y0, res, sigma, h, w, eps):
             for c in range(max(cc - rad, 0), min(cc + rad + 1, w)):
                 dx = x0 + (c + 0.5) * res - px
                 d2 = dx * dx + dy * dy
-                if d2 <= cut:
-                    v = np.log(eps + (1.0 - eps) * np.exp(-d2 / (2.0 * sigma * sigma)))
-                    if v > grid[r, c]:
-                        grid[r, c] = v
+                if d2 < d2min[r, c]:
+                    d2min[r, c] = d2
+    grid = np.empty((h, w), np.float64)
+    low = np.log(eps)
+    for r in range(h):
+        for c in range(w):
+            d2 = d2min[r, c]
+            if d2 <= cut:
+                grid[r, c] = np.log(eps + (1.0 - eps) * np.exp(-d2 / (2.0 * sigma * sigma)))
+            else:
+                grid[r, c] = low
     return grid
 
 
