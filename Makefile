@@ -134,7 +134,9 @@ rose2-env:  ## ROSE²'s isolated environment in .venv-rose2 (then: segmenter=ros
 # one driver, $(IPA_ENV)/bin/ipa_segment (native/ipa/, docs/baselines.md). IPA_SRC: your checkout
 # or clone of it (a folder or git repository); unset: git clone IPA_URL (needs the network).
 # OpenGM (header-only, VRF only) likewise from OPENGM_SRC or OPENGM_URL at OPENGM_COMMIT; the
-# other four build without it when IPA_VRF=0. Debian packages: cmake g++ libopencv-dev
+# other four build without it when IPA_VRF=0. IPA_VRF_FIX=1: the VRF's AdaBoost features as the
+# authors' OpenCV 2 code computed them (native/ipa/roomseg_weak_responses.h; 0: as published,
+# whose OpenCV 4 branch reads uninitialised memory there). Debian packages: cmake g++ libopencv-dev
 # libboost-filesystem-dev libdlib-dev. Nothing fetched is committed: $(IPA_ENV) is git-ignored.
 IPA_ENV ?= .ipa-env
 IPA_URL ?= https://github.com/ipa320/ipa_coverage_planning.git
@@ -142,6 +144,7 @@ IPA_COMMIT ?= f8a1dae4a09693f36a84fd92b6f9772d4c6faff1
 OPENGM_URL ?= https://github.com/opengm/opengm.git
 OPENGM_COMMIT ?= decdacf4caad223b0ab5478d38a855f8767a394f
 IPA_VRF ?= 1
+IPA_VRF_FIX ?= 1
 IPA_JOBS ?= 2
 ipa-env:  ## ipa_room_segmentation's five algorithms built without ROS into .ipa-env/bin/ipa_segment (IPA_SRC=<checkout>, OPENGM_SRC=<checkout>)
 	@set -e; env=$(abspath $(IPA_ENV)); mkdir -p $$env/bin; \
@@ -152,11 +155,11 @@ ipa-env:  ## ipa_room_segmentation's five algorithms built without ROS into .ipa
 	  git -C "$$dest" checkout -q "$$commit" >&2 || { echo "$$5: commit $$commit not in $${src:-$$url}" >&2; exit 2; }; echo "$$dest"; }; \
 	ipa=$$(fetch "$(IPA_SRC)" "$(IPA_URL)" "$(IPA_COMMIT)" "$$env/ipa_coverage_planning" IPA_SRC); \
 	opengm=; if [ "$(IPA_VRF)" = 1 ]; then opengm=$$(fetch "$(OPENGM_SRC)" "$(OPENGM_URL)" "$(OPENGM_COMMIT)" "$$env/opengm" OPENGM_SRC)/include; fi; \
-	cmake -S native/ipa -B $$env/build -DIPA_SRC="$$ipa" -DOPENGM_INCLUDE="$$opengm" >/dev/null; \
+	cmake -S native/ipa -B $$env/build -DIPA_SRC="$$ipa" -DOPENGM_INCLUDE="$$opengm" -DIPA_VRF_FIX=$(if $(filter 1,$(IPA_VRF_FIX)),ON,OFF) >/dev/null; \
 	cmake --build $$env/build -j $(IPA_JOBS); \
 	cp $$env/build/ipa_segment $$env/bin/ipa_segment; \
 	commit=$$(git -C "$$ipa" rev-parse HEAD 2>/dev/null || echo unknown); \
-	printf '{"ipa_src": "%s", "ipa_commit": "%s", "vrf": %s}\n' "$$ipa" "$$commit" "$$( [ -n "$$opengm" ] && echo true || echo false)" > $$env/build.json; \
+	printf '{"ipa_src": "%s", "ipa_commit": "%s", "vrf": %s, "vrf_fix": %s}\n' "$$ipa" "$$commit" "$$( [ -n "$$opengm" ] && echo true || echo false)" "$(if $(filter 1,$(IPA_VRF_FIX)),true,false)" > $$env/build.json; \
 	echo "ipa_room_segmentation built: $$env/bin/ipa_segment (ipa_coverage_planning $$commit$$( [ -n "$$opengm" ] || echo ', without VRF'))"
 
 readme-tables: setup  ## rewrite the README's generated results blocks from results/published/

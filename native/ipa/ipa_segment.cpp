@@ -15,6 +15,7 @@
 // --verbose 1: the algorithms' own progress lines (std::cout) go to stderr; otherwise they are dropped.
 // Exit 0 and "rooms N" on stdout; otherwise one line on stderr and exit 2 (bad input) or 1.
 #include <opencv2/opencv.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <ipa_room_segmentation/morphological_segmentation.h>
 #include <ipa_room_segmentation/distance_segmentation.h>
 #include <ipa_room_segmentation/voronoi_segmentation.h>
@@ -179,6 +180,7 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   // the algorithms report progress on std::cout; the driver's own answer is its last stdout line
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);  // our one line says what failed
   std::ostringstream chatter;
   bool verbose = false;
   for (int i = 1; i + 1 < argc; ++i)
