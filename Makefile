@@ -209,7 +209,7 @@ docs-numbers: setup  ## the numbers the docs include -> results/published/: auto
 	$(PY) -m benchmark.commands.view_confusion --markdown results/published/oracle_confusion.md classifier=objects env.seed_start=1000 env.n_houses=50 run.progress=false
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.maintainer.slam_levels --n 10 --out results/published/slam_levels.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.map_stats --calibrate --n 5 --out results/published/map_calibration.md
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.calibrate --graphs ../realdata --houses 5 --out results/published/calibration.md
+	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.calibrate --houses 5 --out results/published/calibration.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.house_stats --synthetic 500 --out results/published/house_stats.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.clutter_tables --offices 7 --houses 40 --out results/published/clutter_tables.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.tables_examples --small 2 --large 3 --houses 4 --out results/published/tables_examples.md

@@ -223,8 +223,8 @@ def test_the_published_calibration_is_what_the_command_writes(tmp_path, monkeypa
 
     root = Path(__file__).resolve().parents[1]
     shared = root.parent / "shared" / "data"
-    if not (shared / "real_logs").is_dir() or not (root.parent / "realdata").is_dir():
-        pytest.skip("the shared real logs or the real pose graphs are absent")
+    if not (shared / "real_logs").is_dir() or not (shared / "real_graphs").is_dir():
+        pytest.skip("the shared real logs or the real pose graphs (roomseg data fetch real_graphs) are absent")
     published = root / "results" / "published" / "calibration.md"
     assert '--8<-- "results/published/calibration.md"' in (root / "docs" / "calibration.md").read_text(encoding="utf-8")
     want = published.read_text(encoding="utf-8").splitlines()

@@ -208,7 +208,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--logs", type=Path, default=None, help="folder of the four shared logs "
                     "(default: $ROOMSEG_SHARED_DATA/real_logs, ../shared/data/real_logs)")
     ap.add_argument("--graphs", type=Path, default=None,
-                    help=f"folder holding {' and '.join(GRAPHS.values())}: the real front end's residuals")
+                    help=f"folder holding {' and '.join(GRAPHS.values())}: the real front end's residuals "
+                         "(default: the data root's real_graphs, where `roomseg data fetch real_graphs` puts them, "
+                         "when it is there)")
     ap.add_argument("--houses", type=int, default=5, help="shared houses for the SLAM levels' relative error "
                     "(0: leave the levels out)")
     ap.add_argument("--out", type=Path, default=None,
@@ -219,7 +221,11 @@ def main(argv: list[str] | None = None) -> int:
         if a.houses < 0:
             raise ValueError(f"--houses {a.houses}: expected 0 or more houses")
         text = tables(fit_logs(a.logs or data_dir() / "real_logs"))
-        front = front_end_tables(graph_residuals(a.graphs) if a.graphs else [],
+        graphs = a.graphs or (data_dir() / "real_graphs" if (data_dir() / "real_graphs").is_dir() else None)
+        if graphs is None:
+            print("calibrate: the real pose graphs are absent (roomseg data fetch real_graphs): "
+                  "no section on real scan matching", file=sys.stderr)
+        front = front_end_tables(graph_residuals(graphs) if graphs else [],
                                  level_errors(a.houses) if a.houses else [])
         if front:
             text += "\n\n" + front
