@@ -364,3 +364,18 @@ def test_folders_of_dead_drivers_are_removed_first(tmp_path, monkeypatch):
     assert clean_ipa_tmp() == [stale]
     assert not stale.exists() and live.exists()
 
+
+
+def test_doctor_reports_the_build(tmp_path, monkeypatch, standin):
+    from benchmark.commands.doctor import checks
+
+    def row():
+        return next(r for r in checks(shared=str(tmp_path)) if r[0].startswith("ipa_room_segmentation"))
+
+    monkeypatch.setenv("ROOMSEG_IPA_ENV", str(standin))
+    status, how = row()[1:]
+    assert status == "OK" and how == f"{standin}/bin/ipa_segment (ipa_coverage_planning ffffffff; no VRF (built without OpenGM))"
+    monkeypatch.setenv("ROOMSEG_IPA_ENV", str(tmp_path / "nothing"))
+    status, how = row()[1:]
+    assert status == "optional" and how.startswith(f"no ipa_room_segmentation build in {tmp_path / 'nothing'}")
+    assert "make ipa-env IPA_SRC=" in how

@@ -2,7 +2,8 @@
 
 Checks the core packages, the optional model and simulator packages, a GPU, the AI2-THOR
 Unity build for the pinned commit, Vulkan (CloudRendering) and an X display (Linux64), the
-ai2thor-hab scenes, the ArchitecTHOR annotations and the shared data, and prints one row
+ai2thor-hab scenes, the ArchitecTHOR annotations, the ipa_room_segmentation build
+(``make ipa-env``) and the shared data, and prints one row
 per piece: OK, MISSING (core: nothing runs without it) or optional (only the paths that use
 it need it), with one line of what to do. Exits 1 when a core piece is missing, else 0.
 """
@@ -59,6 +60,21 @@ def _thor_build(platform: str, commit_id: str | None) -> tuple[str, str]:
                               "or copy that folder there from another machine")
 
 
+def _ipa_row() -> tuple[str, str, str]:
+    """The ipa_room_segmentation build (``make ipa-env``; segmenter=ipa_*): where, which commit,
+    with or without VRF."""
+    from benchmark.segmenters.ipa import ipa_build  # noqa: PLC0415
+
+    try:
+        b = ipa_build()
+    except FileNotFoundError as e:
+        return "ipa_room_segmentation (segmenter=ipa_*)", OPTIONAL_MISSING, str(e)
+    vrf = ("VRF with the OpenCV 2 weak hypotheses" if b["vrf_fix"] else "VRF as published (IPA_VRF_FIX=0)") \
+        if b["vrf"] else "no VRF (built without OpenGM)"
+    return ("ipa_room_segmentation (segmenter=ipa_*)", OK,
+            f"{b['driver']} (ipa_coverage_planning {b['ipa_commit'][:8]}; {vrf})")
+
+
 def checks(hab_dataset: str | None = None, shared: str | None = None, annotations: str | None = None,
            platform: str = "CloudRendering", commit_id: str | None = None) -> list[tuple[str, str, str]]:
     """(item, OK | MISSING | optional, what to do / where it is) rows."""
@@ -93,6 +109,7 @@ def checks(hab_dataset: str | None = None, shared: str | None = None, annotation
                  f"{len(have)}/{len(ARCHITECTHOR_SCENES)} houses under {ann}" +
                  ("" if len(have) == len(ARCHITECTHOR_SCENES) else
                   ": python -m benchmark.commands.annotations import ... (docs/gpu.md), set ROOMSEG_ARCHITECTHOR_ANNOTATIONS")))
+    rows.append(_ipa_row())
     data = Path(shared or data_dir()).expanduser()
     ok = (data / "procthor").is_dir()
     rows.append(("shared ProcTHOR/SeLRoS data", OK if ok else OPTIONAL_MISSING,

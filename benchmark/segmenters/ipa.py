@@ -68,7 +68,8 @@ TMP_PREFIX = "roomseg-ipa-"
 
 def ipa_build(env_dir: str | Path | None = None) -> dict:
     """What ``make ipa-env`` built: ``{"env": folder, "driver": path, "models": folder,
-    "ipa_commit": sha, "vrf": bool}``.
+    "ipa_commit": sha, "vrf": bool, "vrf_fix": bool}`` (``vrf_fix``: the VRF's AdaBoost weak
+    hypotheses as OpenCV 2 gave them, ``native/ipa/roomseg_weak_responses.h``).
 
     Raises:
         FileNotFoundError: no build there (one line saying how to make it)."""
@@ -83,7 +84,7 @@ def ipa_build(env_dir: str | Path | None = None) -> dict:
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise FileNotFoundError(f"{info_file}: not a build record of make ipa-env ({e}); run make ipa-env again") from None
     return {"env": env, "driver": driver, "models": models, "ipa_commit": str(info.get("ipa_commit", "unknown")),
-            "vrf": bool(info.get("vrf"))}
+            "vrf": bool(info.get("vrf")), "vrf_fix": bool(info.get("vrf_fix"))}
 
 
 def clean_ipa_tmp() -> list[Path]:
