@@ -308,7 +308,7 @@ def _measures(means: Mapping, methods: Sequence[str], fams: Sequence[str], refer
 
 def pick_reference(means: Mapping, methods: Sequence[str], fams: Sequence[str]) -> tuple[str | None, str]:
     """The method corruption errors are relative to: among the methods that every family
-    (but those reported apart: the composite ``realistic``, the labelled conditions) degrades, the lower end of each family's drop interval
+    (but those reported apart: the composite ``realistic``, the labelled conditions, the ablation ``pose``) degrades, the lower end of each family's drop interval
     above zero, the one whose smallest such lower end is largest (the denominators of its CE
     are farthest from zero, so its CE is the steadiest). Returns (method or None, why)."""
     plain = [f for f in fams if f not in APART]
@@ -342,8 +342,8 @@ def summary_table(cells: pd.DataFrame, reference: str | None, families: Sequence
                   values: Mapping[tuple[str, str, int], np.ndarray] | None = None,
                   n_boot: int = stats.N_BOOT) -> pd.DataFrame:
     """Per method: clean score, each family's mean over its severities, CE and relative CE per
-    family, mCE and relative mCE (over the families but those reported apart: ``realistic`` and
-    the labelled conditions, each of those in columns of its own after the mean drop, a labelled
+    family, mCE and relative mCE (over the families but those reported apart: ``realistic``, the
+    labelled conditions and the ablation ``pose``, each of those in columns of its own after the mean drop, a labelled
     condition with one column per severity first), each family's drop (from its severity 0:
     :func:`zero_key`) and the mean drop; with ``values`` (:func:`house_values`), a 95 %
     bootstrap interval for every column (``<column> lo``, ``<column> hi``).
