@@ -41,8 +41,9 @@ def _ladder(family: str, values) -> dict[tuple[str, int], float]:
 
 
 def test_the_families_and_their_words():
-    assert FAMILIES == ("scan", "pose", "slam", "explore", "classifier", "realistic", "lost", "kidnap")
+    assert FAMILIES == ("scan", "pose", "slam", "explore", "classifier", "realistic", "lost", "kidnap", "views_final")
     assert FAMILY_WORDS["slam"] == "SLAM (one pose estimate)"
+    assert FAMILY_WORDS["pose"] == "views-only pose noise, perfect map (ablation)"
     assert FAMILY_WORDS["lost"] == "lost robot (wrong loop closures)"
     assert FAMILY_WORDS["kidnap"] == "kidnapped robot"
 
