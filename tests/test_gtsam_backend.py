@@ -309,3 +309,25 @@ def test_the_final_views_condition_is_slam_3_with_views_at_final():
     final = OmegaConf.to_container(compose(overrides=["corruption=views_final_1"]).pose_error)
     assert online.pop("views_at") == "online" and final.pop("views_at") == "final" and online == final
     assert "views_final" in FAMILIES and "views_final" in LABELLED and defined_severities()["views_final"] == [1]
+
+
+def test_a_solve_that_can_take_no_step_is_not_converged_and_a_minimum_still_is():
+    """Ill-conditioned information (translation weights 1e6, heading 1e-3: condition 1e18) on a
+    consistent triangle started with its headings turned nearly half round: Levenberg-Marquardt
+    finds no damping that lowers the cost far from the minimum (chi2 0 at the truth); started again
+    from where it stopped, it takes 0 iterations. Neither is converged (it was, before: a stop for
+    want of a step counted as convergence). The same graph from near the truth converges."""
+    big = np.diag([1e6, 1e6, 1e-3])
+    graph = PoseGraph(3, np.array([0, 1, 0]), np.array([1, 2, 2]),
+                      np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]), np.stack([big] * 3),
+                      np.zeros(3, bool))
+    start = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 3.0], [2.0, 0.5, -3.0]])
+    stuck, info = solve(graph, start, kernel="none")
+    assert not info["converged"] and info["chi2"] > 1e9
+    again, info2 = solve(graph, stuck, kernel="none")
+    assert info2["iterations"] == 0 and not info2["converged"]
+    np.testing.assert_allclose(again, stuck)
+    near = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.5], [2.0, 0.5, -0.5]])
+    best, info3 = solve(graph, near, kernel="none")
+    assert info3["converged"] and info3["chi2"] < 1e-6
+    np.testing.assert_allclose(best, [[0, 0, 0], [1, 0, 0], [2, 0, 0]], atol=1e-6)

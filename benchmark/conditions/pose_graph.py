@@ -177,10 +177,25 @@ def _lm_params(gtsam, max_iterations: int):
     return params
 
 
-def _levenberg_marquardt(gtsam, fg, values, max_iterations: int):
+def _stationary(gtsam, fg, values, cost: float, rounding: float) -> bool:
+    """True when the Gauss-Newton model of ``fg`` at ``values`` promises to lower ``cost`` by no more
+    than the tolerances or ``rounding`` (the cost's own rounding error: a minimum to rounding);
+    False when it promises more, or has no solution."""
+    lin = fg.linearize(values)
+    try:
+        step = lin.optimize()
+    except RuntimeError:  # indeterminant system: no model step at all
+        return False
+    gain = lin.error(gtsam.VectorValues.Zero(step)) - lin.error(step)
+    return bool(np.isfinite(gain) and gain <= max(RELATIVE_TOLERANCE * cost, ABSOLUTE_TOLERANCE, rounding))
+
+
+def _levenberg_marquardt(gtsam, fg, values, max_iterations: int, rounding: float = 0.0):
     """(values, iterations, converged): GTSAM's LM on ``fg`` from ``values``, iteration by
     iteration until the cost falls by less than the tolerances, or no damping finds a step that
-    lowers it (a minimum to rounding), or ``max_iterations`` are done (not converged)."""
+    lowers it, or ``max_iterations`` are done (not converged). A stop for want of a step is
+    converged only at a stationary point (:func:`_stationary`): ill-conditioned information can
+    leave LM with no step far from any minimum, after 0 iterations or more."""
     opt = gtsam.LevenbergMarquardtOptimizer(fg, values, _lm_params(gtsam, max_iterations))
     prev = opt.error()
     if prev <= ABSOLUTE_TOLERANCE:
@@ -189,8 +204,9 @@ def _levenberg_marquardt(gtsam, fg, values, max_iterations: int):
         before = opt.iterations()
         opt.iterate()
         cur = opt.error()
-        if opt.iterations() == before or gtsam.checkConvergence(RELATIVE_TOLERANCE, ABSOLUTE_TOLERANCE, 0.0,
-                                                                prev, cur):
+        if opt.iterations() == before:  # no damping lowered the cost
+            return opt.values(), int(opt.iterations()), _stationary(gtsam, fg, opt.values(), cur, rounding)
+        if gtsam.checkConvergence(RELATIVE_TOLERANCE, ABSOLUTE_TOLERANCE, 0.0, prev, cur):
             return opt.values(), int(opt.iterations()), True
         prev = cur
     return opt.values(), int(opt.iterations()), False
@@ -244,7 +260,10 @@ def solve(graph: PoseGraph, initial: np.ndarray, kernel: str = "cauchy", width: 
         kernel = "none"
     fg, at = _factors(gtsam, graph, kernel, width, keep)
     fg.add(_prior(gtsam, x0[0]))
-    values, iterations, lm_ok = _levenberg_marquardt(gtsam, fg, values, max_iterations)
+    # the cost's rounding error: a state's last bit (eps times its size) through each edge's largest weight
+    scale = np.finfo(np.float64).eps * (1.0 + np.abs(x0[:, :2]).max())
+    rounding = float(np.sum((scale * np.abs(graph.sqrt_info).max(axis=(1, 2))) ** 2))
+    values, iterations, lm_ok = _levenberg_marquardt(gtsam, fg, values, max_iterations, rounding)
     plain, _ = _factors(gtsam, graph, "none", width, keep)
     chi2 = 2.0 * plain.error(values)
     if kernel in ("huber", "cauchy", "dcs"):
