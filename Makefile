@@ -111,9 +111,10 @@ robustness-timing-publish: setup  ## fresh timed `make robustness ROBUST_HOUSES=
 # objects_procthor classifier's training houses): view-based methods, geometric segmenters,
 # sanity rows, and ROSE² with ROSE2=<checkout>; the Table V-style table -> results/leaderboard.
 LEADER_HOUSES ?= 20
-leaderboard: setup  ## Table V-style leaderboard on the shared ProcTHOR maps (ROSE2=<checkout> adds ROSE²) -> results/leaderboard
+leaderboard: setup  ## Table V-style leaderboard on the shared ProcTHOR maps (ROSE2=<checkout> adds ROSE², make ipa-env the ipa rows) -> results/leaderboard
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=leaderboard run.limit=$(LEADER_HOUSES) run.results_dir=$(RESULTS)
 	$(if $(ROSE2),ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench env=procthor_shared env.start=75 segmenter=rose2 segmenter.checkout=$(ROSE2) run.name=leaderboard run.limit=$(LEADER_HOUSES) run.results_dir=$(RESULTS) hydra.run.dir=$(RESULTS)/runs/leaderboard/rose2 run.allow_failures=true,@echo "ROSE2 not set: no ROSE² row (make rose2-env, then make leaderboard ROSE2=<checkout>)")
+	$(if $(wildcard $(IPA_ENV)/bin/ipa_segment),for s in $(IPA_SEGMENTERS); do ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench env=procthor_shared env.start=75 segmenter=$$s segmenter.env_dir=$(abspath $(IPA_ENV)) run.name=leaderboard run.limit=$(LEADER_HOUSES) run.results_dir=$(RESULTS) hydra.run.dir=$(RESULTS)/runs/leaderboard/$$s run.allow_failures=true || exit 1; done,@echo "no ipa_room_segmentation build in $(IPA_ENV): no ipa rows (make ipa-env)")
 	$(PY) -m benchmark.commands.tables $(RESULTS)/runs/leaderboard --table table5 --out results/leaderboard
 
 # ROSE² (segmenter=rose2) runs from your own checkout in an isolated environment with the
@@ -146,6 +147,7 @@ OPENGM_COMMIT ?= decdacf4caad223b0ab5478d38a855f8767a394f
 IPA_VRF ?= 1
 IPA_VRF_FIX ?= 1
 IPA_JOBS ?= 2
+IPA_SEGMENTERS ?= ipa_morphological ipa_distance ipa_voronoi ipa_semantic ipa_vrf
 ipa-env:  ## ipa_room_segmentation's five algorithms built without ROS into .ipa-env/bin/ipa_segment (IPA_SRC=<checkout>, OPENGM_SRC=<checkout>)
 	@set -e; env=$(abspath $(IPA_ENV)); mkdir -p $$env/bin; \
 	fetch() { src="$$1"; url="$$2"; commit="$$3"; dest="$$4"; \

@@ -379,3 +379,35 @@ def test_doctor_reports_the_build(tmp_path, monkeypatch, standin):
     status, how = row()[1:]
     assert status == "optional" and how.startswith(f"no ipa_room_segmentation build in {tmp_path / 'nothing'}")
     assert "make ipa-env IPA_SRC=" in how
+
+
+def test_table5_names_its_ipa_rows_build_and_command(monkeypatch, standin):
+    import argparse
+
+    from benchmark.commands.selros import ipa_line, published_command
+
+    monkeypatch.setenv("ROOMSEG_IPA_ENV", str(standin))
+    assert ipa_line() == "ipa rows: run here from ipa_coverage_planning at commit ffffffff (`make ipa-env`; no VRF)."
+    a = argparse.Namespace(data=None, resolution=None, occupancy_dir=None, occupancy_pattern=None,
+                           gt_pattern="{id}_ground_truth.png", ipa="vrf", method=[], method_pattern="{id}.png",
+                           no_geometric=False, no_sanity=True, markdown=Path("t.md"))
+    assert published_command(a, []) == "python -m benchmark.commands.selros --ipa vrf --no-sanity --markdown t.md"
+
+
+def test_table5_with_ipa_but_no_build_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
+    # a SeLRoS-shaped folder with one map: the ipa rows cannot be built, nothing is scored
+    import cv2
+
+    from benchmark.commands.selros import main
+
+    for sub, name in (("ground_truth", "01_ground_truth.png"), ("vrf", "01_segmented.png"),
+                      ("selros", "01_segmented.png")):
+        (tmp_path / "data" / sub).mkdir(parents=True)
+        img = np.zeros((40, 40, 3), np.uint8)
+        img[5:35, 5:35] = (0, 0, 255)
+        cv2.imwrite(str(tmp_path / "data" / sub / name), img)
+    monkeypatch.setenv("ROOMSEG_IPA_ENV", str(tmp_path / "nothing"))
+    rc = main(["--data", str(tmp_path / "data"), "--ipa", "vrf", "--no-sanity"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1
+    assert err.startswith(f"error: segmenter=ipa_vrf: no ipa_room_segmentation build in {tmp_path / 'nothing'}")

@@ -5,9 +5,12 @@ all scored against the release's ground truth.
 
     python -m benchmark.commands.selros [--data DIR] [--resolution 0.02] [--out DIR] [--no-geometric]
         [--occupancy-dir DIR --occupancy-pattern '{id}_map.png'] [metrics.key=value ...]
-        [--rose2 CHECKOUT] [--method NAME=DIR ... --method-pattern '{id}.png'] [--markdown FILE.md]
+        [--rose2 CHECKOUT] [--ipa [ALGORITHMS]] [--method NAME=DIR ... --method-pattern '{id}.png']
+        [--markdown FILE.md]
 
-``--rose2`` adds a ROSE² row run here (``make rose2-env``); ``--method`` puts your own method's
+``--rose2`` adds a ROSE² row run here (``make rose2-env``), ``--ipa`` the rows of
+ipa_room_segmentation's algorithms run here (``make ipa-env``; VRF beside the row scored from the
+release's VRF outputs); ``--method`` puts your own method's
 maps (a folder of instance-coloured PNGs, one per map) in the same table: one command, one
 Table V (``table5.md``, ``.csv``, ``.tex`` with ``--out``). ``--markdown FILE`` writes the table
 headed by the command that made it (``make docs-numbers``: ``results/published/selros_table5.md``).
@@ -69,6 +72,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rose2", default=os.environ.get("ROOMSEG_ROSE2"),
                     help="a ROSE2 checkout: add its row, run here (make rose2-env; default $ROOMSEG_ROSE2)")
     ap.add_argument("--rose2-python", default=None, help="the ROSE2 environment's python (default .venv-rose2)")
+    ap.add_argument("--ipa", nargs="?", const="all", default=None, metavar="ALGORITHMS",
+                    help="add ipa_room_segmentation's rows (the authors' C++, run here from the make ipa-env build): "
+                         "all (the default) or a comma list of morphological,distance,voronoi,semantic,vrf")
     ap.add_argument("--no-sanity", action="store_true", help="leave out one_room, gt_geometry and grid")
     ap.add_argument("--out", type=Path, default=None,
                     help="folder for metrics.csv, table5.md/.csv/.tex and table5.html (written as a set)")
@@ -115,14 +121,22 @@ def main(argv: list[str] | None = None) -> int:
             occ_dir = a.occupancy_dir or data / OCCUPANCY_FOLDER
             occ = _glob_ids(occ_dir, a.occupancy_pattern or OCCUPANCY_PATTERN)
             segs = None
-            if a.rose2:
+            if a.rose2 or a.ipa:
                 from benchmark.segmenters.distance import DistanceTransform
                 from benchmark.segmenters.morphological import Morphological
-                from benchmark.segmenters.rose2 import Rose2
                 from benchmark.segmenters.voronoi import Voronoi
 
-                segs = {"morphological": Morphological(), "distance": DistanceTransform(), "voronoi": Voronoi(),
-                        "rose2": Rose2(checkout=a.rose2, python=a.rose2_python)}
+                segs = {"morphological": Morphological(), "distance": DistanceTransform(), "voronoi": Voronoi()}
+            if a.rose2:
+                from benchmark.segmenters.rose2 import Rose2
+
+                segs["rose2"] = Rose2(checkout=a.rose2, python=a.rose2_python)
+            if a.ipa:
+                from benchmark.segmenters.ipa import ALGORITHMS, IpaSegmenter
+
+                names = list(ALGORITHMS) if a.ipa == "all" else [n.strip() for n in a.ipa.split(",") if n.strip()]
+                for name in names:  # an unknown name or no build: one line, exit 2
+                    segs[f"ipa_{name}"] = IpaSegmenter(name)
             frames.append(geometric_rows(gts, occ, params, res, segmenters=segs, keep=keep))
     except Exception as e:
         cause = e.__cause__ if type(e).__name__ == "InstantiationException" and e.__cause__ else e
@@ -152,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.markdown is not None:
         from benchmark.reports.published import write_published
 
-        err = write_published(a.markdown, published_command(a, rest), text + "\n" + rose2_line(a.rose2))
+        err = write_published(a.markdown, published_command(a, rest),
+                              text + "\n" + rose2_line(a.rose2) + (("\n" + ipa_line()) if a.ipa else ""))
         if err:
             print(f"error: {err}", file=sys.stderr)
             return 2
@@ -169,6 +184,16 @@ def rose2_line(checkout: str | None) -> str:
     return f"ROSE² rows: run here from {checkout_words(checkout)} (`ROOMSEG_ROSE2` or `--rose2`)."
 
 
+def ipa_line() -> str:
+    """The line under a published table that says which ipa_room_segmentation build its ipa rows ran from."""
+    from benchmark.segmenters.ipa import ipa_build
+
+    b = ipa_build()
+    vrf = ("VRF with the OpenCV 2 weak hypotheses (IPA_VRF_FIX=1)" if b["vrf_fix"] else "VRF as published") \
+        if b["vrf"] else "no VRF"
+    return f"ipa rows: run here from ipa_coverage_planning at commit {b['ipa_commit'][:8]} (`make ipa-env`; {vrf})."
+
+
 def published_command(a, overrides: list[str]) -> str:  # noqa: ANN001 - the parsed arguments
     """The command line that writes ``a.markdown`` again (defaults left out; the ROSE2 checkout, a
     local path, is named by :func:`rose2_line` instead)."""
@@ -181,6 +206,8 @@ def published_command(a, overrides: list[str]) -> str:  # noqa: ANN001 - the par
 
     if a.gt_pattern != GT_PATTERN:
         parts.append(f"--gt-pattern '{a.gt_pattern}'")
+    if getattr(a, "ipa", None):
+        parts.append("--ipa" if a.ipa == "all" else f"--ipa {a.ipa}")
     parts += [f"--method {m}" for m in a.method]
     if a.method and a.method_pattern != "{id}.png":
         parts.append(f"--method-pattern '{a.method_pattern}'")
