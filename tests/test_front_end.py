@@ -274,3 +274,90 @@ def test_scan_matching_holds_heading_far_better_than_the_wheels_on_a_shared_hous
     # the heading the robot chains, and the solved one: the scans measure rotation, the wheels drift
     assert laser[0] < 0.5 * wheels[0]
     assert laser[1] < 0.3 * wheels[1] and laser[1] < 1.5
+
+
+# --------------------------------------------------------------------------- keyframes
+
+
+def _loop_with_turns():
+    """A loop in room A every 0.25 m with a turn in place (a view's headings) at two corners; the
+    wheels' moves with little noise."""
+    states = _states(_path([(1.9, 2.2), (1.9, 4.5), (2.5, 4.8), (2.5, 3.0), (1.9, 2.6)]))
+    spins = []
+    for k, s in enumerate(states):
+        spins.append(s)
+        if k in (9, 20):  # stand and turn a quarter round and back, as at a viewpoint
+            spins += [s + [0, 0, math.pi / 4], s + [0, 0, math.pi / 2], s + [0, 0, math.pi / 4]]
+    states = np.array(spins)
+    states[:, 2] = wrap(states[:, 2])
+    moves = increments(states)
+    alphas = (2e-3, 1e-3, 1e-3, 1e-4)
+    reported = moves - move_sigmas(moves, alphas) * np.random.default_rng(1).standard_normal(moves.shape)
+    z, info = move_edge(reported, move_sigmas(reported, alphas), 1e-3)
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(states[:, :2], axis=0).T))])
+    return states, z, info, travelled
+
+
+def test_keyframes_every_half_metre_and_the_nodes_between_matched_on_the_keyframes_grid():
+    grid = _two_rooms()
+    states, z, info, travelled = _loop_with_turns()
+    every = run_front_end(~grid.walkable, grid, states, z, info, travelled,
+                          FrontEndSettings(closure_radius=0.0, keyframe_xy=0.0, keyframe_yaw=0.0))
+    kf = run_front_end(~grid.walkable, grid, states, z, info, travelled, FrontEndSettings(closure_radius=0.0))
+    assert every.keyframes.all()  # 0 and 0: every node, the first pass's front end
+    # 0.5 m between keyframes on a route with a node every 0.25 m: about every other node; the turns
+    # in place make none (a 360 degree scan sees the same room turned)
+    assert kf.keyframes[0] and kf.keyframes.sum() <= 0.6 * len(states)
+    spun = np.flatnonzero(np.abs(np.diff(states[:, 2])) > 0.5) + 1
+    assert not kf.keyframes[spun].all()
+    # every node between keyframes is still measured by the laser, on the keyframe's grid
+    assert kf.laser.all() and every.laser.all()
+    for fe in (every, kf):
+        assert np.degrees(np.abs(wrap(fe.dead[:, 2] - states[:, 2])).max()) < 2.0
+    # a turn of 20 degrees makes a keyframe when asked
+    turned = run_front_end(~grid.walkable, grid, states, z, info, travelled,
+                           FrontEndSettings(closure_radius=0.0, keyframe_yaw=20.0))
+    assert turned.keyframes[spun].all() and turned.keyframes.sum() > kf.keyframes.sum()
+
+
+def test_loop_closures_only_between_keyframes():
+    grid = _two_rooms()
+    states, z, info, travelled, end_a, start_b = _kidnapped_between_rooms(grid)
+    st = FrontEndSettings(closure_min_travel=3.0, closure_every=0.5)
+    fe = run_front_end(~grid.walkable, grid, states, z, info, travelled, st)
+    assert len(fe.closures) and fe.keyframes[fe.closures].all()
+    assert not fe.keyframes.all()
+
+
+def test_bad_keyframe_settings_are_one_line():
+    from benchmark.conditions.slam import OdometrySlam
+
+    with pytest.raises(ValueError, match=r"^pose_error.keyframe_xy = -0.1: expected metres >= 0$"):
+        OdometrySlam(keyframe_xy=-0.1)
+    with pytest.raises(ValueError, match=r"^pose_error.keyframe_yaw = 200: expected degrees in \[0, 180\]$"):
+        OdometrySlam(keyframe_yaw=200)
+
+
+# --------------------------------------------------------------------------- the scene's obstacles
+
+
+def test_the_front_end_scans_the_obstacles_it_is_given():
+    """OdometrySlam.estimate scans what the harness hands it (the mapping stage's scan plane: legs,
+    closed doors); without them, the route grid's non-walkable cells. The memo keeps them apart."""
+    from benchmark.conditions.slam import OdometrySlam
+
+    grid = _two_rooms()
+    views = np.array([[1.9, 2.4, 0.0], [1.9, 4.4, 0.0], [2.5, 3.2, 90.0], [1.0, 0.7, 0.0], [6.9, 3.0, 0.0]])
+    slam = OdometrySlam(alpha1=2e-3, alpha2=1e-3, alpha3=1e-3, alpha4=1e-4, views_at="final")
+    plain = slam.estimate(grid, views, "h", 0.5)
+    assert slam.estimate(grid, views, "h", 0.5, ~grid.walkable) is not plain
+    np.testing.assert_array_equal(slam.estimate(grid, views, "h", 0.5, ~grid.walkable).estimate, plain.estimate)
+    legs = ~grid.walkable
+    for x, zz in ((1.3, 3.3), (1.3, 3.9), (3.0, 3.3), (3.0, 3.9), (6.3, 3.3), (7.0, 4.0)):  # table legs
+        r, c = grid.world_to_cell(x, zz)
+        legs[int(r), int(c)] = True
+    seen = slam.estimate(grid, views, "h", 0.5, legs)
+    assert slam.known(grid, views, "h", 0.5, legs) is seen and slam.known(grid, views, "h", 0.5) is plain
+    assert not np.array_equal(seen.estimate, plain.estimate)  # other scans, another estimate
+    with pytest.raises(ValueError, match=r"^slam obstacles have shape \(3, 3\): expected the grid's"):
+        OdometrySlam(alpha1=1e-3).estimate(grid, views, "h2", 0.5, np.zeros((3, 3), bool))

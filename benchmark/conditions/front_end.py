@@ -80,6 +80,9 @@ class FrontEndSettings:
         closure_window_xy: metres, a search's half-width per axis, at most (closures and odometry).
         closure_window_yaw: degrees, a search's heading half-width, at most (closures and odometry).
         closure_min_score: mean likelihood (0..1) a closure match needs to be accepted.
+        keyframe_xy: metres the robot moves from the last keyframe before a node becomes one (0 with
+            ``keyframe_yaw`` 0: every node is a keyframe).
+        keyframe_yaw: degrees it turns from the last keyframe before a node becomes one.
     """
 
     max_range: float = 10.0
@@ -103,6 +106,8 @@ class FrontEndSettings:
     closure_window_xy: float = 1.0
     closure_window_yaw: float = 15.0
     closure_min_score: float = 0.5
+    keyframe_xy: float = 0.5
+    keyframe_yaw: float = 180.0
 
     def check(self) -> FrontEndSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting
@@ -132,6 +137,8 @@ class FrontEndSettings:
             "closure_window_xy": (lambda v: number(v) and v > 0, "metres > 0"),
             "closure_window_yaw": (lambda v: number(v) and 0 < v <= 180, "degrees in (0, 180]"),
             "closure_min_score": (lambda v: number(v) and 0 <= v <= 1, "a mean likelihood in [0, 1]"),
+            "keyframe_xy": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "keyframe_yaw": (lambda v: number(v) and 0 <= v <= 180, "degrees in [0, 180]"),
         }
         for key, (ok, want) in rules.items():
             v = getattr(self, key)
@@ -153,6 +160,7 @@ class FrontEndResult:
         closure_z: (C, 3) their matched relative poses; closure_sqrt_info (C, 3, 3).
         wrong: (C,) bool, the wrong ones (module docstring).
         candidates: closure candidates matched.
+        keyframes: (M,) bool, the keyframes (module docstring, 1).
     """
 
     z: np.ndarray
@@ -164,6 +172,7 @@ class FrontEndResult:
     closure_sqrt_info: np.ndarray
     wrong: np.ndarray
     candidates: int
+    keyframes: np.ndarray
 
 
 def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, scanner: ScanSettings) -> list[np.ndarray]:
@@ -240,23 +249,38 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
     dead = np.empty((n, 3))
     dead[0] = true_states[0]
     cov = np.zeros((n, 3, 3))  # each node's covariance along the chain (node 0 exact)
+    key = np.zeros(n, bool)
+    key[0] = n > 0
+    kf, at = 0, np.zeros(3)  # the last keyframe, and the last node's pose in its frame (the chain's)
+    turn = math.radians(st.keyframe_yaw)
     for k in range(n - 1):
         info_w = sqrt_info[k].T @ sqrt_info[k]
-        if st.scan_matching and len(points[k]) and len(points[k + 1]):
+        matched = False
+        if st.scan_matching and len(points[kf]) and len(points[k + 1]):
             cov_w = np.linalg.inv(info_w)
             wxy = min(max(3.0 * math.sqrt(max(cov_w[0, 0], cov_w[1, 1])), st.min_window_xy), st.closure_window_xy)
             wt = min(max(3.0 * math.sqrt(cov_w[2, 2]), math.radians(st.min_window_yaw)),
                      math.radians(st.closure_window_yaw))
-            m, _ = match(ref(k), points[k + 1], z[k], wxy, wt, step)
+            # scan k + 1 on the keyframe's grid, around the chain's pose of k composed with the wheel move
+            m, _ = match(ref(kf), points[k + 1], compose(at, z[k]), wxy, wt, step)
             if m.score >= st.odometry_min_score:
-                info_l = np.linalg.inv(_floored(m.cov, st))
+                matched = True
+                # the laser's move k -> k + 1 (in k's frame) and its covariance turned into that frame
+                zl = _between(at, m.mean)
+                rot = np.array([[math.cos(at[2]), math.sin(at[2]), 0.0], [-math.sin(at[2]), math.cos(at[2]), 0.0],
+                                [0.0, 0.0, 1.0]])
+                info_l = np.linalg.inv(rot @ _floored(m.cov, st) @ rot.T)
                 info = info_l + info_w
-                diff = z[k] - m.mean
+                diff = z[k] - zl
                 diff[2] = wrap(diff[2])
-                fused = m.mean + np.linalg.solve(info, info_w @ diff)
+                fused = zl + np.linalg.solve(info, info_w @ diff)
                 fused[2] = wrap(fused[2])
                 z[k], sqrt_info[k], laser[k] = fused, _upper(info), True
                 info_w = info
+        at = compose(at, z[k])
+        # a new keyframe: moved or turned enough since the last one, or the scans no longer matched
+        if not matched or math.hypot(at[0], at[1]) >= st.keyframe_xy or abs(at[2]) >= turn:
+            kf, at, key[k + 1] = k + 1, np.zeros(3), True
         c_k = np.linalg.inv(info_w)
         dead[k + 1] = compose(dead[k], z[k])
         c, s = math.cos(dead[k, 2]), math.sin(dead[k, 2])
@@ -264,12 +288,20 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
         f = np.array([[1.0, 0.0, -dzw], [0.0, 1.0, dxw], [0.0, 0.0, 1.0]])
         g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         cov[k + 1] = f @ cov[k] @ f.T + g @ c_k @ g.T
-    pairs, zc, infos, wrong, tried = _closures(points, ref, dead, cov, true_states, travelled, st, step)
-    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried)
+    pairs, zc, infos, wrong, tried = _closures(points, ref, dead, cov, true_states, travelled, key, st, step)
+    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key)
 
 
-def _closures(points, ref, dead, cov, true_states, travelled, st: FrontEndSettings, step: float):
-    """Loop closures proposed from the estimate and accepted on the match (module docstring, 3-4)."""
+def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """SE(2) pose ``b`` in the frame of ``a`` (both in one frame): ``compose(a, _between(a, b)) = b``."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dz = b[0] - a[0], b[1] - a[1]
+    return np.array([c * dx + s * dz, -s * dx + c * dz, float(wrap(b[2] - a[2]))])
+
+
+def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndSettings, step: float):
+    """Loop closures between keyframes, proposed from the estimate and accepted on the match (module
+    docstring, 3-4)."""
     pairs, zs, infos = [], [], []
     tried = 0
     n = len(dead)
@@ -277,9 +309,10 @@ def _closures(points, ref, dead, cov, true_states, travelled, st: FrontEndSettin
     if st.closure_radius > 0 and n > 1:
         r2 = st.closure_radius ** 2
         for j in range(n):
-            if travelled[j] < st.closure_min_travel or travelled[j] - last < st.closure_every or not len(points[j]):
+            if (not key[j] or travelled[j] < st.closure_min_travel or travelled[j] - last < st.closure_every
+                    or not len(points[j])):
                 continue
-            cand = np.flatnonzero(travelled <= travelled[j] - st.closure_min_travel)
+            cand = np.flatnonzero(key & (travelled <= travelled[j] - st.closure_min_travel))
             if len(cand) == 0:
                 continue
             last = travelled[j]

@@ -9,7 +9,8 @@ one at every view). Its estimate of where it was at each node is what a graph-SL
    heading error bends every later move.
 2. **The front end** (:mod:`benchmark.conditions.front_end`, on the correlative scan matcher of
    :mod:`benchmark.conditions.scan_matching`): a scan at every node, measured at its true pose on the
-   route grid's non-walkable cells; laser odometry (each scan matched to the previous one around the
+   scan plane's obstacles (the mapping stage's walls, furniture legs and closed doors, which the
+   harness hands over; the route grid's non-walkable cells without them); laser odometry (each scan matched to the previous one around the
    wheel move, fused with it) makes the odometry edges, so the heading comes from the scans; loop
    closures are proposed from the robot's own estimate (a Mahalanobis gate on the chained relative
    pose, ``closure_radius`` metres) and accepted when the match scores ``closure_min_score``.
@@ -191,41 +192,49 @@ class OdometrySlam:
         return all(a == 0 for a in self.alphas) and self.kidnap_m == 0
 
     # ------------------------------------------------------------------ the estimate
-    def estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None) -> SlamEstimate:
-        """The estimate along the route through ``poses`` (memoised per house, views, spacing).
+    def estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None,
+                 obstacles: np.ndarray | None = None) -> SlamEstimate:
+        """The estimate along the route through ``poses`` (memoised per house, views, spacing, obstacles).
 
         Args:
             grid: the house's map (the route runs on its walkable cells).
             poses: (N, 3) true view poses in capture order (every view, refused ones included).
             house_id: seeds the draws.
             spacing: metres between nodes (the scan map's spacing); default ``self.spacing``.
+            obstacles: (H, W) bool what the scan plane hits, the scans the front end matches (the
+                mapping stage's: walls, furniture legs, closed doors); None: ``grid``'s non-walkable cells.
         """
-        key, poses, spacing = self._key(grid, poses, house_id, spacing)
+        key, poses, spacing = self._key(grid, poses, house_id, spacing, obstacles)
         if key not in self._memo:
-            self.remember(grid, poses, house_id, spacing, self._estimate(grid, poses, house_id, spacing))
+            self.remember(grid, poses, house_id, spacing, self._estimate(grid, poses, house_id, spacing, obstacles),
+                          obstacles)
         return self._memo[key]
 
-    def known(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None) -> SlamEstimate | None:
+    def known(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None = None,
+              obstacles: np.ndarray | None = None) -> SlamEstimate | None:
         """:meth:`estimate`'s answer for these arguments if it is at hand (made or remembered), else None."""
-        return self._memo.get(self._key(grid, poses, house_id, spacing)[0])
+        return self._memo.get(self._key(grid, poses, house_id, spacing, obstacles)[0])
 
     def remember(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None,
-                 est: SlamEstimate) -> None:
+                 est: SlamEstimate, obstacles: np.ndarray | None = None) -> None:
         """Keep ``est`` as :meth:`estimate`'s answer for these arguments (the last four kept):
         a caller that stored an estimate made with these settings hands it back here."""
-        key = self._key(grid, poses, house_id, spacing)[0]
+        key = self._key(grid, poses, house_id, spacing, obstacles)[0]
         self._memo[key] = est
         while len(self._memo) > 4:
             self._memo.popitem(last=False)
 
-    def _key(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None) -> tuple:
+    def _key(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float | None,
+             obstacles: np.ndarray | None = None) -> tuple:
         poses = np.ascontiguousarray(poses, np.float64).reshape(-1, 3)
         spacing = self.spacing if spacing is None else float(spacing)
+        seen = None if obstacles is None else zlib.crc32(np.packbits(np.asarray(obstacles, bool)).tobytes())
         key = (house_id, poses.tobytes(), spacing, grid.shape, grid.resolution, tuple(grid.origin),
-               zlib.crc32(np.packbits(grid.walkable).tobytes()))
+               zlib.crc32(np.packbits(grid.walkable).tobytes()), seen)
         return key, poses, spacing
 
-    def _estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float) -> SlamEstimate:
+    def _estimate(self, grid: GridMap, poses: np.ndarray, house_id: str, spacing: float,
+                  obstacles: np.ndarray | None = None) -> SlamEstimate:
         true, view_index = trajectory_with_views(grid.walkable, grid, poses, spacing)
         steps = np.hypot(*np.diff(true[:, :2], axis=0).T) if len(true) > 1 else np.zeros(0)
         travelled = np.concatenate([[0.0], np.cumsum(steps)])
@@ -242,7 +251,11 @@ class OdometrySlam:
         z, info = move_edge(reported, move_sigmas(reported, self.alphas), SIGMA_FLOOR)
         n = len(states)
         # the front end: laser odometry fused with the wheels, closures from the robot's own estimate
-        fe = run_front_end(~grid.walkable, grid, states, z, info, travelled, self.front_end,
+        if obstacles is None:
+            obstacles = ~grid.walkable
+        elif np.shape(obstacles) != grid.shape:
+            raise ValueError(f"slam obstacles have shape {np.shape(obstacles)}: expected the grid's {grid.shape}")
+        fe = run_front_end(np.asarray(obstacles, bool), grid, states, z, info, travelled, self.front_end,
                            int(rng_scan.integers(2 ** 31)))
         dead = fe.dead
         ei, ej, ez, einfo, robust = [np.arange(n - 1)], [np.arange(1, n)], [fe.z], [fe.sqrt_info], [np.zeros(n - 1, bool)]

@@ -212,15 +212,15 @@ class RobotStages:
         stage = self.stage("pose_error")
         if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
             return None
-        grid, spacing = self._route_grid(scene), self._scan_spacing()
+        grid, spacing, seen = self._route_grid(scene), self._scan_spacing(), self._scan_plane(hid, scene)
         if not self._slam_shapes_map():
-            return stage.estimate(grid, views, hid, spacing)
+            return stage.estimate(grid, views, hid, spacing, seen)
         def load(path: Path) -> SlamEstimate:
             return check_slam_entry(load_npz(path), len(views))
 
         def compute() -> SlamEstimate:
             t = time.perf_counter()
-            est = stage.estimate(grid, views, hid, spacing)
+            est = stage.estimate(grid, views, hid, spacing, seen)
             if timings is not None:
                 timings["t_slam"] = time.perf_counter() - t
             return est
@@ -229,7 +229,7 @@ class RobotStages:
             atomic_save_npz(path, **slam_arrays(est))
 
         path = self.entry("slam", hid)
-        est = stage.known(grid, views, hid, spacing)
+        est = stage.known(grid, views, hid, spacing, seen)
         if est is not None and path.exists():
             return est
         if est is not None:  # made here before its entry was written: stored, not timed again
@@ -244,8 +244,21 @@ class RobotStages:
             if ident is not None:
                 arrays = [v for v in vars(est).values() if isinstance(v, np.ndarray)]
                 _ROBOT_MEMO.put(("slam", str(path), ident), est, _read_only(*arrays) + 4096, ROBOT_MEMO_BYTES)
-        stage.remember(grid, views, hid, spacing, est)
+        stage.remember(grid, views, hid, spacing, est, seen)
         return est
+
+    def _scan_plane(self, hid: str, scene) -> np.ndarray | None:
+        """(H, W) bool what the robot's scan plane hits, as its ``mapping`` stage scans it (walls and
+        furniture at the scan height, legs, closed doors): the scans its SLAM front end matches.
+        None without a scanning ``mapping`` stage (the front end scans the route grid)."""
+        settings = getattr(self.mapping, "settings", None)
+        if settings is None or not hasattr(settings, "height"):
+            return None
+        from envs.maps.scan import closed_doors, house_wall_height, scan_obstacles
+
+        wall = house_wall_height(self.env.house(hid))
+        return scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size) | closed_doors(
+            scene, settings.door_closed, settings.seed)
 
     def _scan_spacing(self) -> float | None:
         """Metres driven between the robot's scans (its ``mapping`` stage's; None without one)."""
