@@ -129,11 +129,29 @@ def _remove_refused(out_dir: Path, claimed: str | None) -> None:
         except OSError:
             continue
         if names <= _BEFORE_WORK:
+            _drop_log_handlers(folder)
             shutil.rmtree(folder, ignore_errors=True)
     try:
         Path(out_dir).parent.rmdir()  # only when empty (runs/ of a results folder this run made)
     except OSError:
         pass
+
+
+def _drop_log_handlers(folder: Path) -> None:
+    """Close and detach the logging file handlers writing into ``folder`` (Hydra's ``bench.log``)
+    before it is removed: a handler left on a logger would reopen the removed file at the next
+    record of this process (FileNotFoundError in whatever logs next)."""
+    import logging
+
+    root = Path(folder).resolve()
+    loggers = [logging.getLogger(), *(lg for lg in logging.Logger.manager.loggerDict.values()
+                                      if isinstance(lg, logging.Logger))]
+    for lg in loggers:
+        for h in list(lg.handlers):
+            name = getattr(h, "baseFilename", None)
+            if name and Path(name).resolve().is_relative_to(root):
+                lg.removeHandler(h)
+                h.close()
 
 
 class _OncePerProcess:
