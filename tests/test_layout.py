@@ -236,7 +236,7 @@ def test_the_compose_rule_catches_a_composing_stage():
 #: (the first: standard-library helpers, such as the value ranges of envs.ranges that stage
 #: classes of every layer annotate their parameters with).
 ENVS_LAYERS = (("envs.atomic", "envs.digest", "envs.files", "envs.kernel_cache", "envs.memo", "envs.npz", "envs.ranges"), ("envs.world",), ("envs.maps",), ("envs.render",),
-               ("envs.datasets", "envs.bags"))
+               ("envs.datasets", "envs.bags", "envs.logs"))
 
 
 def envs_layer(name: str) -> int | None:

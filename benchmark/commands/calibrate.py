@@ -79,7 +79,7 @@ def graph_residuals(folder: Path) -> list[dict]:
     """One row per graph of :data:`GRAPHS` under ``folder``: its odometry edges' residuals after a
     least-squares solve (GTSAM, from the file's initial guess)."""
     from benchmark.conditions.calibration import odometry_edge_residuals  # noqa: PLC0415
-    from benchmark.conditions.pose_graph import solve  # noqa: PLC0415
+    from benchmark.conditions.pose_graph import graph_of_file, solve  # noqa: PLC0415
     from envs.logs.g2o import read_toro  # noqa: PLC0415
 
     rows = []
@@ -88,7 +88,7 @@ def graph_residuals(folder: Path) -> list[dict]:
         if not path.is_file():
             raise FileNotFoundError(f"pose graph not found: {path} (expected {', '.join(GRAPHS.values())})")
         g = read_toro(path)
-        states, info = solve(g.to_pose_graph(), g.initial, kernel="none")
+        states, info = solve(graph_of_file(g), g.initial, kernel="none")
         if not info["converged"]:
             raise RuntimeError(f"{path}: the solve did not converge in 1000 iterations")
         rows.append({"graph": name, **odometry_edge_residuals(g, states)})

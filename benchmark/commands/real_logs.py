@@ -94,11 +94,11 @@ def gtsam_check(path: Path, g) -> tuple[float | None, str]:
 
 def solve_graph(path: Path) -> dict:
     """One row of the ``graphs`` table for the pose graph at ``path`` (module docstring)."""
-    from benchmark.conditions.pose_graph import solve
+    from benchmark.conditions.pose_graph import graph_of_file, solve
     from envs.logs.g2o import read_pose_graph
 
     g = read_pose_graph(path)
-    graph = g.to_pose_graph()
+    graph = graph_of_file(g)
     cond = float(np.max(np.linalg.cond(g.information)))
     chi2_initial = solve(graph, g.initial, kernel="none", max_iterations=0)[1]["chi2"]  # the cost, no step
     row = {"graph": path.name, "format": g.format, "vertices": g.n, "edges": len(g.i), "max_info_cond": cond,

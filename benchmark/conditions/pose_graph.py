@@ -80,6 +80,15 @@ class PoseGraph:
         return np.asarray(self.robust, bool).reshape(len(self.i))
 
 
+def graph_of_file(g) -> PoseGraph:
+    """A pose graph read from a file (:class:`envs.logs.g2o.PoseGraphFile`) as a :class:`PoseGraph`:
+    nodes 0..N-1 in the order of its ids, square-root information the upper Cholesky factor of
+    each edge's information, no robust edges."""
+    lower = np.linalg.cholesky(g.information)
+    return PoseGraph(n=g.n, i=g.i.copy(), j=g.j.copy(), z=g.z.copy(),
+                     sqrt_info=np.ascontiguousarray(np.transpose(lower, (0, 2, 1))))
+
+
 def relative(states: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """(E, 3) pose of node j in node i's frame (dx, dz metres, dphi radians wrapped)."""
     s = np.asarray(states, np.float64)

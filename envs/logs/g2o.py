@@ -11,7 +11,7 @@ API::
     g.information  # (E, 3, 3) symmetric information matrices (order x, y, theta)
     g.format       # "g2o" | "toro"
     g.chi2(states) # sum over edges of e' I e with e = t2v(Z^-1 (X_i^-1 X_j)) (g2o's EdgeSE2 error)
-    g.to_pose_graph()  # benchmark.conditions.pose_graph.PoseGraph (square-root information)
+    benchmark.conditions.pose_graph.graph_of_file(g)  # the back end's PoseGraph (square-root information)
 
 Line formats and the order of the information entries (upper triangle of I)::
 
@@ -92,15 +92,6 @@ class PoseGraphFile:
         """Sum over edges of e' I e (g2o's chi2) at ``states`` (N, 3)."""
         e = self.errors(states)
         return float(np.einsum("ei,eij,ej->", e, self.information, e))
-
-    def to_pose_graph(self):
-        """The graph as :class:`benchmark.conditions.pose_graph.PoseGraph` (nodes 0..N-1 in the
-        order of :attr:`ids`; square-root information: upper Cholesky factor; no robust edges)."""
-        from benchmark.conditions.pose_graph import PoseGraph
-
-        lower = np.linalg.cholesky(self.information)
-        return PoseGraph(n=self.n, i=self.i.copy(), j=self.j.copy(), z=self.z.copy(),
-                         sqrt_info=np.ascontiguousarray(np.transpose(lower, (0, 2, 1))))
 
 
 def _num(path: Path, no: int, tag: str, text: str, name: str) -> float:
