@@ -361,3 +361,40 @@ def test_the_front_end_scans_the_obstacles_it_is_given():
     assert not np.array_equal(seen.estimate, plain.estimate)  # other scans, another estimate
     with pytest.raises(ValueError, match=r"^slam obstacles have shape \(3, 3\): expected the grid's"):
         OdometrySlam(alpha1=1e-3).estimate(grid, views, "h2", 0.5, np.zeros((3, 3), bool))
+
+
+# --------------------------------------------------------------------------- place recognition
+
+
+def test_ring_descriptor_finds_the_turn_between_two_scans_of_one_place():
+    from benchmark.conditions.front_end import descriptor, ring_distance
+
+    world = _room_points()
+    here = np.array([1.5, 1.5, 0.0])
+    turned = np.array([1.55, 1.45, math.radians(90.0)])
+    a = descriptor(_in_frame(world, here), 10.0)
+    b = descriptor(_in_frame(world, turned), 10.0)
+    dist, turn = ring_distance(a, b)
+    assert abs(math.degrees(turn) - 90.0) <= 6.0 and dist < 0.2  # one 6-degree sector, a few cm of range
+    elsewhere = descriptor(_in_frame(world, np.array([4.0, 1.0, 0.0])), 10.0)
+    assert ring_distance(a, elsewhere)[0] > 3 * dist
+
+
+def test_place_recognition_finds_revisits_without_the_estimate_and_is_fooled_by_a_look_alike_room():
+    """No closures from the estimate (closure_radius 0): with place recognition on, a keyframe that
+    looks compares its descriptor with every earlier keyframe's and a strict match is accepted.
+    Room A's own revisits are found right; carried to room B, the robot is re-found in room A, its
+    identical twin (wrong: aliasing, what a descriptor also proposes)."""
+    grid = _two_rooms()
+    states, z, info, travelled, end_a, start_b = _kidnapped_between_rooms(grid)
+    st = dict(closure_min_travel=3.0, closure_every=0.5, closure_radius=0.0)
+    off = run_front_end(~grid.walkable, grid, states, z, info, travelled, FrontEndSettings(**st))
+    on = run_front_end(~grid.walkable, grid, states, z, info, travelled,
+                       FrontEndSettings(**st, place_recognition=True))
+    assert len(off.closures) == 0 and off.place_tried == 0
+    assert on.place.all() and on.place_tried >= len(on.closures) >= 2
+    assert on.keyframes[on.closures].all()
+    in_a = on.closures[:, 1] < end_a
+    assert in_a.sum() >= 1 and not on.wrong[in_a].any()
+    fooled = on.wrong & (on.closures[:, 1] >= start_b) & (on.closures[:, 0] < end_a)
+    assert fooled.sum() >= 1

@@ -6,11 +6,17 @@ the node's *true* pose with the front end's scanner, its range noise, dropout an
 robot knows only the ranges and its beams' angles, so the points are in its own frame). Matching is
 :mod:`benchmark.conditions.scan_matching` (correlative, Olson 2009).
 
-1. **Laser odometry.** Each move between consecutive nodes: the wheels' reported move is the
-   prior and the search centre; the window is 3 sigma of the wheels' covariance (at least
+1. **Laser odometry on keyframes.** A node becomes a *keyframe* (its likelihood grid is built)
+   when the robot has moved ``keyframe_xy`` metres (0.5, slam_toolbox's minimum travel) or turned
+   ``keyframe_yaw`` degrees (180 by default: the scan is 360 degrees, so a turn in place at a
+   viewpoint sees the same room; a narrow field of view would want 10-30) from the last keyframe
+   by its chain, or when its scan no longer matched it; node 0 is one (0 and 0: every node, as the
+   first pass). Each move between consecutive nodes: scan ``j`` is matched on the last keyframe's
+   grid around the chain's pose of ``j - 1`` composed with the wheels' reported move (the prior);
+   the window is 3 sigma of the wheels' covariance (at least
    ``min_window_xy`` metres and ``min_window_yaw`` degrees, at most ``closure_window_xy`` and
-   ``closure_window_yaw``). Scan ``j`` is matched against scan
-   ``j - 1``; a match whose score (mean likelihood of its points, 0..1) reaches
+   ``closure_window_yaw``). The matched pose less the chain's pose of ``j - 1`` is the laser's
+   move (its covariance turned into ``j - 1``'s frame); a match whose score (mean likelihood of its points, 0..1) reaches
    ``odometry_min_score`` gives the matched relative pose (the score surface's weighted mean) with
    its covariance (floored at ``sigma_xy`` metres, ``sigma_yaw`` degrees), fused with the wheel
    move (the product of the two Gaussians: the sum of their information). A poorer match leaves
@@ -19,7 +25,7 @@ robot knows only the ranges and its beams' angles, so the points are in its own 
    keeps.
 2. **The robot's estimate**: the fused moves chained from the start (its dead reckoning), with
    each node's covariance propagated along the chain.
-3. **Loop-closure candidates** from that estimate: node ``j`` (at least ``closure_every`` metres of
+3. **Loop-closure candidates** from that estimate, between keyframes only: keyframe ``j`` (at least ``closure_every`` metres of
    route after the last node that looked) and each earlier node ``i`` at least
    ``closure_min_travel`` metres of route before it whose estimated displacement ``d = t_j - t_i``
    passes the Mahalanobis gate ``d^T (Q_ij + r^2 I)^-1 d <= closure_gate`` (``Q_ij`` the chain's
@@ -32,6 +38,16 @@ robot knows only the ranges and its beams' angles, so the points are in its own 
    identical rooms, or a long corridor, can match well at the wrong place. An accepted closure whose
    matched relative pose is farther than :data:`WRONG_XY` metres or :data:`WRONG_YAW` degrees from
    the true one is counted wrong (``wrong_closures``).
+5. **Place recognition** (``place_recognition``, off by default): a keyframe that looks and closes
+   nothing from its estimate compares its ring descriptor (:func:`descriptor`: the mean range in
+   each of 60 sectors of 6 degrees) with every earlier keyframe's, at least ``closure_min_travel``
+   metres of route before it, wherever the estimate puts them: the three nearest by the sorted
+   sector ranges (turn-free), then the best whole-sector turn of those (:func:`ring_distance`). If
+   its mean difference is at most ``place_max_distance`` metres, the matcher verifies it in a wide
+   window (``place_window_xy`` metres around the same place, ``place_window_yaw`` degrees around the
+   descriptor's turn) and accepts it at ``place_min_score``: a closure like the others (robust
+   kernel, counted wrong the same way). Its cost: one descriptor per keyframe (tens of
+   microseconds), a few sector comparisons and at most one match per keyframe that looks.
 """
 
 from __future__ import annotations
@@ -83,6 +99,12 @@ class FrontEndSettings:
         keyframe_xy: metres the robot moves from the last keyframe before a node becomes one (0 with
             ``keyframe_yaw`` 0: every node is a keyframe).
         keyframe_yaw: degrees it turns from the last keyframe before a node becomes one.
+        place_recognition: a keyframe that looks and closes no loop from the estimate compares its
+            scan descriptor with every earlier keyframe's (module docstring, 5).
+        place_max_distance: metres, the largest mean sector-range difference of a descriptor match.
+        place_window_xy: metres, the verifying match's half-width per axis around the same place.
+        place_window_yaw: degrees, its heading half-width around the descriptor's turn.
+        place_min_score: mean likelihood (0..1) the verifying match needs (stricter than a closure's).
     """
 
     max_range: float = 10.0
@@ -108,6 +130,11 @@ class FrontEndSettings:
     closure_min_score: float = 0.5
     keyframe_xy: float = 0.5
     keyframe_yaw: float = 180.0
+    place_recognition: bool = False
+    place_max_distance: float = 0.5
+    place_window_xy: float = 1.0
+    place_window_yaw: float = 10.0
+    place_min_score: float = 0.7
 
     def check(self) -> FrontEndSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting
@@ -139,6 +166,11 @@ class FrontEndSettings:
             "closure_min_score": (lambda v: number(v) and 0 <= v <= 1, "a mean likelihood in [0, 1]"),
             "keyframe_xy": (lambda v: number(v) and v >= 0, "metres >= 0"),
             "keyframe_yaw": (lambda v: number(v) and 0 <= v <= 180, "degrees in [0, 180]"),
+            "place_recognition": (lambda v: isinstance(v, bool), "true or false"),
+            "place_max_distance": (lambda v: number(v) and v >= 0, "metres >= 0"),
+            "place_window_xy": (lambda v: number(v) and v > 0, "metres > 0"),
+            "place_window_yaw": (lambda v: number(v) and 0 < v <= 180, "degrees in (0, 180]"),
+            "place_min_score": (lambda v: number(v) and 0 <= v <= 1, "a mean likelihood in [0, 1]"),
         }
         for key, (ok, want) in rules.items():
             v = getattr(self, key)
@@ -161,6 +193,8 @@ class FrontEndResult:
         wrong: (C,) bool, the wrong ones (module docstring).
         candidates: closure candidates matched.
         keyframes: (M,) bool, the keyframes (module docstring, 1).
+        place: (C,) bool, the closures place recognition found (module docstring, 5).
+        place_tried: descriptor matches verified by the matcher.
     """
 
     z: np.ndarray
@@ -173,6 +207,8 @@ class FrontEndResult:
     wrong: np.ndarray
     candidates: int
     keyframes: np.ndarray
+    place: np.ndarray
+    place_tried: int
 
 
 def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, scanner: ScanSettings) -> list[np.ndarray]:
@@ -288,8 +324,34 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
         f = np.array([[1.0, 0.0, -dzw], [0.0, 1.0, dxw], [0.0, 0.0, 1.0]])
         g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         cov[k + 1] = f @ cov[k] @ f.T + g @ c_k @ g.T
-    pairs, zc, infos, wrong, tried = _closures(points, ref, dead, cov, true_states, travelled, key, st, step)
-    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key)
+    pairs, zc, infos, wrong, tried, place, place_tried = _closures(points, ref, dead, cov, true_states, travelled,
+                                                                   key, st, step)
+    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried)
+
+
+#: sectors of a scan descriptor (6 degrees each)
+SECTORS = 60
+
+
+def descriptor(points: np.ndarray, max_range: float) -> np.ndarray:
+    """(SECTORS,) a scan's ring descriptor: the mean range of its points in each 6-degree sector
+    around the robot (``max_range`` where a sector holds none), sector 0 along the heading."""
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    sector = np.floor(np.mod(np.arctan2(pts[:, 1], pts[:, 0]), 2 * np.pi) / (2 * np.pi / SECTORS)).astype(np.int64)
+    sector = np.minimum(sector, SECTORS - 1)
+    total = np.bincount(sector, r, SECTORS)
+    count = np.bincount(sector, None, SECTORS)
+    return np.where(count > 0, total / np.maximum(count, 1), max_range)
+
+
+def ring_distance(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(metres, radians): the least mean absolute difference of descriptor ``a`` and ``b`` turned by
+    whole sectors, and the turn of ``b``'s robot relative to ``a``'s that gives it."""
+    shifts = np.arange(SECTORS)
+    d = np.abs(a[(np.arange(SECTORS)[None, :] + shifts[:, None]) % SECTORS] - b[None, :]).mean(axis=1)
+    k = int(np.argmin(d))
+    return float(d[k]), float(wrap(k * 2 * np.pi / SECTORS))
 
 
 def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -302,11 +364,11 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndSettings, step: float):
     """Loop closures between keyframes, proposed from the estimate and accepted on the match (module
     docstring, 3-4)."""
-    pairs, zs, infos = [], [], []
-    tried = 0
+    pairs, zs, infos, place, desc = [], [], [], [], {}
+    tried = p_tried = 0
     n = len(dead)
     last = -np.inf
-    if st.closure_radius > 0 and n > 1:
+    if (st.closure_radius > 0 or st.place_recognition) and n > 1:
         r2 = st.closure_radius ** 2
         for j in range(n):
             if (not key[j] or travelled[j] < st.closure_min_travel or travelled[j] - last < st.closure_every
@@ -323,7 +385,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
             q_full = cov[j] - np.einsum("nab,nbc,ndc->nad", f, cov[cand], f)
             q = q_full[:, :2, :2] + r2 * np.eye(2)
             gate = np.einsum("na,nab,nb->n", d, np.linalg.inv(q), d)
-            ok = np.flatnonzero(gate <= st.closure_gate)
+            ok = np.flatnonzero(gate <= st.closure_gate) if st.closure_radius > 0 else np.zeros(0, np.int64)
             for t in ok[np.argsort(gate[ok], kind="stable")][: st.closure_candidates]:
                 i = int(cand[t])
                 if not len(points[i]):
@@ -341,6 +403,11 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
                     zs.append(m.best)
                     infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
                     break
+            else:
+                if st.place_recognition:
+                    p_tried += _recognise(j, points, ref, key, travelled, st, step, desc, pairs, zs, infos, place)
+                continue
+            place.append(False)
     pairs = np.array(pairs, np.int64).reshape(-1, 2)
     zs = np.array(zs, np.float64).reshape(-1, 3)
     infos = np.array(infos, np.float64).reshape(-1, 3, 3)
@@ -351,7 +418,35 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
         wrong = (err_xy > WRONG_XY) | (err_t > math.radians(WRONG_YAW))
     else:
         wrong = np.zeros(0, bool)
-    return pairs, zs, infos, wrong, tried
+    return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried
 
 
-__all__ = ["FrontEndResult", "FrontEndSettings", "WRONG_XY", "WRONG_YAW", "compose", "robot_points", "run_front_end"]
+def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place) -> int:
+    """Place recognition at keyframe ``j`` (module docstring, 5): the earlier keyframe whose descriptor
+    is nearest, verified by the matcher; appends an accepted closure. Returns the matches verified (0, 1)."""
+    cand = np.flatnonzero(key & (travelled <= travelled[j] - st.closure_min_travel))
+    cand = cand[[len(points[i]) > 0 for i in cand]]
+    if len(cand) == 0:
+        return 0
+    for k in (j, *cand):
+        if k not in desc:
+            desc[k] = descriptor(points[k], st.max_range)
+    # the turn-free prefilter: the sorted sector ranges; then the best turn of the three nearest
+    keys = np.sort(np.array([desc[i] for i in cand]), axis=1)
+    near = cand[np.argsort(np.abs(keys - np.sort(desc[j])).mean(axis=1), kind="stable")[:3]]
+    best = min((ring_distance(desc[i], desc[j]) + (int(i),) for i in near), key=lambda t: (t[0], t[2]))
+    dist, turn, i = best
+    if dist > st.place_max_distance:
+        return 0
+    m, _ = match(ref(i), points[j], np.array([0.0, 0.0, turn]), st.place_window_xy,
+                 math.radians(st.place_window_yaw), step)
+    if m.score >= st.place_min_score:
+        pairs.append((i, j))
+        zs.append(m.best)
+        infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
+        place.append(True)
+    return 1
+
+
+__all__ = ["FrontEndResult", "FrontEndSettings", "WRONG_XY", "WRONG_YAW", "compose", "descriptor", "ring_distance",
+           "robot_points", "run_front_end"]
