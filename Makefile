@@ -216,6 +216,7 @@ docs-numbers: setup  ## the numbers the docs include -> results/published/: auto
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.clutter_tables --offices 7 --houses 40 --out results/published/clutter_tables.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.tables_examples --small 2 --large 3 --houses 4 --out results/published/tables_examples.md
 	ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_ROSE2=$(ROSE2) $(PY) -m benchmark.commands.selros --markdown results/published/selros_table5.md
+	$(if $(wildcard $(IPA_ENV)/bin/ipa_segment),ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_IPA_ENV=$(abspath $(IPA_ENV)) ROOMSEG_ROSE2= $(PY) -m benchmark.commands.selros --ipa --no-sanity --markdown results/published/selros_table5_ipa.md,@echo "no ipa_room_segmentation build in $(IPA_ENV): results/published/selros_table5_ipa.md not rewritten (make ipa-env)")
 	ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_ROSE2=$(ROSE2) $(PY) -m benchmark.commands.maintainer.sweep_table experiment=leaderboard run.limit=5 --rose2-with env=procthor_shared --rose2-with env.start=75 --table table5 --out results/published/leaderboard.md
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.objects_accuracy --train 0:75 --train generated:100000:100200 --eval 75:150 --out results/published/objects_accuracy.md
 	$(PY) -m benchmark.commands.maintainer.sweep_table experiment=sensitivity env=synthetic run.limit=5 --table sensitivity --out results/published/sensitivity.md
