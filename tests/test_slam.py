@@ -191,13 +191,16 @@ def test_odometry_slam_clean_is_the_truth_and_errs_with_closures_when_set():
     got, stats = clean(poses, scene.grid, "h")
     np.testing.assert_array_equal(got, poses)
     assert clean.is_clean and stats["pose_error_mean_m"] == 0
-    slam = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0)
+    # every node a keyframe: on this short loop, laser odometry on 0.5 m keyframes drifts 2 cm, which
+    # the closures leave as it is (ATE 0.021 m either way); matched node to node it drifts more for them to pull back
+    every = dict(keyframe_xy=0.0, keyframe_yaw=0.0)
+    slam = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0, **every)
     est = slam.estimate(scene.grid, poses, "h")
     np.testing.assert_array_equal(est.true[est.view_index], poses)  # views are nodes of the route
     st = est.stats()
     assert st["loop_closures"] > 0 and st["wrong_closures"] == 0 and 0 < st["ate_rmse_m"] < st["odometry_ate_rmse_m"]
     # the same draws for the same house; a kept subset of the views gets the same estimates
-    again, _ = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0)(
+    again, _ = OdometrySlam(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0, **every)(
         poses[1::2], scene.grid, "h", route_poses=poses)
     np.testing.assert_array_equal(again, est.views[1::2])
 
