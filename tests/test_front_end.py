@@ -398,3 +398,15 @@ def test_place_recognition_finds_revisits_without_the_estimate_and_is_fooled_by_
     assert in_a.sum() >= 1 and not on.wrong[in_a].any()
     fooled = on.wrong & (on.closures[:, 1] >= start_b) & (on.closures[:, 0] < end_a)
     assert fooled.sum() >= 1
+
+
+def test_the_harness_hands_the_front_end_the_mapping_stages_scan_plane(tmp_path):
+    """Under corruption=slam_3 the robot's scans see what its mapping stage's scan plane holds: with
+    furniture as its legs (mapping.legs) the front end matches other scans than with furniture as
+    boxes, so the estimate differs (before, it scanned the route grid, the same either way)."""
+    from tests.test_robot_conditions import _run
+
+    boxes = _run(tmp_path, "b", "corruption=slam_3", "mapping.legs=false", results="b")
+    legs = _run(tmp_path, "l", "corruption=slam_3", "mapping.legs=true", results="l")
+    assert (boxes["status"] == "ok").all() and (legs["status"] == "ok").all()
+    assert (boxes["ate_rmse_m"] != legs["ate_rmse_m"]).any()
