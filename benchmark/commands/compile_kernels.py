@@ -106,12 +106,14 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.aggregators.graph_knn import GraphKNN
     from benchmark.aggregators.vision_cone import VisionCone
     from benchmark.conditions.alignment import to_map_frame
+    from benchmark.conditions.calibration import expected_hits
     from benchmark.conditions.coverage import view_coverage
     from benchmark.conditions.exploration import Frontier, RandomWalk
     from benchmark.metrics import segments
     from benchmark.postprocess import PostProcess
     from benchmark.segmenters.distance import DistanceTransform
     from benchmark.viewpoints import Autotrace
+    from envs.logs.raw_map import raw_log_odds
     from envs.maps.rays import cast_rays
     from envs.maps.scan import ScanSettings, house_wall_height, robot_scan_map, scan_obstacles
     from envs.maps.slam_map import scan_map_at_estimate
@@ -144,6 +146,11 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
         ("coverage", lambda: view_coverage(scene, poses, 90.0, 6.0, occluders(scene, 1.2))),
         ("ray cast", lambda: cast_rays(~grid.walkable, *grid.world_to_cell(poses[0, 0], poses[0, 1]),
                                        np.array([0.0, 1.0]), 10.0)),
+        ("calibration's expected hits", lambda: expected_hits(~grid.walkable, np.array([grid.walkable.shape[0] // 2]),
+                                                              np.array([grid.walkable.shape[1] // 2]),
+                                                              np.array([[0.0, 1.5, 3.0]]), 20.0)),
+        ("raw map of real scans", lambda: raw_log_odds(np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.3]]),
+                                                       np.full((2, 3), 2.0), np.array([-0.5, 0.0, 0.5]))),
     ]
 
 
