@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
@@ -62,6 +63,7 @@ from benchmark.conditions.pose_graph import relative
 from benchmark.conditions.scan_matching import LikelihoodGrid, match
 from envs.maps.gridmap import GridMap
 from envs.maps.scan import ScanSettings, scan_ranges
+from envs.ranges import Angle, Between, Metres, NonNegative, Positive, Share
 
 #: an accepted closure is wrong when its matched relative pose is this far (metres) from the true one ...
 WRONG_XY = 0.3
@@ -107,34 +109,34 @@ class FrontEndSettings:
         place_min_score: mean likelihood (0..1) the verifying match needs (stricter than a closure's).
     """
 
-    max_range: float = 10.0
-    angular_step: float = 2.0
-    range_noise: float = 0.0
-    dropout: float = 0.0
-    resolution: float = 0.05
-    sigma: float = 0.05
+    max_range: Annotated[float, Metres()] = 10.0
+    angular_step: Annotated[float, Angle()] = 2.0
+    range_noise: Annotated[float, NonNegative()] = 0.0
+    dropout: Annotated[float, Between(0, 1, high_open=True)] = 0.0
+    resolution: Annotated[float, Positive()] = 0.05
+    sigma: Annotated[float, Positive()] = 0.05
     step_yaw: float = 0.25
-    min_window_xy: float = 0.1
+    min_window_xy: Annotated[float, NonNegative()] = 0.1
     min_window_yaw: float = 2.0
-    odometry_min_score: float = 0.5
-    sigma_xy: float = 0.02
-    sigma_yaw: float = 0.25
+    odometry_min_score: Annotated[float, Share()] = 0.5
+    sigma_xy: Annotated[float, Positive()] = 0.02
+    sigma_yaw: Annotated[float, Positive()] = 0.25
     scan_matching: bool = True
-    closure_radius: float = 1.0
-    closure_min_travel: float = 5.0
-    closure_gate: float = 9.21
+    closure_radius: Annotated[float, NonNegative()] = 1.0
+    closure_min_travel: Annotated[float, NonNegative()] = 5.0
+    closure_gate: Annotated[float, Positive()] = 9.21
     closure_candidates: int = 2
-    closure_every: float = 2.0
-    closure_window_xy: float = 1.0
+    closure_every: Annotated[float, NonNegative()] = 2.0
+    closure_window_xy: Annotated[float, Positive()] = 1.0
     closure_window_yaw: float = 15.0
-    closure_min_score: float = 0.5
-    keyframe_xy: float = 0.5
+    closure_min_score: Annotated[float, Share()] = 0.5
+    keyframe_xy: Annotated[float, NonNegative()] = 0.5
     keyframe_yaw: float = 180.0
     place_recognition: bool = False
-    place_max_distance: float = 0.5
-    place_window_xy: float = 1.0
+    place_max_distance: Annotated[float, NonNegative()] = 0.5
+    place_window_xy: Annotated[float, Positive()] = 1.0
     place_window_yaw: float = 10.0
-    place_min_score: float = 0.7
+    place_min_score: Annotated[float, Share()] = 0.7
 
     def check(self) -> FrontEndSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting
