@@ -97,7 +97,11 @@ def _front_end(grid, poses):
     moves = increments(states)
     z, info = move_edge(moves, move_sigmas(moves, (1e-4, 1e-4, 1e-4, 1e-5)), 1e-3)
     travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(true[:, :2], axis=0).T))])
-    return run_front_end(~grid.walkable, grid, states, z, info, travelled, FrontEndSettings(closure_min_travel=1.0))
+    from benchmark.conditions.scan_matching import LikelihoodGrid, match
+
+    ring = np.column_stack([np.cos(np.linspace(0, 6.2, 90)), np.sin(np.linspace(0, 6.2, 90))]) * 3.0
+    wide = match(LikelihoodGrid(ring, 0.05, 0.05), ring, (0.0, 0.0, 0.0), 1.0, 0.1, 0.05)  # branch and bound
+    return run_front_end(~grid.walkable, grid, states, z, info, travelled, FrontEndSettings(closure_min_travel=1.0)), wide
 
 
 def stages() -> list[tuple[str, Callable[[], object]]]:
