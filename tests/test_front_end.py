@@ -12,7 +12,7 @@ import pytest
 from benchmark.conditions.front_end import WRONG_XY, FrontEndSettings, run_front_end
 from benchmark.conditions.odometry import increments, move_sigmas, wrap
 from benchmark.conditions.pose_graph import move_edge, relative
-from benchmark.conditions.scan_matching import EPS, LikelihoodGrid, match
+from benchmark.conditions.scan_matching import EPS, SMALL, LikelihoodGrid, match
 from envs.maps.gridmap import GridMap
 
 # --------------------------------------------------------------------------- hand-made scans
@@ -133,6 +133,35 @@ def test_compiled_matcher_matches_the_slow_reference():
     seen = np.isfinite(partial)
     assert bound.evaluated == seen.sum() < surface.size
     np.testing.assert_allclose(partial[seen], want[seen], rtol=1e-12, atol=1e-9)
+
+
+def test_small_window_scored_pose_by_pose_matches_the_slow_reference():
+    # a window of at most SMALL translations a side takes the padded flat grid (no bound); a centre far
+    # enough off that some of b's points leave the grid at some shifts checks that they read log(EPS)
+    world = _room_points(0.15)
+    rng = np.random.default_rng(5)
+    pts_a = _in_frame(world, np.array([1.4, 1.2, 0.2])) + rng.normal(0, 0.01, (len(world), 2))
+    pts_b = _in_frame(world[rng.permutation(len(world))[:45]], np.array([1.5, 1.15, 0.22]))
+    grid = LikelihoodGrid(pts_a, 0.05, 0.05)
+    step = math.radians(0.5)
+    for centre, (kx, kt) in ((np.array([0.1, -0.05, 0.03]), (2, 4)), (np.array([1.2, -0.9, 0.3]), (3, 2))):
+        _, ref_scores = _reference_search([tuple(p) for p in pts_a], [tuple(p) for p in pts_b], centre, kx, kt,
+                                          0.05, 0.05, step)
+        m, surface = match(grid, pts_b, centre, kx * 0.05, kt * step, step)
+        assert 2 * kx + 1 <= SMALL and m.evaluated == surface.size == len(ref_scores)
+        want = np.empty_like(surface)
+        for (k, i, j), v in ref_scores.items():
+            want[k, i, j] = v
+        np.testing.assert_allclose(surface, want, rtol=1e-12, atol=1e-9)
+        k, i, j = np.unravel_index(int(np.argmax(want)), want.shape)
+        np.testing.assert_allclose(m.best, [centre[0] + (i - kx) * 0.05, centre[1] + (j - kx) * 0.05,
+                                            centre[2] + (k - kt) * step], atol=1e-12)
+    c, s = math.cos(centre[2]), math.sin(centre[2])
+    x = c * pts_b[:, 0] - s * pts_b[:, 1] + centre[0]
+    y = s * pts_b[:, 0] + c * pts_b[:, 1] + centre[1]
+    h, w = grid.grid.shape
+    off = (x < grid.x0) | (x >= grid.x0 + w * 0.05) | (y < grid.y0) | (y >= grid.y0 + h * 0.05)
+    assert 0 < off.sum() < len(pts_b)  # the second window puts some of b's points off the grid
 
 
 # --------------------------------------------------------------------------- two identical rooms

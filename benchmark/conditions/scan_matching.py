@@ -224,12 +224,27 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     bj_ = 0
     evaluated = 0
     if not bounded:
+        # the grid padded by 2 kx + 1 cells of ``low`` a side, flat: a point's cell clamped to one past
+        # the window's reach reads ``low`` at every shift, as off the grid (the same sums, bit for bit)
+        h, w = grid.shape
+        pad = 2 * kx + 1
+        wp = w + 2 * pad
+        flat = np.full((h + 2 * pad) * wp, low)
+        for r in range(h):
+            flat[(r + pad) * wp + pad:(r + pad) * wp + pad + w] = grid[r]
+        base = np.empty(n, np.int64)
         for k in range(nt):
             th = ctheta + (k - kt) * step
             _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
+            for p in range(n):
+                base[p] = ((min(max(rows[p], -kx - 1), h + kx) + pad - kx) * wp
+                           + min(max(cols[p], -kx - 1), w + kx) + pad - kx)
             for i in range(nx):
                 for j in range(nx):
-                    s = _bound(grid, rows, cols, j - kx, i - kx, low)
+                    off = j * wp + i
+                    s = 0.0
+                    for p in range(n):
+                        s += flat[base[p] + off]
                     out[k, i, j] = s
                     evaluated += 1
                     if s > best:
