@@ -190,18 +190,34 @@ def _cells(points, ct, st, cx, cy, x0, y0, res, rows, cols):
         cols[p] = int(np.floor((x - x0) / res))
 
 
+@njit(cache=True, nogil=True)
+def _padded(src, lo, hi, low):
+    """``src`` padded with ``low`` by ``hi - lo + 1`` cells a side, flat, for reads at shifts ``lo..hi``
+    (rows and columns) from cells clamped by :func:`_bases`. Returns (flat, padded width, pad)."""
+    h, w = src.shape
+    pad = hi - lo + 1
+    wp = w + 2 * pad
+    flat = np.full((h + 2 * pad) * wp, low)
+    for r in range(h):
+        flat[(r + pad) * wp + pad:(r + pad) * wp + pad + w] = src[r]
+    return flat, wp, pad
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _bound(pooled, rows, cols, dr, dc, low):
-    """Sum over the points of ``pooled`` at each point's cell shifted by (dr, dc) (``low`` off it)."""
-    h, w = pooled.shape
-    s = 0.0
+def _bases(rows, cols, lo, hi, h, w, pad, wp, base):
+    """Each point's flat index in a :func:`_padded` grid, its cell clamped to one cell past where a
+    shift in ``lo..hi`` could bring it onto the grid: every shifted read of a point off the grid is
+    ``low`` (a pad cell), as the search takes it, with no test per point and shift."""
     for p in range(rows.shape[0]):
-        r = rows[p] + dr
-        c = cols[p] + dc
-        if 0 <= r < h and 0 <= c < w:
-            s += pooled[r, c]
-        else:
-            s += low
+        base[p] = (min(max(rows[p], -hi - 1), h - lo) + pad) * wp + min(max(cols[p], -hi - 1), w - lo) + pad
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sum(flat, base, off):
+    """Sum over the points of ``flat`` at each point's index shifted by ``off``."""
+    s = 0.0
+    for p in range(base.shape[0]):
+        s += flat[base[p] + off]
     return s
 
 
@@ -211,40 +227,30 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     score of every evaluated pose (others stay -inf). ``bounded``: branch and bound over blocks of
     16 x 16 translations (bounds from ``p16``), then 4 x 4 (``p4``), then poses, each level visited from
     the highest bound down while a bound can beat the best (``exhaustive``: every block); else every
-    pose in turn. Returns (best k, i, j, L, evaluated) as indices into ``out``; ties go to the lowest
-    (k, i, j)."""
+    pose in turn. Each grid is read padded (:func:`_padded`): a point's sum at a shift is the same, bit
+    for bit, as with a test whether each shifted cell is on the grid. Returns (best k, i, j, L,
+    evaluated) as indices into ``out``; ties go to the lowest (k, i, j)."""
     n = points.shape[0]
     nt = 2 * kt + 1
     nx = 2 * kx + 1
     rows = np.empty(n, np.int64)
     cols = np.empty(n, np.int64)
+    base = np.empty(n, np.int64)
     best = -np.inf
     bk = 0
     bi_ = 0
     bj_ = 0
     evaluated = 0
+    h, w = grid.shape
+    flat, wp, pad = _padded(grid, -kx, kx, low)
     if not bounded:
-        # the grid padded by 2 kx + 1 cells of ``low`` a side, flat: a point's cell clamped to one past
-        # the window's reach reads ``low`` at every shift, as off the grid (the same sums, bit for bit)
-        h, w = grid.shape
-        pad = 2 * kx + 1
-        wp = w + 2 * pad
-        flat = np.full((h + 2 * pad) * wp, low)
-        for r in range(h):
-            flat[(r + pad) * wp + pad:(r + pad) * wp + pad + w] = grid[r]
-        base = np.empty(n, np.int64)
         for k in range(nt):
             th = ctheta + (k - kt) * step
             _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
-            for p in range(n):
-                base[p] = ((min(max(rows[p], -kx - 1), h + kx) + pad - kx) * wp
-                           + min(max(cols[p], -kx - 1), w + kx) + pad - kx)
+            _bases(rows, cols, -kx, kx, h, w, pad, wp, base)
             for i in range(nx):
                 for j in range(nx):
-                    off = j * wp + i
-                    s = 0.0
-                    for p in range(n):
-                        s += flat[base[p] + off]
+                    s = _sum(flat, base, (j - kx) * wp + i - kx)
                     out[k, i, j] = s
                     evaluated += 1
                     if s > best:
@@ -255,14 +261,24 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
         return bk, bi_, bj_, best, evaluated
     n16 = (nx + 15) // 16  # 16-blocks per side
     n4 = (nx + 3) // 4  # 4-blocks per side
+    # the shifts each level reads: 16-blocks b * 16 - kx + 15, 4-blocks b * 4 - kx + 3 (p16's and p4's
+    # index of a block's first cell)
+    lo16, hi16 = 15 - kx, (n16 - 1) * 16 - kx + 15
+    lo4, hi4 = 3 - kx, (n4 - 1) * 4 - kx + 3
+    f16, wp16, pad16 = _padded(p16, lo16, hi16, low)
+    f4, wp4, pad4 = _padded(p4, lo4, hi4, low)
+    h16, w16 = p16.shape
+    h4, w4 = p4.shape
+    base4 = np.empty(n, np.int64)
     top = np.empty(nt * n16 * n16, np.float64)
     for k in range(nt):
         th = ctheta + (k - kt) * step
         _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
+        _bases(rows, cols, lo16, hi16, h16, w16, pad16, wp16, base)
         for a in range(n16):
             for b in range(n16):
-                # p16's index of the block's first cell: + 15 (j: rows, i: columns)
-                top[(k * n16 + a) * n16 + b] = _bound(p16, rows, cols, b * 16 - kx + 15, a * 16 - kx + 15, low)
+                # (j: rows, i: columns)
+                top[(k * n16 + a) * n16 + b] = _sum(f16, base, (b * 16 - kx + 15) * wp16 + a * 16 - kx + 15)
     order = np.argsort(-top, kind="mergesort")
     mid = np.empty(16, np.float64)
     mid_i = np.empty(16, np.int64)
@@ -278,11 +294,13 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
         if k != last_k:
             th = ctheta + (k - kt) * step
             _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
+            _bases(rows, cols, lo4, hi4, h4, w4, pad4, wp4, base4)
+            _bases(rows, cols, -kx, kx, h, w, pad, wp, base)
             last_k = k
         m = 0
         for bi in range(a * 4, min(a * 4 + 4, n4)):
             for bj in range(b * 4, min(b * 4 + 4, n4)):
-                mid[m] = _bound(p4, rows, cols, bj * 4 - kx + 3, bi * 4 - kx + 3, low)
+                mid[m] = _sum(f4, base4, (bj * 4 - kx + 3) * wp4 + bi * 4 - kx + 3)
                 mid_i[m] = bi
                 mid_j[m] = bj
                 m += 1
@@ -293,7 +311,7 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
                 break
             for i in range(mid_i[u] * 4, min(mid_i[u] * 4 + 4, nx)):
                 for j in range(mid_j[u] * 4, min(mid_j[u] * 4 + 4, nx)):
-                    s = _bound(grid, rows, cols, j - kx, i - kx, low)
+                    s = _sum(flat, base, (j - kx) * wp + i - kx)
                     out[k, i, j] = s
                     evaluated += 1
                     if s > best or (s == best and (k, i, j) < (bk, bi_, bj_)):
