@@ -60,7 +60,16 @@ import numpy as np
 
 from benchmark.conditions.odometry import wrap
 from benchmark.conditions.pose_graph import relative
-from benchmark.conditions.scan_matching import LikelihoodGrid, match
+from benchmark.conditions.scan_matching import (
+    EPS,
+    SMALL,
+    LikelihoodGrid,
+    _likelihood_grid,
+    _match,
+    _pool,
+    match,
+)
+from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.maps.scan import ScanSettings, scan_ranges
 from envs.ranges import Angle, Between, Metres, NonNegative, Positive, Share
@@ -281,54 +290,109 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
         return grids[k]
 
     step = math.radians(st.step_yaw)
-    z = np.array(wheel_z, np.float64, copy=True)
-    sqrt_info = np.array(wheel_sqrt_info, np.float64, copy=True)
-    laser = np.zeros(max(n - 1, 0), bool)
+    z = np.array(wheel_z, np.float64, copy=True).reshape(-1, 3)
+    sqrt_info = np.array(wheel_sqrt_info, np.float64, copy=True).reshape(-1, 3, 3)
+    counts = np.array([len(p) for p in points], np.int64)
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    flat = np.ascontiguousarray(np.concatenate(points) if n else np.zeros((0, 2)), np.float64).reshape(-1, 2)
+    floor = np.array([st.sigma_xy ** 2, st.sigma_xy ** 2, math.radians(st.sigma_yaw) ** 2])
+    laser, dead, cov, key = _chain(flat, start, true_states, z, sqrt_info, bool(st.scan_matching),
+                                   float(st.resolution), smoothing, step, float(st.min_window_xy),
+                                   math.radians(st.min_window_yaw), float(st.closure_window_xy),
+                                   math.radians(st.closure_window_yaw), float(st.odometry_min_score), floor,
+                                   float(st.keyframe_xy), math.radians(st.keyframe_yaw), math.log(EPS), EPS)
+    pairs, zc, infos, wrong, tried, place, place_tried = _closures(points, ref, dead, cov, true_states, travelled,
+                                                                   key, st, step)
+    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried)
+
+
+@njit(cache=True, nogil=True)
+def _wrap(a):
+    return np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+
+
+@njit(cache=True, nogil=True)
+def _compose(state, z):
+    c, s = math.cos(state[2]), math.sin(state[2])
+    return np.array([state[0] + c * z[0] - s * z[1], state[1] + s * z[0] + c * z[1], _wrap(state[2] + z[2])])
+
+
+@njit(cache=True, nogil=True)
+def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing, step, min_wxy, min_wt, max_wxy,
+           max_wt, min_score, floor, keyframe_xy, turn, low, eps):
+    """Laser odometry on keyframes and the robot's estimate along the route (module docstring, 1-2),
+    compiled: node ``m``'s scan is ``flat[start[m]:start[m + 1]]``. Fuses into ``z``, ``sqrt_info`` in
+    place; returns (laser (M-1,), dead (M, 3), each node's covariance (M, 3, 3), keyframes (M,))."""
+    n = true_states.shape[0]
+    laser = np.zeros(max(n - 1, 0), np.bool_)
     dead = np.empty((n, 3))
-    dead[0] = true_states[0]
     cov = np.zeros((n, 3, 3))  # each node's covariance along the chain (node 0 exact)
-    key = np.zeros(n, bool)
-    key[0] = n > 0
-    kf, at = 0, np.zeros(3)  # the last keyframe, and the last node's pose in its frame (the chain's)
-    turn = math.radians(st.keyframe_yaw)
+    key = np.zeros(n, np.bool_)
+    if n == 0:
+        return laser, dead, cov, key
+    dead[0] = true_states[0]
+    key[0] = True
+    kf = 0
+    at = np.zeros(3)  # the last node's pose in the last keyframe's frame (the chain's)
+    built = -1  # the keyframe whose grid (and block maxima, when pooled) is at hand
+    pooled = False
+    grid = np.zeros((1, 1))
+    p4 = grid
+    p16 = grid
+    x0 = y0 = 0.0
     for k in range(n - 1):
-        info_w = sqrt_info[k].T @ sqrt_info[k]
+        info_w = sqrt_info[k].T.copy() @ sqrt_info[k]
         matched = False
-        if st.scan_matching and len(points[kf]) and len(points[k + 1]):
+        a_n = start[kf + 1] - start[kf]
+        b = flat[start[k + 1]:start[k + 2]]
+        if scan_matching and a_n and b.shape[0]:
             cov_w = np.linalg.inv(info_w)
-            wxy = min(max(3.0 * math.sqrt(max(cov_w[0, 0], cov_w[1, 1])), st.min_window_xy), st.closure_window_xy)
-            wt = min(max(3.0 * math.sqrt(cov_w[2, 2]), math.radians(st.min_window_yaw)),
-                     math.radians(st.closure_window_yaw))
+            wxy = min(max(3.0 * math.sqrt(max(cov_w[0, 0], cov_w[1, 1])), min_wxy), max_wxy)
+            wt = min(max(3.0 * math.sqrt(cov_w[2, 2]), min_wt), max_wt)
+            if built != kf:
+                grid, x0, y0 = _likelihood_grid(flat[start[kf]:start[kf + 1]], res, smoothing, eps)
+                built, pooled = kf, False
+            if 2 * int(math.ceil(wxy / res - 1e-9)) + 1 > SMALL and not pooled:
+                p4 = _pool(grid, 3, 1, low)
+                p16 = _pool(p4, 12, 4, low)
+                pooled = True
             # scan k + 1 on the keyframe's grid, around the chain's pose of k composed with the wheel move
-            m, _ = match(ref(kf), points[k + 1], compose(at, z[k]), wxy, wt, step)
-            if m.score >= st.odometry_min_score:
+            c = _compose(at, z[k])
+            _, _, score, mean, mcov = _match(grid, p4 if pooled else grid, p16 if pooled else grid, x0, y0, res, b,
+                                             c[0], c[1], c[2], wxy, wt, step, low, eps)
+            if score >= min_score:
                 matched = True
                 # the laser's move k -> k + 1 (in k's frame) and its covariance turned into that frame
-                zl = _between(at, m.mean)
-                rot = np.array([[math.cos(at[2]), math.sin(at[2]), 0.0], [-math.sin(at[2]), math.cos(at[2]), 0.0],
-                                [0.0, 0.0, 1.0]])
-                info_l = np.linalg.inv(rot @ _floored(m.cov, st) @ rot.T)
-                info = info_l + info_w
+                ca, sa = math.cos(at[2]), math.sin(at[2])
+                dx, dz = mean[0] - at[0], mean[1] - at[1]
+                zl = np.array([ca * dx + sa * dz, -sa * dx + ca * dz, _wrap(mean[2] - at[2])])
+                rot = np.array([[ca, sa, 0.0], [-sa, ca, 0.0], [0.0, 0.0, 1.0]])
+                fl = mcov.copy()
+                for d in range(3):
+                    fl[d, d] += floor[d]
+                info = np.linalg.inv(rot @ fl @ rot.T.copy()) + info_w
                 diff = z[k] - zl
-                diff[2] = wrap(diff[2])
+                diff[2] = _wrap(diff[2])
                 fused = zl + np.linalg.solve(info, info_w @ diff)
-                fused[2] = wrap(fused[2])
-                z[k], sqrt_info[k], laser[k] = fused, _upper(info), True
+                fused[2] = _wrap(fused[2])
+                z[k] = fused
+                sqrt_info[k] = np.linalg.cholesky(info).T
+                laser[k] = True
                 info_w = info
-        at = compose(at, z[k])
+        at = _compose(at, z[k])
         # a new keyframe: moved or turned enough since the last one, or the scans no longer matched
-        if not matched or math.hypot(at[0], at[1]) >= st.keyframe_xy or abs(at[2]) >= turn:
-            kf, at, key[k + 1] = k + 1, np.zeros(3), True
+        if not matched or math.hypot(at[0], at[1]) >= keyframe_xy or abs(at[2]) >= turn:
+            kf = k + 1
+            at = np.zeros(3)
+            key[k + 1] = True
         c_k = np.linalg.inv(info_w)
-        dead[k + 1] = compose(dead[k], z[k])
+        dead[k + 1] = _compose(dead[k], z[k])
         c, s = math.cos(dead[k, 2]), math.sin(dead[k, 2])
         dxw, dzw = dead[k + 1, 0] - dead[k, 0], dead[k + 1, 1] - dead[k, 1]
         f = np.array([[1.0, 0.0, -dzw], [0.0, 1.0, dxw], [0.0, 0.0, 1.0]])
         g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        cov[k + 1] = f @ cov[k] @ f.T + g @ c_k @ g.T
-    pairs, zc, infos, wrong, tried, place, place_tried = _closures(points, ref, dead, cov, true_states, travelled,
-                                                                   key, st, step)
-    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried)
+        cov[k + 1] = f @ cov[k] @ f.T.copy() + g @ c_k @ g.T.copy()
+    return laser, dead, cov, key
 
 
 #: sectors of a scan descriptor (6 degrees each)

@@ -322,6 +322,39 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     return bk, bi_, bj_, best, evaluated
 
 
+@njit(cache=True, nogil=True)
+def _likelihood_grid(pts, res, sigma, eps):
+    """(grid, x0, y0) of :class:`LikelihoodGrid`: ``pts`` plus ``3 sigma + res`` a side (a grid of
+    one cell at the origin when there are none)."""
+    margin = 3.0 * sigma + res
+    if pts.shape[0]:
+        lo_x = pts[:, 0].min() - margin
+        lo_y = pts[:, 1].min() - margin
+        hi_x = pts[:, 0].max() + margin
+        hi_y = pts[:, 1].max() + margin
+    else:
+        lo_x, lo_y, hi_x, hi_y = 0.0, 0.0, 1.0, 1.0
+    w = int(math.ceil((hi_x - lo_x) / res))
+    h = int(math.ceil((hi_y - lo_y) / res))
+    return _rasterise(pts, lo_x, lo_y, res, sigma, max(h, 1), max(w, 1), eps), lo_x, lo_y
+
+
+@njit(cache=True, nogil=True)
+def _match(grid, p4, p16, x0, y0, res, points, cx, cy, ct, window_xy, window_theta, step, low, eps):
+    """:func:`match` compiled, for a caller's compiled loop (``p4``, ``p16``: the block maxima, read only
+    when the window is wider than :data:`SMALL`). Returns (best (3,), loglik, score, mean (3,), cov (3, 3))."""
+    kx = int(math.ceil(window_xy / res - 1e-9))
+    kt = int(math.ceil(window_theta / step - 1e-9))
+    out = np.full((2 * kt + 1, 2 * kx + 1, 2 * kx + 1), -np.inf)
+    bounded = 2 * kx + 1 > SMALL
+    k, i, j, best, _ = _search(grid, p4, p16, x0, y0, res, points, cx, cy, ct, kx, kt, step, bounded, False, low,
+                               out)
+    mean, cov = _moments(out, best, cx, cy, ct, kx, kt, res, step)
+    bp = np.array([cx + (i - kx) * res, cy + (j - kx) * res, ct + (k - kt) * step])
+    score = _mean_g(grid, x0, y0, res, points, bp[0], bp[1], bp[2], eps)
+    return bp, best, score, mean, cov
+
+
 class LikelihoodGrid:
     """A reference scan rasterised for matching (module docstring, step 1).
 
@@ -334,12 +367,7 @@ class LikelihoodGrid:
     def __init__(self, points: np.ndarray, resolution: float, sigma: float):
         pts = np.ascontiguousarray(points, np.float64).reshape(-1, 2)
         self.resolution, self.sigma = float(resolution), float(sigma)
-        margin = 3.0 * self.sigma + self.resolution
-        lo = pts.min(axis=0) - margin if len(pts) else np.zeros(2)
-        hi = pts.max(axis=0) + margin if len(pts) else np.ones(2)
-        self.x0, self.y0 = float(lo[0]), float(lo[1])
-        w, h = (int(math.ceil(v)) for v in (hi - lo) / self.resolution)
-        self.grid = _rasterise(pts, self.x0, self.y0, self.resolution, self.sigma, max(h, 1), max(w, 1), EPS)
+        self.grid, self.x0, self.y0 = _likelihood_grid(pts, self.resolution, self.sigma, EPS)
         self._pools: tuple[np.ndarray, np.ndarray] | None = None
 
     def pools(self) -> tuple[np.ndarray, np.ndarray]:
