@@ -234,15 +234,16 @@ def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, 
     s = np.asarray(true_states, np.float64)
     yaw_deg = np.rad2deg(np.pi / 2 - s[:, 2])
     ranges, headings, origins = scan_ranges(obstacles, grid, np.column_stack([s[:, :2], yaw_deg]), scanner)
-    out = []
-    for m in range(len(s)):
-        ok = np.isfinite(ranges[m])
-        d = ranges[m, ok]
-        wx = origins[m, 0] + d * np.sin(headings[ok]) - s[m, 0]
-        wz = origins[m, 1] + d * np.cos(headings[ok]) - s[m, 1]
-        c, sn = math.cos(s[m, 2]), math.sin(s[m, 2])
-        out.append(np.column_stack([c * wx + sn * wz, -sn * wx + c * wz]))
-    return out
+    ranges = np.asarray(ranges, np.float64).reshape(len(s), -1)
+    ok = np.isfinite(ranges)
+    ranges = np.where(ok, ranges, 0.0)  # no beam: no point (and no inf * 0)
+    wx = origins[:, 0, None] + ranges * np.sin(headings)[None, :] - s[:, 0, None]
+    wz = origins[:, 1, None] + ranges * np.cos(headings)[None, :] - s[:, 1, None]
+    c = np.array([math.cos(v) for v in s[:, 2]])[:, None]
+    sn = np.array([math.sin(v) for v in s[:, 2]])[:, None]
+    # every node's points in one array, node by node; each node's scan a view of it
+    flat = np.column_stack([(c * wx + sn * wz)[ok], (-sn * wx + c * wz)[ok]])
+    return np.split(flat, np.cumsum(ok.sum(axis=1))[:-1]) if len(s) else []
 
 
 def _floored(cov: np.ndarray, st: FrontEndSettings) -> np.ndarray:
