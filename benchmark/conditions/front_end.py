@@ -342,7 +342,8 @@ def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing
     p16 = grid
     x0 = y0 = 0.0
     for k in range(n - 1):
-        info_w = sqrt_info[k].T.copy() @ sqrt_info[k]
+        u = sqrt_info[k].copy()
+        info_w = u.T.copy() @ u
         matched = False
         a_n = start[kf + 1] - start[kf]
         b = flat[start[k + 1]:start[k + 2]]
@@ -392,7 +393,7 @@ def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing
         dxw, dzw = dead[k + 1, 0] - dead[k, 0], dead[k + 1, 1] - dead[k, 1]
         f = np.array([[1.0, 0.0, -dzw], [0.0, 1.0, dxw], [0.0, 0.0, 1.0]])
         g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        cov[k + 1] = f @ cov[k] @ f.T.copy() + g @ c_k @ g.T.copy()
+        cov[k + 1] = f @ cov[k].copy() @ f.T.copy() + g @ c_k @ g.T.copy()
     return laser, dead, cov, key
 
 
