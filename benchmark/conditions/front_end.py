@@ -22,7 +22,7 @@ robot knows only the ranges and its beams' angles, so the points are in its own 
    move (the product of the two Gaussians: the sum of their information). A poorer match leaves
    the wheel move alone. So the heading comes from the scans, as in real lidar SLAM; a carried
    (kidnapped) robot's wheels report no move with a standing robot's confidence, which the fusion
-   keeps.
+   keeps. The whole chain (matches, fusions, keyframe grids) is one compiled call, :func:`_chain`.
 2. **The robot's estimate**: the fused moves chained from the start (its dead reckoning), with
    each node's covariance propagated along the chain.
 3. **Loop-closure candidates** from that estimate, between keyframes only: keyframe ``j`` (at least ``closure_every`` metres of
