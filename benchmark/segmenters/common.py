@@ -40,9 +40,14 @@ eroded free space, much smaller than its room), the second the area of a finishe
 
 from __future__ import annotations
 
+import shutil
+import tempfile
+from pathlib import Path
+
 import numpy as np
 from skimage.segmentation import watershed
 
+from envs.atomic import pid_alive
 from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
@@ -165,3 +170,15 @@ def finish_rooms(seeds: np.ndarray, grid: GridMap, min_room_area: float, dist: n
 
 
 __all__ = ["grow_seeds", "check_area_limits", "check_room_area", "finish_rooms", "merge_small_rooms"]
+
+
+def clean_dead_tmp(prefix: str) -> list[Path]:
+    """Remove the folders ``<tmp>/<prefix><pid>-*`` of processes that are gone (an external
+    segmenter's driver folders, killed before they could remove their own); returns those removed."""
+    removed = []
+    for p in Path(tempfile.gettempdir()).glob(f"{prefix}*-*"):
+        pid = p.name[len(prefix):].split("-", 1)[0]
+        if pid.isdigit() and not pid_alive(int(pid)):
+            shutil.rmtree(p, ignore_errors=True)
+            removed.append(p)
+    return removed

@@ -38,8 +38,7 @@ import numpy as np
 
 from benchmark.guarded import run_guarded
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import check_room_area, merge_small_rooms
-from envs.atomic import pid_alive
+from benchmark.segmenters.common import check_room_area, clean_dead_tmp, merge_small_rooms
 from envs.maps.gridmap import GridMap
 from envs.ranges import NonNegative
 
@@ -90,13 +89,7 @@ def ipa_build(env_dir: str | Path | None = None) -> dict:
 def clean_ipa_tmp() -> list[Path]:
     """Remove the driver folders (``<tmp>/roomseg-ipa-<pid>-*``) of processes that are gone
     (killed before they could remove their own); returns the folders removed."""
-    removed = []
-    for p in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*-*"):
-        pid = p.name[len(TMP_PREFIX):].split("-", 1)[0]
-        if pid.isdigit() and not pid_alive(int(pid)):
-            shutil.rmtree(p, ignore_errors=True)
-            removed.append(p)
-    return removed
+    return clean_dead_tmp(TMP_PREFIX)
 
 
 def ipa_image(walkable: np.ndarray, resolution: float) -> np.ndarray:

@@ -37,8 +37,7 @@ from scipy import ndimage
 
 from benchmark.guarded import run_guarded
 from benchmark.interfaces import Segmenter
-from benchmark.segmenters.common import check_room_area, merge_small_rooms
-from envs.atomic import pid_alive
+from benchmark.segmenters.common import check_room_area, clean_dead_tmp, merge_small_rooms
 from envs.maps.gridmap import GridMap
 from envs.ranges import NonNegative
 
@@ -71,13 +70,7 @@ def checkout_words(checkout: str | Path) -> str:
 def clean_rose2_tmp() -> list[Path]:
     """Remove the driver folders (``<tmp>/roomseg-rose2-<pid>-*``) of processes that are gone
     (killed before they could remove their own); returns the folders removed."""
-    removed = []
-    for p in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*-*"):
-        pid = p.name[len(TMP_PREFIX):].split("-", 1)[0]
-        if pid.isdigit() and not pid_alive(int(pid)):
-            shutil.rmtree(p, ignore_errors=True)
-            removed.append(p)
-    return removed
+    return clean_dead_tmp(TMP_PREFIX)
 
 
 def rose2_image(walkable: np.ndarray, resolution: float, wall_m: float = 0.2, margin_m: float = 1.0
