@@ -454,6 +454,18 @@ def _surface_array(surfaces, settings: ScanSettings, shape: tuple[int, int]) -> 
     return out
 
 
+
+def scan_draws(s: ScanSettings, obstacles: np.ndarray, grid: GridMap, surfaces, m: int) -> tuple:
+    """The random draws of ``m`` whole scans at once, from ``s.seed``'s streams (as the mapper draws
+    them): (noise (m, B), drop (m, B), grazing uniforms, surface normals, people, surface shares).
+    One place for the scans measured at a SLAM estimate and the scans the front end matches."""
+    noise_rng, drop_rng = _draw_streams(s.seed)
+    noise, drop = _beam_draws(s, noise_rng, drop_rng, m)
+    graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), m)
+    normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
+    persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, m)
+    return noise, drop, graze_u, normals, persons, _surface_array(surfaces, s, grid.shape)
+
 def _draw_streams(seed: int):
     """Separate generators for range noise and dropout, so that adding scans in chunks draws
     the same numbers as adding them all at once."""
@@ -824,12 +836,7 @@ def scan_ranges(obstacles: np.ndarray, grid: GridMap, scan_poses: np.ndarray,
     obstacles = np.ascontiguousarray(obstacles, np.bool_)
     if obstacles.shape != grid.shape:
         raise ValueError(f"obstacles shape {obstacles.shape} != grid shape {grid.shape}")
-    noise_rng, drop_rng = _draw_streams(s.seed)
-    noise, drop = _beam_draws(s, noise_rng, drop_rng, len(poses))
-    graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(poses))
-    normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
-    persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(poses))
-    sf = _surface_array(surfaces, s, grid.shape)
+    noise, drop, graze_u, normals, persons, sf = scan_draws(s, obstacles, grid, surfaces, len(poses))
     r, c = grid.world_to_cell(poses[:, 0], poses[:, 1])
     beams = np.arange(s.n_beams, dtype=np.int64)
     out = np.full((len(poses), len(beams)), np.nan)

@@ -35,18 +35,13 @@ from envs.maps.scan import (
     ScanMap,
     ScanSettings,
     _apply_scan,
-    _beam_draws,
-    _draw_streams,
-    _grazing_draws,
     _mark,
     _range_px,
-    _surface_array,
     beam_headings,
     beam_return,
     exact_scanner,
     occupancy_from_log_odds,
-    people_draws,
-    surface_normals,
+    scan_draws,
 )
 
 
@@ -181,12 +176,7 @@ def scan_map_at_estimate(obstacles: np.ndarray, grid: GridMap, true_poses: np.nd
     obstacles = np.ascontiguousarray(obstacles, np.bool_)
     if obstacles.shape != grid.shape:
         raise ValueError(f"obstacles shape {obstacles.shape} != grid shape {grid.shape}")
-    noise_rng, drop_rng = _draw_streams(s.seed)
-    noise, drop = _beam_draws(s, noise_rng, drop_rng, len(true))
-    graze_u = _grazing_draws(s, np.random.default_rng([int(s.seed), 4]), len(true))
-    normals = surface_normals(obstacles) if s.grazing_dropout > 0 else np.zeros((1, 1, 2))
-    persons = people_draws(s, np.random.default_rng([int(s.seed), 5]), obstacles, grid.resolution, len(true))
-    sf = _surface_array(surfaces, s, grid.shape)
+    noise, drop, graze_u, normals, persons, sf = scan_draws(s, obstacles, grid, surfaces, len(true))
     r, c = grid.world_to_cell(true[:, 0], true[:, 1])
     er, ec = grid.world_to_cell(est[:, 0], est[:, 1])
     dyaw = np.deg2rad(est[:, 2] - true[:, 2])
