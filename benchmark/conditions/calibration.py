@@ -36,6 +36,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter
 
 from envs.kernel_cache import njit
+from envs.logs.g2o import edge_errors
 from envs.maps.rays import ray_end, trace_ray
 from envs.maps.scan import ScanSettings, surface_normals
 
@@ -342,25 +343,49 @@ def fit_log(poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range
 # --------------------------------------------------------------------------- the front end
 
 
+def residual_summary(errors: np.ndarray, z: np.ndarray) -> dict:
+    """Over edges: their errors ``errors`` (E, 3) at a solution (g2o's EdgeSE2 error,
+    :func:`envs.logs.g2o.edge_errors`) and their measurements ``z`` (E, 3): the translational (m)
+    and rotational (deg) residual's mean, standard deviation and median, with the mean move (m)
+    and turn (deg) an edge measures."""
+    e = np.asarray(errors, np.float64).reshape(-1, 3)
+    z = np.asarray(z, np.float64).reshape(-1, 3)
+    if len(e) == 0 or len(e) != len(z):
+        raise ValueError(f"{len(e)} edge errors and {len(z)} measurements: expected one of each for 1 edge or more")
+    t = np.hypot(e[:, 0], e[:, 1])
+    r = np.rad2deg(np.abs(e[:, 2]))
+    return {"edges": len(e), "trans_mean_m": float(t.mean()), "trans_std_m": float(t.std()),
+            "trans_median_m": float(np.median(t)), "rot_mean_deg": float(r.mean()), "rot_std_deg": float(r.std()),
+            "rot_median_deg": float(np.median(r)), "move_m": float(np.hypot(z[:, 0], z[:, 1]).mean()),
+            "turn_deg": float(np.rad2deg(np.abs(z[:, 2])).mean())}
+
+
 def odometry_edge_residuals(graph, states: np.ndarray) -> dict:
     """What a real scan matcher's odometry edges are off by: over the edges of ``graph`` (an
-    :class:`envs.logs.g2o.PoseGraphFile`) between consecutive vertex ids, the translational (m) and
-    rotational (deg) residual at ``states`` (the solved graph), mean, standard deviation and
-    median, with the mean move (m) and turn (deg) an edge measures. A residual at the solve is a
-    lower bound of the edge's error against the truth (the solve spreads part of it over the
-    graph)."""
-    e = graph.errors(states)
+    :class:`envs.logs.g2o.PoseGraphFile`) between consecutive vertex ids, :func:`residual_summary`
+    at ``states`` (the solved graph), and ``closures``, the graph's other edges. A residual at the
+    solve is a lower bound of the edge's error against the truth (the solve spreads part of it over
+    the graph)."""
     odo = (graph.ids[graph.j] - graph.ids[graph.i]) == 1
     if not odo.any():
         raise ValueError(f"{graph.path}: no edge between consecutive vertices: expected odometry edges")
-    t = np.hypot(e[odo, 0], e[odo, 1])
-    r = np.rad2deg(np.abs(e[odo, 2]))
-    return {"edges": int(odo.sum()), "trans_mean_m": float(t.mean()), "trans_std_m": float(t.std()),
-            "trans_median_m": float(np.median(t)), "rot_mean_deg": float(r.mean()), "rot_std_deg": float(r.std()),
-            "rot_median_deg": float(np.median(r)), "move_m": float(np.hypot(graph.z[odo, 0], graph.z[odo, 1]).mean()),
-            "turn_deg": float(np.rad2deg(np.abs(graph.z[odo, 2])).mean())}
+    return {**residual_summary(graph.errors(states)[odo], graph.z[odo]), "closures": int((~odo).sum())}
+
+
+def chain_edge_errors(states: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(M-1, 3) the errors (:func:`envs.logs.g2o.edge_errors`) at ``states`` (M, 3) SE(2) of the
+    odometry edges ``z`` (M-1, 3) between consecutive nodes (a SLAM estimate's: the front end's
+    fused moves the back end got, :attr:`benchmark.conditions.slam.SlamEstimate.odometry_edges`)."""
+    s = np.asarray(states, np.float64).reshape(-1, 3)
+    z = np.asarray(z, np.float64).reshape(-1, 3)
+    if len(z) != len(s) - 1:
+        raise ValueError(f"{len(z)} odometry edges over {len(s)} nodes: expected one edge between each two consecutive "
+                         "nodes")
+    k = np.arange(len(z))
+    return edge_errors(s, k, k + 1, z)
 
 
 __all__ = ["expected_hits", "incidence_cos", "cell_ranges", "projected_ranges", "fit_dropout",
            "dropout_correlation", "fit_range_noise", "noise_by_incidence", "ScanFit", "fit_scans", "LogMap",
-           "beam_world", "log_map", "log_scan_arrays", "fit_log", "MAD_TO_SIGMA", "odometry_edge_residuals"]
+           "beam_world", "log_map", "log_scan_arrays", "fit_log", "MAD_TO_SIGMA", "odometry_edge_residuals",
+           "residual_summary", "chain_edge_errors"]

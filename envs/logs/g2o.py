@@ -2,7 +2,7 @@
 
 API::
 
-    from envs.logs.g2o import read_pose_graph, read_g2o, read_toro, PoseGraphFileError
+    from envs.logs.g2o import read_pose_graph, read_g2o, read_toro, PoseGraphFileError, edge_errors
     g = read_pose_graph("input_INTEL_g2o.g2o")   # format from the line tags (g2o or TORO)
     g.ids          # (N,) int vertex ids as in the file, ascending
     g.initial      # (N, 3) the file's initial guess x, y, theta per vertex (row k: ids[k])
@@ -11,6 +11,7 @@ API::
     g.information  # (E, 3, 3) symmetric information matrices (order x, y, theta)
     g.format       # "g2o" | "toro"
     g.chi2(states) # sum over edges of e' I e with e = t2v(Z^-1 (X_i^-1 X_j)) (g2o's EdgeSE2 error)
+    edge_errors(states, i, j, z)  # that error of any edges (i, j, z) at states, (E, 3)
     benchmark.conditions.pose_graph.graph_of_file(g)  # the back end's PoseGraph (square-root information)
 
 Line formats and the order of the information entries (upper triangle of I)::
@@ -58,6 +59,21 @@ def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
+def edge_errors(states: np.ndarray, i: np.ndarray, j: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(E, 3) g2o's EdgeSE2 error t2v(Z^-1 (X_i^-1 X_j)) of edges ``(i, j, z)`` at ``states``
+    (N, 3) x, y, theta: the translation part in the measurement's frame (metres), the rotation
+    part wrapped to [-pi, pi) (radians)."""
+    s = np.asarray(states, np.float64)
+    z = np.asarray(z, np.float64).reshape(-1, 3)
+    xi, xj = s[np.asarray(i)], s[np.asarray(j)]
+    d = xj[:, :2] - xi[:, :2]
+    c, sn = np.cos(xi[:, 2]), np.sin(xi[:, 2])
+    rel = np.column_stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1], xj[:, 2] - xi[:, 2]])
+    dt = rel[:, :2] - z[:, :2]
+    cz, sz = np.cos(z[:, 2]), np.sin(z[:, 2])
+    return np.column_stack([cz * dt[:, 0] + sz * dt[:, 1], -sz * dt[:, 0] + cz * dt[:, 1], _wrap(rel[:, 2] - z[:, 2])])
+
+
 @dataclass
 class PoseGraphFile:
     """A 2D pose graph read from a file (see the module docstring)."""
@@ -78,15 +94,7 @@ class PoseGraphFile:
 
     def errors(self, states: np.ndarray) -> np.ndarray:
         """(E, 3) g2o's EdgeSE2 error of each edge at ``states`` (N, 3): t2v(Z^-1 (X_i^-1 X_j))."""
-        s = np.asarray(states, np.float64)
-        xi, xj = s[self.i], s[self.j]
-        d = xj[:, :2] - xi[:, :2]
-        c, sn = np.cos(xi[:, 2]), np.sin(xi[:, 2])
-        rel = np.column_stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1], xj[:, 2] - xi[:, 2]])
-        dt = rel[:, :2] - self.z[:, :2]
-        cz, sz = np.cos(self.z[:, 2]), np.sin(self.z[:, 2])
-        return np.column_stack([cz * dt[:, 0] + sz * dt[:, 1], -sz * dt[:, 0] + cz * dt[:, 1],
-                                _wrap(rel[:, 2] - self.z[:, 2])])
+        return edge_errors(states, self.i, self.j, self.z)
 
     def chi2(self, states: np.ndarray) -> float:
         """Sum over edges of e' I e (g2o's chi2) at ``states`` (N, 3)."""
