@@ -87,6 +87,9 @@ class SlamEstimate:
         rejected: loop closures (true or wrong) the robust back end rejected or down-weighted.
         online: (N, 3) each view's pose as the robot estimated it when taking the view
             (``views_at=online``), or None: the views take ``estimate``.
+        odometry_edges: (M-1, 3) the odometry edges the back end got (the front end's fused moves
+            between consecutive nodes: dx, dz metres in the earlier node's frame, dphi radians), or
+            None where there is no front end (a clean estimate) or it is not kept (a cached one).
     """
 
     true: np.ndarray
@@ -103,6 +106,7 @@ class SlamEstimate:
     iterations: int = 0
     rejected: int = 0
     online: np.ndarray | None = None
+    odometry_edges: np.ndarray | None = None
 
     @property
     def views(self) -> np.ndarray:
@@ -276,7 +280,8 @@ class OdometrySlam:
                 views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width))
         return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
                             float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()),
-                            bool(solved["converged"]), int(solved["iterations"]), int(solved["outliers"]), views)
+                            bool(solved["converged"]), int(solved["iterations"]), int(solved["outliers"]),
+                            online=views, odometry_edges=fe.z)
 
     def _kidnap(self, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(M-1,) bool moves made while carried: ``kidnap_m`` metres of route from a point drawn
