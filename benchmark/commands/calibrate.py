@@ -6,10 +6,15 @@ grazing dropout, the correlation of dropouts along a scan and over time, the ran
 readings shorter or longer than the map, the noise and losses by incidence angle, and the
 ``ScanSettings`` fields each log gives. With ``--graphs DIR``: the residuals of real scan matching's
 odometry edges in the public TORO graphs of Intel and CSAIL after the solve (issue 59 item 5).
-With ``--houses N`` (default 5): each SLAM level's relative pose error (Kümmerle et al. 2009,
-:mod:`benchmark.conditions.relative_error`) on the first N shared houses. ``--out`` writes the tables to a Markdown file headed by the
-command (``make docs-numbers``: ``results/published/calibration.md``, included by
-``docs/calibration.md``).
+With ``--houses N`` (default 5), on the first N shared houses: each SLAM level's odometry edges (the
+front end's fused consecutive moves, the edges its back end got) after the level's own solve,
+residuals as the real graphs' (the same columns, and where each level falls against Intel and
+CSAIL), and its relative pose error against the truth (Kümmerle et al. 2009,
+:mod:`benchmark.conditions.relative_error`). ``--figure PATH`` also draws the raw map the project's
+mapper builds from the Intel log at its corrected poses beside shared house 0's maps at
+``scan_1/3/5`` and ``slam_1/3/5`` (``docs/figures/calibration_maps.png``). ``--out`` writes the
+tables to a Markdown file headed by the command (``make docs-numbers``:
+``results/published/calibration.md``, included by ``docs/calibration.md``).
 
     python -m benchmark.commands.calibrate --out results/published/calibration.md
 """
@@ -42,6 +47,9 @@ GRAPHS = {"Intel": "INTEL_P_toro.graph", "CSAIL": "CSAIL_P_toro.graph"}
 SLAM_LEVELS = ("slam_1", "slam_2", "slam_3", "slam_4", "slam_5")
 #: metres along the route of the long relations
 LONG_RELATION_M = 5.0
+#: the log whose raw map ``--figure`` draws, and the levels whose maps of shared house 0 it draws beside it
+FIGURE_LOG = "Intel"
+FIGURE_LEVELS = ("scan_1", "scan_3", "scan_5", "slam_1", "slam_3", "slam_5")
 
 
 def log_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -95,11 +103,14 @@ def graph_residuals(folder: Path) -> list[dict]:
     return rows
 
 
-def level_errors(n_houses: int) -> list[dict]:
-    """One row per SLAM level: the relative pose error of its estimate over the first
-    ``n_houses`` shared houses (autotrace views, a node every scan spacing), over consecutive nodes
-    and over :data:`LONG_RELATION_M` of route, translation and rotation apart."""
+def level_rows(n_houses: int) -> tuple[list[dict], list[dict]]:
+    """Two rows per SLAM level, from its estimates on the first ``n_houses`` shared houses
+    (autotrace views, a node every scan spacing): (the relative pose error over consecutive nodes
+    and over :data:`LONG_RELATION_M` of route, translation and rotation apart; the residuals of
+    the odometry edges the back end got after its solve, as :func:`graph_residuals` gives them for
+    a real graph, with ``closures`` the loop closures accepted, wrong ones included)."""
     from benchmark.commands.maintainer.slam_levels import level_scanner, level_settings  # noqa: PLC0415
+    from benchmark.conditions.calibration import chain_edge_errors, residual_summary  # noqa: PLC0415
     from benchmark.conditions.odometry import to_se2  # noqa: PLC0415
     from benchmark.conditions.relative_error import (  # noqa: PLC0415
         consecutive_pairs,
@@ -114,14 +125,19 @@ def level_errors(n_houses: int) -> list[dict]:
     from envs.maps.scene import rasterise_house  # noqa: PLC0415
 
     scenes = [rasterise_house(h) for h in load_houses(procthor_houses(), 0, n_houses)]
-    rows = []
+    rows, residuals = [], []
     for level in SLAM_LEVELS:
         s = level_scanner(level)
         slam = OdometrySlam(**level_settings(level))
         short_t, short_r, long_t, long_r, spacing = [], [], [], [], s.spacing
+        errs, zs, closures = [], [], 0
         for k, scene in enumerate(scenes):
             est = slam.estimate(scene.grid, Autotrace().generate(scene), str(k), s.spacing)
             truth, guess = to_se2(est.true), to_se2(est.estimate)
+            if est.odometry_edges is not None:  # none on a route of one node
+                errs.append(chain_edge_errors(guess, est.odometry_edges))
+                zs.append(est.odometry_edges)
+                closures += len(est.closures) + len(est.wrong)
             for pairs, ts, rs in ((consecutive_pairs(len(truth)), short_t, short_r),
                                   (distance_pairs(truth, LONG_RELATION_M), long_t, long_r)):
                 t, r = relation_errors(relative_motions(guess, pairs), relative_motions(truth, pairs))
@@ -133,7 +149,60 @@ def level_errors(n_houses: int) -> list[dict]:
                      "consecutive: rot (deg)": f"{sr.mean():.3f} ± {sr.std():.3f}",
                      f"{LONG_RELATION_M:g} m: trans (m)": f"{lt.mean():.3f} ± {lt.std():.3f}",
                      f"{LONG_RELATION_M:g} m: rot (deg)": f"{lr.mean():.2f} ± {lr.std():.2f}"})
-    return rows
+        empty = [np.zeros((0, 3))]
+        residuals.append({"level": level, **residual_summary(np.concatenate(errs or empty), np.concatenate(zs or empty)),
+                          "closures": closures})
+    return rows, residuals
+
+
+def densest_window(mask: np.ndarray, shape: tuple[int, int]) -> tuple[int, int]:
+    """(row, col) of the top-left cell of the ``shape`` window of ``mask`` (H, W bool) holding the
+    most True cells (the first such window in row-major order; the whole map when it is smaller)."""
+    h, w = min(shape[0], mask.shape[0]), min(shape[1], mask.shape[1])
+    sat = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), np.int64)
+    sat[1:, 1:] = np.asarray(mask, bool).cumsum(axis=0).cumsum(axis=1)
+    counts = sat[h:, w:] - sat[:-h, w:] - sat[h:, :-w] + sat[:-h, :-w]
+    r, c = np.unravel_index(int(np.argmax(counts)), counts.shape)
+    return int(r), int(c)
+
+
+def maps_figure(log_path: Path, out: Path, name: str = FIGURE_LOG) -> None:
+    """Draw ``out`` (PNG): the raw map the project's mapper builds from the real log ``log_path``
+    (``name`` in the titles) at its corrected poses (:func:`envs.logs.raw_map.raw_map_from_log`, as
+    ``map_stats --calibrate``'s raw rows: the simulated scanner's 10 m, 0.05 m cells), cut to what
+    it saw and a window of it the size of the house's map (the window holding the most occupied
+    cells), beside shared house 0's maps at :data:`FIGURE_LEVELS`
+    (:func:`benchmark.commands.map_stats.simulated_maps`)."""
+    from benchmark.commands.map_stats import draw, simulated_maps  # noqa: PLC0415
+    from benchmark.commands.real_logs import RESOLUTION as RAW_RESOLUTION  # noqa: PLC0415
+    from benchmark.paths import procthor_houses  # noqa: PLC0415
+    from envs.datasets.house_files import load_houses  # noqa: PLC0415
+    from envs.logs.carmen import read_carmen  # noqa: PLC0415
+    from envs.logs.raw_map import raw_map_from_log  # noqa: PLC0415
+    from envs.maps.scene import rasterise_house  # noqa: PLC0415
+
+    if not log_path.is_file():
+        raise FileNotFoundError(f"real log not found: {log_path} (expected the shared logs; set --logs)")
+    raw, _ = raw_map_from_log(read_carmen(log_path), RAW_RESOLUTION)
+    rows, cols = np.nonzero(raw != -1)
+    if not len(rows):
+        raise ValueError(f"{log_path}: its raw map holds no known cell: expected scans that see something")
+    seen = raw[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
+    houses = load_houses(procthor_houses(), 0, 1)
+    if not houses:
+        raise ValueError(f"{procthor_houses()}: no house: expected the shared houses")
+    grid = rasterise_house(houses[0]).grid
+    _, first = simulated_maps(1)
+    metres = (grid.shape[0] * grid.resolution, grid.shape[1] * grid.resolution)
+    shape = (max(round(metres[0] / RAW_RESOLUTION), 1), max(round(metres[1] / RAW_RESOLUTION), 1))
+    r, c = densest_window(seen == 100, shape)
+    size = f"{seen.shape[1] * RAW_RESOLUTION:.0f} x {seen.shape[0] * RAW_RESOLUTION:.0f} m"
+    window = f"{metres[1]:.0f} x {metres[0]:.0f} m"
+    panels = {f"{name} raw map ({size})": seen}
+    panels.update({f"house 0, {k} ({window})": first[k] for k in FIGURE_LEVELS[:3]})
+    panels[f"{name} raw, a {window} window"] = seen[r:r + shape[0], c:c + shape[1]]
+    panels.update({f"house 0, {k}": first[k] for k in FIGURE_LEVELS[3:]})
+    draw(panels, out)
 
 
 def _f(v: float, digits: int = 3) -> str:
@@ -180,19 +249,57 @@ def tables(fits: dict) -> str:
     return text
 
 
-def front_end_tables(graphs: list[dict], levels: list[dict]) -> str:
-    """The Markdown of the front end's section: real graphs' odometry residuals, levels' relative error."""
+def _residual_row(first: str, r: dict) -> dict:
+    """One row of the odometry residual tables (a real graph's or a level's: the same columns)."""
+    return {first: r[first], "odometry edges": r["edges"], "closures": r["closures"],
+            "mean move (m)": f"{r['move_m']:.3f}", "mean turn (deg)": f"{r['turn_deg']:.2f}",
+            "trans residual (m)": f"{r['trans_mean_m']:.4f} ± {r['trans_std_m']:.4f}",
+            "median (m)": f"{r['trans_median_m']:.4f}",
+            "rot residual (deg)": f"{r['rot_mean_deg']:.3f} ± {r['rot_std_deg']:.3f}",
+            "median (deg)": f"{r['rot_median_deg']:.3f}"}
+
+
+def _place(value: float, refs: dict[str, float]) -> str:
+    """Where ``value`` falls among the named ``refs``: below the least, above the largest, or
+    between two neighbours."""
+    order = sorted(refs.items(), key=lambda kv: kv[1])
+    if value < order[0][1]:
+        return f"below {order[0][0]}"
+    for (a, va), (b, vb) in zip(order, order[1:]):
+        if va <= value <= vb:
+            return f"between {a} and {b}"
+    return f"above {order[-1][0]}"
+
+
+def placement(graphs: list[dict], residuals: list[dict]) -> str:
+    """One line per level: where its mean translational and rotational odometry residual falls
+    against the real graphs' (:func:`_place`)."""
+    trans = {r["graph"]: r["trans_mean_m"] for r in graphs}
+    rot = {r["graph"]: r["rot_mean_deg"] for r in graphs}
+    return "\n".join(f"- `{r['level']}`: translation {_place(r['trans_mean_m'], trans)}, rotation "
+                     f"{_place(r['rot_mean_deg'], rot)}" for r in residuals)
+
+
+def front_end_tables(graphs: list[dict], levels: list[dict], residuals: list[dict] | None = None) -> str:
+    """The Markdown of the front end's section: real graphs' odometry residuals, the levels' odometry
+    residuals (the same columns) and where they fall against the graphs', the levels' relative error."""
     parts = []
     if graphs:
-        g = pd.DataFrame([{"graph": r["graph"], "odometry edges": r["edges"], "mean move (m)": f"{r['move_m']:.3f}",
-                           "mean turn (deg)": f"{r['turn_deg']:.2f}",
-                           "trans residual (m)": f"{r['trans_mean_m']:.4f} ± {r['trans_std_m']:.4f}",
-                           "median (m)": f"{r['trans_median_m']:.4f}",
-                           "rot residual (deg)": f"{r['rot_mean_deg']:.3f} ± {r['rot_std_deg']:.3f}",
-                           "median (deg)": f"{r['rot_median_deg']:.3f}"} for r in graphs])
+        g = pd.DataFrame([_residual_row("graph", r) for r in graphs])
         parts.append("Real scan matching: the odometry edges (consecutive vertices) of the public TORO graphs "
-                     "after a least-squares solve, residual mean ± standard deviation:\n\n"
-                     + g.to_markdown(index=False, disable_numparse=True))
+                     "after a least-squares solve, residual mean ± standard deviation (closures: the graph's "
+                     "other edges):\n\n" + g.to_markdown(index=False, disable_numparse=True))
+    if residuals:
+        parts.append("The SLAM levels, the same quantity: the odometry edges the back end got (the front end's "
+                     "fused moves between consecutive nodes) after the level's own solve (its robust kernel on "
+                     "the closures), residual mean ± standard deviation over the edges of every house (closures: "
+                     "the loop closures accepted, wrong ones included). A residual is what the closures pull "
+                     "against the chain: a route with no closure leaves none:\n\n"
+                     + pd.DataFrame([_residual_row("level", r) for r in residuals]).to_markdown(
+                         index=False, disable_numparse=True))
+        if graphs:
+            parts.append("Where each level's mean residual falls against the real graphs':\n\n"
+                         + placement(graphs, residuals))
     if levels:
         parts.append("The SLAM levels: relative pose error of the solved estimate (Kümmerle et al. 2009; "
                      "translation and rotation apart, mean ± standard deviation over the relations) between "
@@ -213,6 +320,9 @@ def main(argv: list[str] | None = None) -> int:
                          "when it is there)")
     ap.add_argument("--houses", type=int, default=5, help="shared houses for the SLAM levels' relative error "
                     "(0: leave the levels out)")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help=f"also draw this PNG: the raw map of the {FIGURE_LOG} log (the project's mapper at its "
+                         f"corrected poses) beside shared house 0's maps at {', '.join(FIGURE_LEVELS)}")
     ap.add_argument("--out", type=Path, default=None,
                     help="also write the tables to this Markdown file, headed by the command that made it "
                          "(make docs-numbers: results/published/calibration.md, which docs/calibration.md includes)")
@@ -225,10 +335,12 @@ def main(argv: list[str] | None = None) -> int:
         if graphs is None:
             print("calibrate: the real pose graphs are absent (roomseg data fetch real_graphs): "
                   "no section on real scan matching", file=sys.stderr)
-        front = front_end_tables(graph_residuals(graphs) if graphs else [],
-                                 level_errors(a.houses) if a.houses else [])
+        errors, residuals = level_rows(a.houses) if a.houses else ([], [])
+        front = front_end_tables(graph_residuals(graphs) if graphs else [], errors, residuals)
         if front:
             text += "\n\n" + front
+        if a.figure is not None:
+            maps_figure((a.logs or data_dir() / "real_logs") / LOGS[FIGURE_LOG], a.figure)
     except cli_errors() as e:
         print(f"error: {one_line(e)}", file=sys.stderr)
         return 2
