@@ -245,8 +245,43 @@ def tables(fits: dict) -> str:
             f"{RESOLUTION:g} / sqrt(12) m; short / long readings: more than {GATE:g} m before / past the map's "
             f"surface, as shares of the beams returning where the map expects one.\n\n"
             f"By incidence angle (beams the map expects to return):\n\n{by_inc}\n\n"
-            f"The ScanSettings fields each log gives (the others it cannot tell):\n\n{settings}")
+            f"The ScanSettings fields each log gives (the others it cannot tell):\n\n{settings}\n\n"
+            f"{ladder_table(fits)}")
     return text
+
+
+def ladder_table(fits: dict) -> str:
+    """The Markdown of the levels' scanner set from the fit (:mod:`benchmark.conditions.scanner_levels`)."""
+    from benchmark.conditions.scanner_levels import FAMILIES, FITTED, levels_from_fits  # noqa: PLC0415
+
+    levels = levels_from_fits({name: f for name, (f, _) in fits.items()})
+    rows = [{"severity": s, **{f: f"{v[f]:g}" for f in FITTED}} for s, v in levels.items()]
+    return ("The levels' scanner from the fit (`calibrate --write-levels` writes it into "
+            f"conf/corruption/{{{','.join(FAMILIES)}}}_k.yaml): severity 1 the best log's value, 3 the median of "
+            "the four, 5 the poorest, 2 and 4 half way; three significant figures. max_range, closed doors, people "
+            "and surface dropout stay set by hand (no log tells them), and so do the odometry alphas (no raw "
+            "odometry in the shared logs):\n\n" + pd.DataFrame(rows).to_markdown(index=False, disable_numparse=True))
+
+
+def write_levels(fits: dict, conf_dir: Path) -> list[Path]:
+    """Set the fitted scanner fields of every ``<family>_<k>.yaml`` of ``conf_dir`` (the corruption
+    group) from the fit; the files changed."""
+    from benchmark.conditions.scanner_levels import FAMILIES, levels_from_fits, set_fitted  # noqa: PLC0415
+    from envs.atomic import atomic_write_text  # noqa: PLC0415
+
+    levels = levels_from_fits({name: f for name, (f, _) in fits.items()})
+    changed = []
+    for family in FAMILIES:
+        for s, values in levels.items():
+            path = conf_dir / f"{family}_{s}.yaml"
+            if not path.is_file():
+                raise FileNotFoundError(f"level file not found: {path} (expected conf/corruption/{family}_{s}.yaml)")
+            old = path.read_text(encoding="utf-8")
+            new = set_fitted(old, values)
+            if new != old:
+                atomic_write_text(path, new)
+                changed.append(path)
+    return changed
 
 
 def _residual_row(first: str, r: dict) -> dict:
@@ -318,8 +353,10 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"folder holding {' and '.join(GRAPHS.values())}: the real front end's residuals "
                          "(default: the data root's real_graphs, where `roomseg data fetch real_graphs` puts them, "
                          "when it is there)")
-    ap.add_argument("--houses", type=int, default=5, help="shared houses for the SLAM levels' relative error "
-                    "(0: leave the levels out)")
+    ap.add_argument("--houses", type=int, default=5, help="shared houses for the SLAM levels' odometry residuals "
+                    "and relative error (0: leave the levels out)")
+    ap.add_argument("--write-levels", action="store_true",
+                    help="set the scanner fields of conf/corruption's scan_k, slam_k and realistic_k from the fit")
     ap.add_argument("--figure", type=Path, default=None,
                     help=f"also draw this PNG: the raw map of the {FIGURE_LOG} log (the project's mapper at its "
                          f"corrected poses) beside shared house 0's maps at {', '.join(FIGURE_LEVELS)}")
@@ -330,7 +367,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if a.houses < 0:
             raise ValueError(f"--houses {a.houses}: expected 0 or more houses")
-        text = tables(fit_logs(a.logs or data_dir() / "real_logs"))
+        fits = fit_logs(a.logs or data_dir() / "real_logs")
+        text = tables(fits)
+        if a.write_levels:
+            from benchmark.paths import CONF_DIR  # noqa: PLC0415
+
+            for path in write_levels(fits, Path(CONF_DIR) / "corruption"):
+                print(f"calibrate: wrote {path}", file=sys.stderr)
         graphs = a.graphs or (data_dir() / "real_graphs" if (data_dir() / "real_graphs").is_dir() else None)
         if graphs is None:
             print("calibrate: the real pose graphs are absent (roomseg data fetch real_graphs): "
