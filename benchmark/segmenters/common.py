@@ -22,16 +22,20 @@ around them instead of counting as rooms.
   threshold on a tie); those parts are the seeds.
 * :class:`Voronoi` (simplified) — the classic critical-point method: the skeleton of the
   free space (the medial axis, i.e. the Voronoi graph of the obstacles; the map edge counts
-  as an obstacle); *critical points* are skeleton pixels on a plain stretch of it (two
-  skeleton neighbours: no junction, no tip) whose clearance is the smallest within
-  ``window`` metres, at most ``max_door`` / 2, and at least ``widening`` times smaller than
-  the largest clearance on the skeleton within ``2 * window`` (a narrowing with wider space
-  beyond). Each critical point cuts the free space with the *critical line*: 8-connected
-  segments from the point to its nearest obstacle pixel and to the nearest obstacle pixel
-  on the opposite side (more than 105 degrees away). Every part of the cut free space is a
-  seed; parts under ``min_room_area`` join their neighbours by the merge rule. Simplified:
-  no skeleton pruning and no merging of rooms beyond that area rule (the full method and
-  VRF learn or hand-tune merges), so it over-segments cluttered maps.
+  as an obstacle), pruned as the authors prune their Voronoi graph (its spurs into corners,
+  alcoves and pockets between furniture removed back to their junctions,
+  :func:`benchmark.segmenters.voronoi.prune_spurs`); *critical points* are skeleton pixels on
+  a plain stretch of it (two skeleton neighbours: no junction, no tip) whose clearance is the
+  smallest within ``window`` metres, at most ``max_door`` / 2, and at least ``widening``
+  times smaller than the largest clearance on the skeleton within ``2 * window`` (a narrowing
+  with wider space beyond). Each critical point cuts the free space with the *critical line*:
+  8-connected segments from the point to its nearest obstacle pixel and to the nearest
+  obstacle pixel on the opposite side (more than 105 degrees away). Every part of the cut free
+  space is a seed; parts under ``min_room_area`` join their neighbours by the merge rule.
+  Simplified: the authors' critical points (the clearance minimum of every stretch of the
+  graph, thinned by the angle of their lines) and their merging of rooms (five passes of rules
+  on area, wall share and shared border) are replaced by the narrowing rule above and that area
+  rule (VRF learns its merges), so it over-segments cluttered maps.
 
 ``min_seed_area`` (distance, morphological) and ``min_room_area`` (all three) are different
 things: the first is the area of a seed *while* it is found (a part of the thresholded or

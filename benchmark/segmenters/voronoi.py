@@ -18,6 +18,49 @@ from envs.maps.gridmap import GridMap
 from envs.ranges import Between, NonNegative, Positive
 
 
+def prune_spurs(skel: np.ndarray, clearance: np.ndarray, room: float) -> np.ndarray:
+    """The skeleton without its spurs, as ipa_room_segmentation prunes its Voronoi graph before
+    it looks for critical points: the branches into corners and alcoves go back to the junction
+    they leave from, so no narrowing on them is taken for a door.
+
+    A tip (a pixel with at most one 8-neighbour on the skeleton, not a junction of the skeleton
+    as given: more than two 8-neighbours) goes, again and again until no tip goes, unless its
+    clearance is above ``room`` and not smaller than its neighbour's: a branch that ends in a
+    room's open middle stays. The thinned skeleton of a bare rectangular room ends there instead
+    of forking into the room's corners as the authors' Voronoi graph does, and that branch
+    carries the room's door; a branch into a corner, an alcove or a pocket between furniture
+    (its tip's clearance under ``room``) goes as the authors' does.
+
+    Args:
+        skel: (H, W) bool skeleton.
+        clearance: (H, W) float distance to the nearest obstacle, pixels.
+        room: the clearance (pixels) above which a tip that is a clearance maximum stays
+            (:class:`Voronoi` passes ``max_door / 2``: wider than any door).
+
+    Returns:
+        (H, W) bool, the pruned skeleton (tips taken in a fixed order: the same on every run).
+    """
+    s = np.asarray(skel, bool).copy()
+    count = ndimage.convolve(s.astype(np.int32), np.ones((3, 3), np.int32), mode="constant") - s
+    node = s & (count > 2)
+    h, w = s.shape
+    stack = list(zip(*np.nonzero(s & (count <= 1) & ~node)))
+    while stack:
+        r, c = stack.pop()
+        if not s[r, c] or count[r, c] > 1:
+            continue
+        around = [(rr, cc) for rr in range(max(r - 1, 0), min(r + 2, h))
+                  for cc in range(max(c - 1, 0), min(c + 2, w)) if s[rr, cc] and (rr, cc) != (r, c)]
+        if around and clearance[r, c] >= clearance[around[0]] and clearance[r, c] > room:
+            continue
+        s[r, c] = False
+        for rr, cc in around:
+            count[rr, cc] -= 1
+            if count[rr, cc] <= 1 and not node[rr, cc]:
+                stack.append((rr, cc))
+    return s
+
+
 class Voronoi(Segmenter):
     """Cut the free space at the critical points of its skeleton (simplified, see module doc).
 
@@ -47,7 +90,7 @@ class Voronoi(Segmenter):
         """(M, 3) float rows of (row, col, clearance px) of the critical points."""
         walk = grid.walkable
         dist = distance_px(np.pad(walk, 1))[1:-1, 1:-1]  # the map edge is an obstacle
-        skel = skeletonize(walk) & (dist > 1)
+        skel = prune_spurs(skeletonize(walk) & (dist > 1), dist, self.max_door / 2 / grid.resolution)
         nbrs = ndimage.convolve(skel.astype(np.uint8), np.ones((3, 3), np.uint8), mode="constant") - 1
         win = max(int(round(self.window / grid.resolution)), 1) * 2 + 1
         local_min = ndimage.minimum_filter(np.where(skel, dist, np.inf), size=win, mode="constant", cval=np.inf)
