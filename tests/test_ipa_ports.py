@@ -7,7 +7,9 @@ build skip, with the reason, where ``.ipa-env`` holds none (CI); the published f
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from benchmark.segmenters.morphological import Morphological
 from benchmark.segmenters.voronoi import Voronoi, prune_spurs
 from envs.maps.gridmap import GridMap
 
@@ -57,3 +59,32 @@ def test_voronoi_does_not_cut_a_pocket_between_furniture():
     assert inst.max() + 1 == 2
     left, right = np.unique(inst[:, :82][grid.walkable[:, :82]]), np.unique(inst[:, 84:][grid.walkable[:, 84:]])
     assert len(left) == 1 and len(right) == 1 and left[0] != right[0]
+
+
+# ---------------------------------------------------------------- morphological: the two rules
+
+
+def two_rooms() -> GridMap:
+    """Two 4 x 4 m rooms (0.05 m/px) joined by a 0.8 m door: 32 m^2 in all."""
+    walk = np.zeros((84, 166), bool)
+    walk[2:82, 2:82] = True
+    walk[2:82, 84:164] = True
+    walk[34:50, 82:84] = True
+    return GridMap(walk, 0.05, (0.0, 0.0))
+
+
+def test_morphological_split_rule_and_the_originals_limits_rule():
+    """The port's rule waits until the door parts the two rooms; the original's (``limits``)
+    takes the whole 32 m^2 map as one room at its first erosion step, as it is under 47 m^2,
+    and parts it only when the upper limit is below the map's area."""
+    grid = two_rooms()
+    assert Morphological()(grid).max() + 1 == 2
+    assert Morphological(min_seed_area=0.8, max_area=47.0, rule="limits")(grid).max() + 1 == 1
+    split = Morphological(min_seed_area=0.8, max_area=20.0, rule="limits")(grid)
+    assert split.max() + 1 == 2
+    assert len(np.unique(split[:, :82][grid.walkable[:, :82]])) == 1
+
+
+def test_morphological_rule_is_checked():
+    with pytest.raises(ValueError, match=r"segmenter.rule='erode': expected split or limits"):
+        Morphological(rule="erode")
