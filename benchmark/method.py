@@ -192,7 +192,7 @@ class PoseErrorTransform:
     stage: Any
     KEEP = ("pose_error_mean_m", "pose_error_max_m", "yaw_error_mean_deg", "ate_rmse_m", "odometry_ate_rmse_m",
             "route_m", "loop_closures", "wrong_closures", "kidnapped_m", "slam_converged", "slam_chi2_dof",
-            "closures_rejected")
+            "closures_rejected", "slam_tracking_lost", "slam_relocalised")
 
     def __call__(self, views: Views, ctx: Context) -> tuple[Views, dict[str, Any]]:
         stage = _resolve(self.stage)

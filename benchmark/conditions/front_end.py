@@ -48,6 +48,21 @@ robot knows only the ranges and its beams' angles, so the points are in its own 
    descriptor's turn) and accepts it at ``place_min_score``: a closure like the others (robust
    kernel, counted wrong the same way). Its cost: one descriptor per keyframe (tens of
    microseconds), a few sector comparisons and at most one match per keyframe that looks.
+6. **Tracking loss and relocalisation** (a kidnapped robot). ``lost_after`` consecutive moves whose
+   scan no longer matched the keyframe near the predicted pose (score below ``odometry_min_score``)
+   mean tracking is lost: the run's first move becomes a weak odometry edge (``lost_sigma_xy`` metres,
+   ``lost_sigma_yaw`` degrees: a prior that ties the rest to where the chain lost track and keeps the
+   graph solvable; one weak edge a loss, as weaker or more of them leave GTSAM's incremental solve
+   too poorly conditioned) and the node after it starts a new chain segment, its covariance counted
+   from its own start (the carried nodes of the run belong to it). A segment is off the map until it relocalises: each of its keyframes runs place recognition
+   (the descriptor and the wide verifying match of 5, on whether or not ``place_recognition`` is)
+   against the keyframes on the map before the segment began; a match reaching ``place_min_score`` is
+   kept, and when two of the segment's keyframes' matches agree on where the segment is (within
+   ``relocalise_xy`` metres and ``relocalise_yaw`` degrees) both become closures, the segment's chain is
+   moved onto the map (every later node with it) and its covariance made the map's. A segment never
+   relocalised floats on its weak edges and takes no closure from its estimate. Counted:
+   ``tracking_lost`` (runs detected) and ``relocalised`` (segments put back). A route without such a
+   run (every level but the kidnappings on the shared houses) is unchanged, bit for bit.
 """
 
 from __future__ import annotations
@@ -116,6 +131,13 @@ class FrontEndSettings:
         place_window_xy: metres, the verifying match's half-width per axis around the same place.
         place_window_yaw: degrees, its heading half-width around the descriptor's turn.
         place_min_score: mean likelihood (0..1) the verifying match needs (stricter than a closure's).
+        lost_after: consecutive failed laser-odometry matches after which tracking counts as lost
+            (module docstring, 6; 0: never).
+        lost_sigma_xy: metres, the sigma per axis of the odometry edge across a tracking loss (a weak prior).
+        lost_sigma_yaw: degrees, its heading sigma.
+        relocalise_xy: metres two place matches of a lost segment may disagree on where it is and still
+            relocalise it.
+        relocalise_yaw: degrees they may disagree on its heading.
     """
 
     max_range: Annotated[float, Metres()] = 10.0
@@ -146,6 +168,11 @@ class FrontEndSettings:
     place_window_xy: Annotated[float, Positive()] = 1.0
     place_window_yaw: float = 10.0
     place_min_score: Annotated[float, Share()] = 0.7
+    lost_after: Annotated[int, NonNegative()] = 3
+    lost_sigma_xy: Annotated[float, Positive()] = 1.0
+    lost_sigma_yaw: Annotated[float, Positive()] = 20.0
+    relocalise_xy: Annotated[float, Positive()] = 0.5
+    relocalise_yaw: Annotated[float, Positive()] = 5.0
 
     def check(self) -> FrontEndSettings:
         """Raise a one-line ``ValueError`` naming the first out-of-range setting
@@ -182,6 +209,11 @@ class FrontEndSettings:
             "place_window_xy": (lambda v: number(v) and v > 0, "metres > 0"),
             "place_window_yaw": (lambda v: number(v) and 0 < v <= 180, "degrees in (0, 180]"),
             "place_min_score": (lambda v: number(v) and 0 <= v <= 1, "a mean likelihood in [0, 1]"),
+            "lost_after": (lambda v: number(v) and float(v).is_integer() and v >= 0, "an integer >= 0"),
+            "lost_sigma_xy": (lambda v: number(v) and v > 0, "metres > 0"),
+            "lost_sigma_yaw": (lambda v: number(v) and v > 0, "degrees > 0"),
+            "relocalise_xy": (lambda v: number(v) and v > 0, "metres > 0"),
+            "relocalise_yaw": (lambda v: number(v) and 0 < v <= 180, "degrees in (0, 180]"),
         }
         for key, (ok, want) in rules.items():
             v = getattr(self, key)
@@ -206,6 +238,9 @@ class FrontEndResult:
         keyframes: (M,) bool, the keyframes (module docstring, 1).
         place: (C,) bool, the closures place recognition found (module docstring, 5).
         place_tried: descriptor matches verified by the matcher.
+        broken: (M-1,) bool, the odometry edges across a tracking loss (weak; module docstring, 6).
+        tracking_lost: tracking losses detected.
+        relocalised: lost segments relocalised on the earlier map.
     """
 
     z: np.ndarray
@@ -220,6 +255,9 @@ class FrontEndResult:
     keyframes: np.ndarray
     place: np.ndarray
     place_tried: int
+    broken: np.ndarray
+    tracking_lost: int = 0
+    relocalised: int = 0
 
 
 def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, scanner: ScanSettings) -> list[np.ndarray]:
@@ -297,14 +335,17 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     flat = np.ascontiguousarray(np.concatenate(points) if n else np.zeros((0, 2)), np.float64).reshape(-1, 2)
     floor = np.array([st.sigma_xy ** 2, st.sigma_xy ** 2, math.radians(st.sigma_yaw) ** 2])
-    laser, dead, cov, key = _chain(flat, start, true_states, z, sqrt_info, bool(st.scan_matching),
-                                   float(st.resolution), smoothing, step, float(st.min_window_xy),
-                                   math.radians(st.min_window_yaw), float(st.closure_window_xy),
-                                   math.radians(st.closure_window_yaw), float(st.odometry_min_score), floor,
-                                   float(st.keyframe_xy), math.radians(st.keyframe_yaw), math.log(EPS), EPS)
-    pairs, zc, infos, wrong, tried, place, place_tried = _closures(points, ref, dead, cov, true_states, travelled,
-                                                                   key, st, step)
-    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried)
+    weak = np.diag([1.0 / st.lost_sigma_xy, 1.0 / st.lost_sigma_xy, 1.0 / math.radians(st.lost_sigma_yaw)])
+    laser, dead, cov, key, broken, lost = _chain(flat, start, true_states, z, sqrt_info, bool(st.scan_matching),
+                                                 float(st.resolution), smoothing, step, float(st.min_window_xy),
+                                                 math.radians(st.min_window_yaw), float(st.closure_window_xy),
+                                                 math.radians(st.closure_window_yaw), float(st.odometry_min_score),
+                                                 floor, float(st.keyframe_xy), math.radians(st.keyframe_yaw),
+                                                 math.log(EPS), EPS, int(st.lost_after), weak)
+    pairs, zc, infos, wrong, tried, place, place_tried, relocalised = _closures(points, ref, dead, cov, true_states,
+                                                                                travelled, key, st, step, broken)
+    return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried,
+                          broken, int(lost), relocalised)
 
 
 @njit(cache=True, nogil=True)
@@ -320,17 +361,21 @@ def _compose(state, z):
 
 @njit(cache=True, nogil=True)
 def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing, step, min_wxy, min_wt, max_wxy,
-           max_wt, min_score, floor, keyframe_xy, turn, low, eps):
-    """Laser odometry on keyframes and the robot's estimate along the route (module docstring, 1-2),
+           max_wt, min_score, floor, keyframe_xy, turn, low, eps, lost_after, weak):
+    """Laser odometry on keyframes and the robot's estimate along the route (module docstring, 1-2, 6),
     compiled: node ``m``'s scan is ``flat[start[m]:start[m + 1]]``. Fuses into ``z``, ``sqrt_info`` in
-    place; returns (laser (M-1,), dead (M, 3), each node's covariance (M, 3, 3), keyframes (M,))."""
+    place (a move across a tracking loss gets ``weak``); returns (laser (M-1,), dead (M, 3), each node's
+    covariance (M, 3, 3) since its segment began, keyframes (M,), the moves across a loss (M-1,), losses)."""
     n = true_states.shape[0]
     laser = np.zeros(max(n - 1, 0), np.bool_)
+    broken = np.zeros(max(n - 1, 0), np.bool_)
     dead = np.empty((n, 3))
     cov = np.zeros((n, 3, 3))  # each node's covariance along the chain (node 0 exact)
     key = np.zeros(n, np.bool_)
+    losses = 0
+    fails = 0  # consecutive failed matches
     if n == 0:
-        return laser, dead, cov, key
+        return laser, dead, cov, key, broken, losses
     dead[0] = true_states[0]
     key[0] = True
     kf = 0
@@ -381,6 +426,18 @@ def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing
                 sqrt_info[k] = np.linalg.cholesky(info).T
                 laser[k] = True
                 info_w = info
+            # tracking lost: lost_after failed matches in a row; the run's first move becomes a weak
+            # edge and the node after it starts a new segment (its covariance from there)
+            fails = 0 if matched else fails + 1
+            if lost_after > 0 and fails == lost_after:
+                losses += 1
+                m0 = k - lost_after + 1
+                broken[m0] = True
+                sqrt_info[m0] = weak
+                cov[m0 + 1] = 0.0
+                for m in range(m0 + 1, k):
+                    u_m = sqrt_info[m].copy()
+                    cov[m + 1] = _carry(cov[m], dead[m], dead[m + 1], np.linalg.inv(u_m.T.copy() @ u_m))
         at = _compose(at, z[k])
         # a new keyframe: moved or turned enough since the last one, or the scans no longer matched
         if not matched or math.hypot(at[0], at[1]) >= keyframe_xy or abs(at[2]) >= turn:
@@ -389,12 +446,18 @@ def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing
             key[k + 1] = True
         c_k = np.linalg.inv(info_w)
         dead[k + 1] = _compose(dead[k], z[k])
-        c, s = math.cos(dead[k, 2]), math.sin(dead[k, 2])
-        dxw, dzw = dead[k + 1, 0] - dead[k, 0], dead[k + 1, 1] - dead[k, 1]
-        f = np.array([[1.0, 0.0, -dzw], [0.0, 1.0, dxw], [0.0, 0.0, 1.0]])
-        g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        cov[k + 1] = f @ cov[k].copy() @ f.T.copy() + g @ c_k @ g.T.copy()
-    return laser, dead, cov, key
+        cov[k + 1] = _carry(cov[k], dead[k], dead[k + 1], c_k)
+    return laser, dead, cov, key, broken, losses
+
+
+@njit(cache=True, nogil=True)
+def _carry(p, a, b, c_k):
+    """The covariance at ``b``: ``p`` at ``a`` carried along the move a -> b and the move's own
+    ``c_k`` (in ``a``'s frame) turned into the world."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    f = np.array([[1.0, 0.0, -(b[1] - a[1])], [0.0, 1.0, b[0] - a[0]], [0.0, 0.0, 1.0]])
+    g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return f @ p.copy() @ f.T.copy() + g @ c_k @ g.T.copy()
 
 
 #: sectors of a scan descriptor (6 degrees each)
@@ -429,20 +492,35 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([c * dx + s * dz, -s * dx + c * dz, float(wrap(b[2] - a[2]))])
 
 
-def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndSettings, step: float):
+def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndSettings, step: float,
+              broken: np.ndarray | None = None):
     """Loop closures between keyframes, proposed from the estimate and accepted on the match (module
-    docstring, 3-4)."""
+    docstring, 3-4), and the relocalisation of the segments after a tracking loss (6: ``dead`` and
+    ``cov`` of a relocalised segment moved onto the map in place). Returns (pairs, their relative
+    poses, square-root informations, wrong, candidates matched, place, place matches verified,
+    segments relocalised)."""
     pairs, zs, infos, place, desc = [], [], [], [], {}
-    tried = p_tried = 0
+    tried = p_tried = relocalised = 0
     n = len(dead)
     last = -np.inf
+    # segments: a new one after each move across a tracking loss; segment 0 is on the map
+    seg = np.concatenate([[0], np.cumsum(broken)]) if broken is not None and n else np.zeros(n, np.int64)
+    on_map = seg == 0
+    pending: dict[int, list] = {}
+    if n > 1 and seg[-1] > 0:
+        for j in range(n):
+            if on_map[j] or not key[j] or not len(points[j]):
+                continue
+            p_tried += _relocalise(j, seg, on_map, points, ref, dead, cov, key, st, step, desc, pending,
+                                   pairs, zs, infos, place)
+            relocalised += int(on_map[j])
     if (st.closure_radius > 0 or st.place_recognition) and n > 1:
         r2 = st.closure_radius ** 2
         for j in range(n):
             if (not key[j] or travelled[j] < st.closure_min_travel or travelled[j] - last < st.closure_every
-                    or not len(points[j])):
+                    or not len(points[j]) or not on_map[j]):
                 continue
-            cand = np.flatnonzero(key & (travelled <= travelled[j] - st.closure_min_travel))
+            cand = np.flatnonzero(key & on_map & (travelled <= travelled[j] - st.closure_min_travel))
             if len(cand) == 0:
                 continue
             last = travelled[j]
@@ -486,16 +564,94 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
         wrong = (err_xy > WRONG_XY) | (err_t > math.radians(WRONG_YAW))
     else:
         wrong = np.zeros(0, bool)
-    return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried
+    return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried, relocalised
 
 
 def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place) -> int:
     """Place recognition at keyframe ``j`` (module docstring, 5): the earlier keyframe whose descriptor
     is nearest, verified by the matcher; appends an accepted closure. Returns the matches verified (0, 1)."""
     cand = np.flatnonzero(key & (travelled <= travelled[j] - st.closure_min_travel))
+    i, m, verified = _place(j, cand, points, ref, st, step, desc)
+    if m is not None and m.score >= st.place_min_score:
+        pairs.append((i, j))
+        zs.append(m.best)
+        infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
+        place.append(True)
+    return verified
+
+
+def _onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3,) the SE(2) transform ``t`` with ``compose(t, b) = a`` (both poses in their own frames)."""
+    th = float(wrap(a[2] - b[2]))
+    c, s = math.cos(th), math.sin(th)
+    return np.array([a[0] - (c * b[0] - s * b[1]), a[1] - (s * b[0] + c * b[1]), th])
+
+
+def _lever(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3, 3) the Jacobian carrying a pose error at ``a`` to ``b`` (world frame)."""
+    return np.array([[1.0, 0.0, -(b[1] - a[1])], [0.0, 1.0, b[0] - a[0]], [0.0, 0.0, 1.0]])
+
+
+def _turn3(th: float) -> np.ndarray:
+    c, s = math.cos(th), math.sin(th)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _relocalise(j, seg, on_map, points, ref, dead, cov, key, st: FrontEndSettings, step, desc, pending,
+                pairs, zs, infos, place) -> int:
+    """Relocalisation at keyframe ``j`` of a segment not yet on the map (module docstring, 6): place
+    recognition against the keyframes on the map before the segment began; a verified match is kept
+    and the segment is relocalised when two of its keyframes' matches agree on where it is (within
+    ``relocalise_xy`` metres and ``relocalise_yaw`` degrees): both become closures, the segment's
+    ``dead`` is moved onto the map and its ``cov`` made the map's. Returns the matches verified (0, 1)."""
+    s = int(seg[j])
+    first = int(np.flatnonzero(seg == s)[0])
+    cand = np.flatnonzero(key & on_map & (np.arange(len(seg)) < first))
+    i, m, verified = _place(j, cand, points, ref, st, step, desc)
+    if m is None or m.score < st.place_min_score:
+        return verified
+    here = compose(dead[i], m.best)  # j on the map, by this match
+    t = _onto(here, dead[j])
+    info = _upper(np.linalg.inv(_floored(m.cov, st)))
+    for earlier in pending.get(s, []):
+        other = compose(earlier[3], dead[j])  # j on the map, by the earlier match
+        if (math.hypot(*(other[:2] - here[:2])) <= st.relocalise_xy
+                and abs(float(wrap(other[2] - here[2]))) <= math.radians(st.relocalise_yaw)):
+            break
+    else:
+        pending.setdefault(s, []).append(((i, j), m.best, info, t))
+        return verified
+    for pair, zz, ii in (earlier[:3], ((i, j), m.best, info)):
+        pairs.append(pair)
+        zs.append(zz)
+        infos.append(ii)
+        place.append(True)
+    members = np.flatnonzero(seg == s)
+    later = np.arange(first, len(seg))
+    c, sn = math.cos(t[2]), math.sin(t[2])
+    x, z = dead[later, 0].copy(), dead[later, 1].copy()
+    dead[later, 0] = t[0] + c * x - sn * z
+    dead[later, 1] = t[1] + sn * x + c * z
+    dead[later, 2] = wrap(dead[later, 2] + t[2])
+    # the segment's covariance on the map: i's, the match's (turned into the world) carried to j, then
+    # to each member, and each member's own since the segment began (turned with it)
+    g = _turn3(float(dead[i, 2]))
+    p_j = _lever(dead[i], dead[j]) @ cov[i] @ _lever(dead[i], dead[j]).T + g @ _floored(m.cov, st) @ g.T
+    r = _turn3(float(t[2]))
+    for k in members:
+        f = _lever(dead[j], dead[k])
+        cov[k] = f @ p_j @ f.T + r @ cov[k] @ r.T
+    on_map[members] = True
+    return verified
+
+
+def _place(j, cand, points, ref, st: FrontEndSettings, step, desc):
+    """(i, the verifying match or None, matches verified (0, 1)): of keyframes ``cand``, the one whose
+    descriptor is nearest ``j``'s, matched in the wide window when within ``place_max_distance``."""
+    cand = np.asarray(cand, np.int64)
     cand = cand[[len(points[i]) > 0 for i in cand]]
     if len(cand) == 0:
-        return 0
+        return -1, None, 0
     for k in (j, *cand):
         if k not in desc:
             desc[k] = descriptor(points[k], st.max_range)
@@ -505,15 +661,10 @@ def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc,
     best = min((ring_distance(desc[i], desc[j]) + (int(i),) for i in near), key=lambda t: (t[0], t[2]))
     dist, turn, i = best
     if dist > st.place_max_distance:
-        return 0
+        return i, None, 0
     m, _ = match(ref(i), points[j], np.array([0.0, 0.0, turn]), st.place_window_xy,
                  math.radians(st.place_window_yaw), step)
-    if m.score >= st.place_min_score:
-        pairs.append((i, j))
-        zs.append(m.best)
-        infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
-        place.append(True)
-    return 1
+    return i, m, 1
 
 
 __all__ = ["FrontEndResult", "FrontEndSettings", "WRONG_XY", "WRONG_YAW", "compose", "descriptor", "ring_distance",

@@ -20,7 +20,10 @@ one at every view). Its estimate of where it was at each node is what a graph-SL
    (``wrong_closures``). The lost robot (``lost_k``) is a front end that accepts more loosely and
    searches wider. A **kidnapping** (``kidnap_m``): for ``kidnap_m`` metres of route from a point drawn after
    ``closure_min_travel`` metres the robot is carried: odometry reports no move and no turn
-   (with the confidence of a robot standing still); only loop closures can pull it back.
+   (with the confidence of a robot standing still). The front end detects the loss of tracking
+   (scans that no longer match, several moves in a row), cuts the chain there (weak odometry edges)
+   and relocalises the segment after it by verified place matches on the earlier map
+   (:mod:`benchmark.conditions.front_end`, 6; ``slam_tracking_lost``, ``slam_relocalised``).
 4. **Pose-graph solve** (:mod:`benchmark.conditions.pose_graph`, on GTSAM): odometry edges (information
    from the motion model's covariance of the *reported* moves, Gaussian) and closure edges under a
    robust kernel (``robust_kernel``, default ``cauchy``: a closure whose error is many sigmas off
@@ -85,6 +88,8 @@ class SlamEstimate:
         converged: False when the solve was cut off at its iteration cap (or GNC's weights did not settle).
         iterations: the final Levenberg-Marquardt solve's iterations.
         rejected: loop closures (true or wrong) the robust back end rejected or down-weighted.
+        tracking_lost: tracking losses the front end detected (failed scan matches in a row).
+        relocalised: segments after a loss the front end put back on the map (verified place matches).
         online: (N, 3) each view's pose as the robot estimated it when taking the view
             (``views_at=online``), or None: the views take ``estimate``.
         odometry_edges: (M-1, 3) the odometry edges the back end got (the front end's fused moves
@@ -107,6 +112,8 @@ class SlamEstimate:
     rejected: int = 0
     online: np.ndarray | None = None
     odometry_edges: np.ndarray | None = None
+    tracking_lost: int = 0
+    relocalised: int = 0
 
     @property
     def views(self) -> np.ndarray:
@@ -126,7 +133,8 @@ class SlamEstimate:
                    "kidnapped_m": self.kidnapped_m,
                    "slam_chi2_dof": float(self.chi2 / self.dof) if self.dof > 0 else 0.0,
                    "slam_converged": float(bool(self.converged)), "slam_iterations": int(self.iterations),
-                   "closures_rejected": int(self.rejected)}
+                   "closures_rejected": int(self.rejected), "slam_tracking_lost": int(self.tracking_lost),
+                   "slam_relocalised": int(self.relocalised)}
             self.__dict__["_stats"] = got
         return dict(got)
 
@@ -281,7 +289,7 @@ class OdometrySlam:
         return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
                             float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()),
                             bool(solved["converged"]), int(solved["iterations"]), int(solved["outliers"]),
-                            online=views, odometry_edges=fe.z)
+                            online=views, odometry_edges=fe.z, tracking_lost=int(fe.tracking_lost), relocalised=int(fe.relocalised))
 
     def _kidnap(self, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(M-1,) bool moves made while carried: ``kidnap_m`` metres of route from a point drawn

@@ -144,7 +144,7 @@ def seen_from_render(render_folder: str | Path, poses: np.ndarray) -> np.ndarray
 
 
 _SLAM_ARRAYS = ("true", "estimate", "odometry", "view_index", "travelled", "closures", "wrong", "online")
-_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m", "converged", "iterations", "rejected")
+_SLAM_SCALARS = ("chi2", "dof", "kidnapped_m", "converged", "iterations", "rejected", "tracking_lost", "relocalised")
 
 
 def slam_arrays(est) -> dict[str, np.ndarray]:
@@ -186,7 +186,8 @@ def check_slam_entry(z: Mapping[str, np.ndarray], n_views: int):
     return SlamEstimate(a["true"], a["estimate"], a["odometry"], a["view_index"].astype(np.int64), a["travelled"],
                         a["closures"].astype(np.int64), a["wrong"].astype(np.int64), float(a["chi2"]), int(a["dof"]),
                         float(a["kidnapped_m"]), bool(a["converged"]), int(a["iterations"]), int(a["rejected"]),
-                        a["online"] if len(a["online"]) else None)
+                        a["online"] if len(a["online"]) else None, tracking_lost=int(a["tracking_lost"]),
+                        relocalised=int(a["relocalised"]))
 
 
 __all__ = ["BadEntry", "check_labels_entry", "check_slam_entry", "slam_arrays", "check_poses", "check_render", "check_seen", "check_classified",

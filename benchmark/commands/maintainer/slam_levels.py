@@ -91,6 +91,7 @@ def measure(scene, house_id: str, levels: tuple[str, ...], wall: float = 2.6) ->
         st = est.stats()
         rows.append({"house": house_id, "level": level, "route_m": st["route_m"], "loop_closures": st["loop_closures"],
                      "wrong_closures": st["wrong_closures"], "kidnapped_m": st["kidnapped_m"], "odometry_ate_m": st["odometry_ate_rmse_m"],
+                     "tracking_lost": st["slam_tracking_lost"], "relocalised": st["slam_relocalised"],
                      "ate_rmse_m": st["ate_rmse_m"], "ate_per_100m": 100 * st["ate_rmse_m"] / max(st["route_m"], 1e-9),
                      "view_error_m": pose_error_stats(poses, est.views)["pose_error_mean_m"],
                      "map_free_iou": float((m.free & aligned).sum() / union) if union else 1.0})
@@ -138,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     df = pd.DataFrame(rows)
     order = list(dict.fromkeys(df["level"]))
-    cols = ["route_m", "loop_closures", "wrong_closures", "kidnapped_m", "odometry_ate_m", "ate_rmse_m", "ate_per_100m",
+    cols = ["route_m", "loop_closures", "wrong_closures", "kidnapped_m", "tracking_lost", "relocalised", "odometry_ate_m", "ate_rmse_m", "ate_per_100m",
             "view_error_m", "map_free_iou"]
     text = (df.groupby("level", sort=False)[cols].mean().loc[order].reset_index().to_markdown(index=False,
                                                                                                floatfmt=".3f")
