@@ -212,13 +212,46 @@ def _bases(rows, cols, lo, hi, h, w, pad, wp, base):
         base[p] = (min(max(rows[p], -hi - 1), h - lo) + pad) * wp + min(max(cols[p], -hi - 1), w - lo) + pad
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _sum(flat, base, off):
-    """Sum over the points of ``flat`` at each point's index shifted by ``off``."""
-    s = 0.0
+@njit(cache=True, nogil=True)
+def _sums(flat, base, offs, m, acc):
+    """``acc[q]`` = the sum over the points of ``flat`` at each point's index shifted by ``offs[q]``, for
+    ``q < m``: every shift's sum taken in the points' order (the same sum, bit for bit, as one shift at
+    a time), the ``m`` sums side by side so that no addition waits on the one before it."""
+    for q in range(m):
+        acc[q] = 0.0
     for p in range(base.shape[0]):
-        s += flat[base[p] + off]
-    return s
+        b = base[p]
+        for q in range(m):
+            acc[q] += flat[b + offs[q]]
+
+
+@njit(cache=True, nogil=True)
+def _sums4(flat, base, off, wp, stride, acc):
+    """:func:`_sums` over a whole block of 4 x 4 shifts: ``acc[4 jj + ii]`` = the sum over the points of
+    ``flat`` at each point's index shifted by ``off + jj wp + ii stride`` (4 rows of 4 cells ``stride``
+    apart: with ``stride`` 1, each row read as one run), each sum in the points' order."""
+    a0 = np.zeros(4)
+    a1 = np.zeros(4)
+    a2 = np.zeros(4)
+    a3 = np.zeros(4)
+    for p in range(base.shape[0]):
+        b = base[p] + off
+        for ii in range(4):
+            a0[ii] += flat[b + ii * stride]
+        b += wp
+        for ii in range(4):
+            a1[ii] += flat[b + ii * stride]
+        b += wp
+        for ii in range(4):
+            a2[ii] += flat[b + ii * stride]
+        b += wp
+        for ii in range(4):
+            a3[ii] += flat[b + ii * stride]
+    for ii in range(4):
+        acc[ii] = a0[ii]
+        acc[4 + ii] = a1[ii]
+        acc[8 + ii] = a2[ii]
+        acc[12 + ii] = a3[ii]
 
 
 @njit(cache=True, nogil=True)
@@ -244,13 +277,19 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     h, w = grid.shape
     flat, wp, pad = _padded(grid, -kx, kx, low)
     if not bounded:
+        offs = np.empty(nx * nx, np.int64)
+        acc = np.empty(nx * nx, np.float64)
+        for i in range(nx):
+            for j in range(nx):
+                offs[i * nx + j] = (j - kx) * wp + i - kx
         for k in range(nt):
             th = ctheta + (k - kt) * step
             _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
             _bases(rows, cols, -kx, kx, h, w, pad, wp, base)
+            _sums(flat, base, offs, nx * nx, acc)
             for i in range(nx):
                 for j in range(nx):
-                    s = _sum(flat, base, (j - kx) * wp + i - kx)
+                    s = acc[i * nx + j]
                     out[k, i, j] = s
                     evaluated += 1
                     if s > best:
@@ -271,18 +310,24 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     h4, w4 = p4.shape
     base4 = np.empty(n, np.int64)
     top = np.empty(nt * n16 * n16, np.float64)
+    offs = np.empty(max(n16 * n16, 16), np.int64)
+    acc = np.empty(max(n16 * n16, 16), np.float64)
+    for a in range(n16):
+        for b in range(n16):
+            # (j: rows, i: columns)
+            offs[a * n16 + b] = (b * 16 - kx + 15) * wp16 + a * 16 - kx + 15
     for k in range(nt):
         th = ctheta + (k - kt) * step
         _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
         _bases(rows, cols, lo16, hi16, h16, w16, pad16, wp16, base)
-        for a in range(n16):
-            for b in range(n16):
-                # (j: rows, i: columns)
-                top[(k * n16 + a) * n16 + b] = _sum(f16, base, (b * 16 - kx + 15) * wp16 + a * 16 - kx + 15)
+        _sums(f16, base, offs, n16 * n16, acc)
+        top[k * n16 * n16:(k + 1) * n16 * n16] = acc[:n16 * n16]
     order = np.argsort(-top, kind="mergesort")
     mid = np.empty(16, np.float64)
     mid_i = np.empty(16, np.int64)
     mid_j = np.empty(16, np.int64)
+    poffs = np.empty(16, np.int64)
+    pacc = np.empty(16, np.float64)
     last_k = -1
     for o in range(order.shape[0]):
         q = order[o]
@@ -300,18 +345,41 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
         m = 0
         for bi in range(a * 4, min(a * 4 + 4, n4)):
             for bj in range(b * 4, min(b * 4 + 4, n4)):
-                mid[m] = _sum(f4, base4, (bj * 4 - kx + 3) * wp4 + bi * 4 - kx + 3)
+                offs[m] = (bj * 4 - kx + 3) * wp4 + bi * 4 - kx + 3
                 mid_i[m] = bi
                 mid_j[m] = bj
                 m += 1
+        if m == 16:  # a whole 16-block: its 4 x 4 bounds as 4 rows of 4 cells 4 apart (pacc[4 bj' + bi'])
+            _sums4(f4, base4, offs[0], 4 * wp4, 4, pacc)
+            for t in range(16):
+                mid[t] = pacc[4 * (t % 4) + t // 4]
+        else:
+            _sums(f4, base4, offs, m, mid)
         sub = np.argsort(-mid[:m], kind="mergesort")
         for t in range(m):
             u = sub[t]
             if not exhaustive and mid[u] < best:
                 break
-            for i in range(mid_i[u] * 4, min(mid_i[u] * 4 + 4, nx)):
-                for j in range(mid_j[u] * 4, min(mid_j[u] * 4 + 4, nx)):
-                    s = _sum(flat, base, (j - kx) * wp + i - kx)
+            # the block's poses, summed side by side (pacc[4 (j - j0) + i - i0]), then taken in (i, j) order
+            # the block's poses summed side by side, then taken in (i, j) order: a whole block as 4 runs
+            # of 4 cells (pacc[4 (j - j0) + i - i0]); a block cut by the window's edge pose by pose
+            i0 = mid_i[u] * 4
+            j0 = mid_j[u] * 4
+            whole = i0 + 4 <= nx and j0 + 4 <= nx
+            if whole:
+                _sums4(flat, base, (j0 - kx) * wp + i0 - kx, wp, 1, pacc)
+            else:
+                e = 0
+                for i in range(i0, min(i0 + 4, nx)):
+                    for j in range(j0, min(j0 + 4, nx)):
+                        poffs[e] = (j - kx) * wp + i - kx
+                        e += 1
+                _sums(flat, base, poffs, e, pacc)
+            e = 0
+            for i in range(i0, min(i0 + 4, nx)):
+                for j in range(j0, min(j0 + 4, nx)):
+                    s = pacc[4 * (j - j0) + i - i0] if whole else pacc[e]
+                    e += 1
                     out[k, i, j] = s
                     evaluated += 1
                     if s > best or (s == best and (k, i, j) < (bk, bi_, bj_)):
