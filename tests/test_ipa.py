@@ -416,13 +416,19 @@ def test_table5_with_ipa_but_no_build_is_one_line_and_exit_2(tmp_path, monkeypat
 def test_ports_against_originals_table_by_hand():
     from benchmark.commands.ipa_ports import table
 
-    df = pd.DataFrame({"map": ["a", "b"], "algorithm": ["distance", "distance"],
-                       "agreement_matched_iou": [1.0, 0.5], "port_segments_per_room": [1.0, 2.0],
-                       "original_segments_per_room": [1.0, 1.0], "port_matched_iou": [0.8, 0.6],
-                       "original_matched_iou": [0.7, 0.7], "port_pq": [0.5, 0.5], "original_pq": [0.5, 0.5]})
-    row = table(df).splitlines()[2]
-    # means 75 % agreement, 1.5 and 1.0 segments per room, differences +0.0 matched IoU and PQ
-    assert row.startswith("| distance | 2 | 75.00 [50.00, 100.00] | 1.50 [1.00, 2.00] | 1.00 [1.00, 1.00] | ")
+    df = pd.DataFrame({"source": ["selros", "selros", "real"], "map": ["a", "b", "c"],
+                       "algorithm": ["distance"] * 3, "rooms": [2.0, 2.0, float("nan")],
+                       "agreement_matched_iou": [1.0, 0.5, 0.1], "port_segments": [2.0, 4.0, 9.0],
+                       "original_segments": [2.0, 2.0, 1.0], "port_matched_iou": [0.8, 0.6, float("nan")],
+                       "original_matched_iou": [0.7, 0.7, float("nan")], "port_pq": [0.5, 0.5, float("nan")],
+                       "original_pq": [0.5, 0.5, float("nan")]})
+    lines = table(df).splitlines()
+    row = lines[2]
+    # means 75 % agreement, 1.5 and 1.0 segments per room, differences +0.0 matched IoU and PQ; the
+    # map without ground truth (rooms NaN) is not in this table
+    assert row.startswith("| SeLRoS release | distance | 2 | 75.00 [50.00, 100.00] | 1.50 [1.00, 2.00] | "
+                          "1.00 [1.00, 1.00] | ")
+    assert not lines[3].startswith("|")
     assert "| 0.00 [-10.00, 10.00] | 0.00 [0.00, 0.00] |" in row
 
 
@@ -437,6 +443,6 @@ def test_ports_against_originals_without_a_build_is_one_line_and_exit_2(tmp_path
         img[5:35, 5:35] = (0, 0, 255)
         cv2.imwrite(str(tmp_path / "data" / sub / name), img)
     monkeypatch.setenv("ROOMSEG_IPA_ENV", str(tmp_path / "nothing"))
-    assert main(["--data", str(tmp_path / "data")]) == 2
+    assert main(["--data", str(tmp_path / "data"), "--sources", "selros"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: segmenter=ipa_morphological: no ipa_room_segmentation build")
