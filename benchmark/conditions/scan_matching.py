@@ -308,7 +308,6 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     f4, wp4, pad4 = _padded(p4, lo4, hi4, low)
     h16, w16 = p16.shape
     h4, w4 = p4.shape
-    base4 = np.empty(n, np.int64)
     top = np.empty(nt * n16 * n16, np.float64)
     offs = np.empty(max(n16 * n16, 16), np.int64)
     acc = np.empty(max(n16 * n16, 16), np.float64)
@@ -316,10 +315,17 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
         for b in range(n16):
             # (j: rows, i: columns)
             offs[a * n16 + b] = (b * 16 - kx + 15) * wp16 + a * 16 - kx + 15
+    # each heading's cells, kept: the blocks below are visited by bound, from heading to heading, and
+    # each heading's flat indices in the 4-block bounds and the grid are made once, when first visited
+    all_rows = np.empty((nt, n), np.int64)
+    all_cols = np.empty((nt, n), np.int64)
+    all_b4 = np.empty((nt, n), np.int64)
+    all_b = np.empty((nt, n), np.int64)
+    made = np.zeros(nt, np.bool_)
     for k in range(nt):
         th = ctheta + (k - kt) * step
-        _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
-        _bases(rows, cols, lo16, hi16, h16, w16, pad16, wp16, base)
+        _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, all_rows[k], all_cols[k])
+        _bases(all_rows[k], all_cols[k], lo16, hi16, h16, w16, pad16, wp16, base)
         _sums(f16, base, offs, n16 * n16, acc)
         top[k * n16 * n16:(k + 1) * n16 * n16] = acc[:n16 * n16]
     order = np.argsort(-top, kind="mergesort")
@@ -328,7 +334,6 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     mid_j = np.empty(16, np.int64)
     poffs = np.empty(16, np.int64)
     pacc = np.empty(16, np.float64)
-    last_k = -1
     for o in range(order.shape[0]):
         q = order[o]
         if not exhaustive and top[q] < best:
@@ -336,12 +341,12 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
         k = q // (n16 * n16)
         a = (q // n16) % n16
         b = q % n16
-        if k != last_k:
-            th = ctheta + (k - kt) * step
-            _cells(points, np.cos(th), np.sin(th), cx, cy, x0, y0, res, rows, cols)
-            _bases(rows, cols, lo4, hi4, h4, w4, pad4, wp4, base4)
-            _bases(rows, cols, -kx, kx, h, w, pad, wp, base)
-            last_k = k
+        if not made[k]:
+            _bases(all_rows[k], all_cols[k], lo4, hi4, h4, w4, pad4, wp4, all_b4[k])
+            _bases(all_rows[k], all_cols[k], -kx, kx, h, w, pad, wp, all_b[k])
+            made[k] = True
+        base4 = all_b4[k]
+        kbase = all_b[k]
         m = 0
         for bi in range(a * 4, min(a * 4 + 4, n4)):
             for bj in range(b * 4, min(b * 4 + 4, n4)):
@@ -367,14 +372,14 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
             j0 = mid_j[u] * 4
             whole = i0 + 4 <= nx and j0 + 4 <= nx
             if whole:
-                _sums4(flat, base, (j0 - kx) * wp + i0 - kx, wp, 1, pacc)
+                _sums4(flat, kbase, (j0 - kx) * wp + i0 - kx, wp, 1, pacc)
             else:
                 e = 0
                 for i in range(i0, min(i0 + 4, nx)):
                     for j in range(j0, min(j0 + 4, nx)):
                         poffs[e] = (j - kx) * wp + i - kx
                         e += 1
-                _sums(flat, base, poffs, e, pacc)
+                _sums(flat, kbase, poffs, e, pacc)
             e = 0
             for i in range(i0, min(i0 + 4, nx)):
                 for j in range(j0, min(j0 + 4, nx)):
