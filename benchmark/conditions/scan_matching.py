@@ -26,6 +26,10 @@ metres: x forward along the heading, z to its left, as :mod:`benchmark.condition
    any pose's score in the block). Blocks are visited from the highest bound down, level by level,
    until no bound beats the best score found: the best pose is the exhaustive search's
    (``exhaustive=True`` visits every block, for the tests). A small window is scored pose by pose.
+   Sums are taken several at a time (a 4 x 4 block's poses, a 16-block's sixteen bounds, a heading's
+   16-block bounds: one pass over the points), each in the points' order: the same sums, bit for
+   bit, as one at a time. The bound is Olson's block maxima, kept loose on purpose: the mean and
+   covariance (step 4) are over the poses it evaluates, so a tighter bound would change them.
 4. **Answer** (:class:`Match`): the best pose and its score ``L``; ``score`` the mean ``g`` of ``b``'s
    points there (0..1, what acceptance thresholds are stated on); the mean and covariance of the
    poses evaluated, each weighted ``exp(L - L_best)`` (Olson's eq. 15; poses left unevaluated by the
