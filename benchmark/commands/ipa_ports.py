@@ -1,6 +1,8 @@
 """``python -m benchmark.commands.ipa_ports``: the project's morphological, distance and Voronoi
 ports against ipa_room_segmentation's originals (the authors' C++, ``make ipa-env``), map by map,
-on three sets of maps:
+on the SeLRoS release, the shared real laser maps and generated houses.
+
+The sets of maps (``--sources``):
 
 * ``selros``: the SeLRoS release's 30 maps (each map's free space, as Table V's geometric rows),
   with their ground truth;
