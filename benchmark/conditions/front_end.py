@@ -607,7 +607,7 @@ def _relocalise(j, seg, on_map, points, ref, dead, cov, key, st: FrontEndSetting
     s = int(seg[j])
     first = int(np.flatnonzero(seg == s)[0])
     cand = np.flatnonzero(key & on_map & (np.arange(len(seg)) < first))
-    i, m, verified = _place(j, cand, points, ref, st, step, desc)
+    i, m, verified = _place(j, cand, points, ref, st, step, desc, tries=3)
     if m is None or m.score < st.place_min_score:
         return verified
     here = compose(dead[i], m.best)  # j on the map, by this match
@@ -645,9 +645,10 @@ def _relocalise(j, seg, on_map, points, ref, dead, cov, key, st: FrontEndSetting
     return verified
 
 
-def _place(j, cand, points, ref, st: FrontEndSettings, step, desc):
-    """(i, the verifying match or None, matches verified (0, 1)): of keyframes ``cand``, the one whose
-    descriptor is nearest ``j``'s, matched in the wide window when within ``place_max_distance``."""
+def _place(j, cand, points, ref, st: FrontEndSettings, step, desc, tries: int = 1):
+    """(i, the verifying match or None, matches verified): of keyframes ``cand``, the one whose
+    descriptor is nearest ``j``'s, matched in the wide window when within ``place_max_distance``
+    (``tries`` > 1: the nearest ``tries`` in turn until one reaches ``place_min_score``)."""
     cand = np.asarray(cand, np.int64)
     cand = cand[[len(points[i]) > 0 for i in cand]]
     if len(cand) == 0:
@@ -658,13 +659,17 @@ def _place(j, cand, points, ref, st: FrontEndSettings, step, desc):
     # the turn-free prefilter: the sorted sector ranges; then the best turn of the three nearest
     keys = np.sort(np.array([desc[i] for i in cand]), axis=1)
     near = cand[np.argsort(np.abs(keys - np.sort(desc[j])).mean(axis=1), kind="stable")[:3]]
-    best = min((ring_distance(desc[i], desc[j]) + (int(i),) for i in near), key=lambda t: (t[0], t[2]))
-    dist, turn, i = best
-    if dist > st.place_max_distance:
-        return i, None, 0
-    m, _ = match(ref(i), points[j], np.array([0.0, 0.0, turn]), st.place_window_xy,
-                 math.radians(st.place_window_yaw), step)
-    return i, m, 1
+    ranked = sorted((ring_distance(desc[i], desc[j]) + (int(i),) for i in near), key=lambda t: (t[0], t[2]))
+    i, m, verified = ranked[0][2], None, 0
+    for dist, turn, i in ranked[:tries]:
+        if dist > st.place_max_distance:
+            break
+        m, _ = match(ref(i), points[j], np.array([0.0, 0.0, turn]), st.place_window_xy,
+                     math.radians(st.place_window_yaw), step)
+        verified += 1
+        if m.score >= st.place_min_score:
+            break
+    return i, m, verified
 
 
 __all__ = ["FrontEndResult", "FrontEndSettings", "WRONG_XY", "WRONG_YAW", "compose", "descriptor", "ring_distance",
