@@ -125,13 +125,15 @@ class Context:
             classifiers that read per-house files), or None.
         route: for a SLAM pose error that estimates the whole route (one estimate for the map
             and the views): a function giving (every view's true pose in capture order (N, 3),
-            the map the robot drives on, the scan spacing in metres or None), or None.
+            the map the robot drives on, the scan spacing in metres or None, what the scan plane
+            hits (H, W) bool or None: the scans the front end matches, as the map's estimate
+            matched them), or None.
     """
 
     grid: GridMap | None = None
     scene: Any = None
     house_id: str | None = None
-    route: Callable[[], tuple[np.ndarray, GridMap, float | None]] | None = None
+    route: Callable[[], tuple[np.ndarray, GridMap, float | None, np.ndarray | None]] | None = None
 
 
 @dataclass
@@ -198,9 +200,9 @@ class PoseErrorTransform:
         stage = _resolve(self.stage)
         grid = ctx.scene.grid if ctx.scene is not None else ctx.grid
         if hasattr(stage, "estimate") and ctx.route is not None:  # one SLAM estimate along the route, as the map's
-            route_poses, route_grid, spacing = ctx.route()
+            route_poses, route_grid, spacing, obstacles = ctx.route()
             noisy, stats = stage(views.true_poses, route_grid, ctx.house_id or "", route_poses=route_poses,
-                                 spacing=spacing)
+                                 spacing=spacing, obstacles=obstacles)
         else:
             noisy, stats = stage(views.true_poses, grid, ctx.house_id or "")
         return replace(views, poses=noisy), {k: float(stats[k]) for k in self.KEEP if k in stats}

@@ -304,7 +304,8 @@ class OdometrySlam:
 
     # ------------------------------------------------------------------ the stage
     def __call__(self, poses: np.ndarray, grid: GridMap, house_id: str, travelled: np.ndarray | None = None,
-                 route_poses: np.ndarray | None = None, spacing: float | None = None) -> tuple[np.ndarray, dict]:
+                 route_poses: np.ndarray | None = None, spacing: float | None = None,
+                 obstacles: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
         """(estimated (N, 3) poses of ``poses``, stats).
 
         Args:
@@ -315,6 +316,8 @@ class OdometrySlam:
             route_poses: (N', 3) every view the robot took in capture order, of which ``poses``
                 is a subsequence (default ``poses``): the route the estimate is made along.
             spacing: metres between nodes (default ``self.spacing``).
+            obstacles: (H, W) bool what the scan plane hits (:meth:`estimate`): the scans the front
+                end matches; the map's estimate is made with them, and the views must take that one.
         """
         poses = np.asarray(poses, np.float64).reshape(-1, 3)
         route_poses = poses if route_poses is None else np.asarray(route_poses, np.float64).reshape(-1, 3)
@@ -322,7 +325,7 @@ class OdometrySlam:
             noisy = poses.copy()
             extra = {"ate_rmse_m": 0.0}
         else:
-            est = self.estimate(grid, route_poses, house_id, spacing)
+            est = self.estimate(grid, route_poses, house_id, spacing, obstacles)
             noisy = est.views[subsequence(route_poses, poses)]
             extra = est.stats()
         stats = pose_error_stats(poses, noisy, grid)
