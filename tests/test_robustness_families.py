@@ -241,7 +241,8 @@ def test_the_command_reports_the_own_severity_zero_and_the_labelled_conditions(t
     assert "- explore: severity 0 is the unlimited frontier run" in md
     assert ("| method | lost 1 | lost 2 | lost 3 | lost | drop lost | kidnap 1 | kidnap 2 | kidnap | drop kidnap |"
             in md)
-    assert "The labelled conditions (`lost`, `kidnap`: each severity a situation of its own" in md
+    # the published run holds views_final (its rows are kept): a labelled condition too
+    assert "The labelled conditions (`lost`, `kidnap`, `views_final`: each severity a situation of its own" in md
     figures = {p.name for p in (out / "figures").iterdir()}
     assert "robustness_procthor_matched_iou_explore.png" in figures
     assert not any("lost" in f or "kidnap" in f for f in figures)  # no ladder to draw

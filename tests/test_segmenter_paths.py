@@ -109,12 +109,16 @@ def _distance_reference(seg: DistanceTransform, grid: GridMap) -> np.ndarray:
 
 
 def _critical_points_reference(seg: Voronoi, grid: GridMap) -> np.ndarray:
-    """Voronoi's critical points before: SciPy's transform of the map padded with obstacles."""
+    """Voronoi's critical points before: SciPy's transform of the map padded with obstacles and
+    SciPy's labelling (the fast path's distance_px and components are what is checked; the
+    skeleton's spur pruning is the algorithm's own step, tested in tests/test_ipa_ports.py)."""
     from skimage.morphology import skeletonize
+
+    from benchmark.segmenters.voronoi import prune_spurs
 
     walk = grid.walkable
     dist = ndimage.distance_transform_edt(np.pad(walk, 1))[1:-1, 1:-1]
-    skel = skeletonize(walk) & (dist > 1)
+    skel = prune_spurs(skeletonize(walk) & (dist > 1), dist, seg.max_door / 2 / grid.resolution)
     nbrs = ndimage.convolve(skel.astype(np.uint8), np.ones((3, 3), np.uint8), mode="constant") - 1
     win = max(int(round(seg.window / grid.resolution)), 1) * 2 + 1
     local_min = ndimage.minimum_filter(np.where(skel, dist, np.inf), size=win, mode="constant", cval=np.inf)
