@@ -72,11 +72,7 @@ class Morphological(Segmenter):
             keep &= (lo <= sizes) & (sizes <= hi)
             keep[0] = False
             if keep.any():
-                number = np.where(keep, np.cumsum(keep) + k, 0).astype(np.int32)
-                k += int(keep.sum())
-                mark = number[lab]
-                part = mark > 0
-                seeds[part] = mark[part]
+                k, part = _take_seeds(seeds, lab, keep, k)
                 nxt &= ~part
             prev, work = lab, nxt
         return finish_rooms(seeds, grid, self.min_room_area)
@@ -103,10 +99,16 @@ def limit_seeds(walkable: np.ndarray, lo: float, hi: float) -> np.ndarray:
         keep = (lo < sizes) & (sizes < hi)
         keep[0] = False
         if keep.any():
-            number = np.where(keep, np.cumsum(keep) + k, 0).astype(np.int32)
-            k += int(keep.sum())
-            mark = number[lab]
-            part = mark > 0
-            seeds[part] = mark[part]
+            k, part = _take_seeds(seeds, lab, keep, k)
             work &= ~part
     return seeds
+
+
+def _take_seeds(seeds: np.ndarray, lab: np.ndarray, keep: np.ndarray, k: int) -> tuple[int, np.ndarray]:
+    """Write the parts of ``lab`` (H, W labels) that ``keep`` (n + 1,) bool marks into ``seeds``
+    as seeds ``k + 1..``, numbered in label order; (the last seed number, (H, W) bool their cells)."""
+    number = np.where(keep, np.cumsum(keep) + k, 0).astype(np.int32)
+    mark = number[lab]
+    part = mark > 0
+    seeds[part] = mark[part]
+    return k + int(keep.sum()), part
