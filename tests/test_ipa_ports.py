@@ -13,21 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmark.segmenters.ipa import ipa_build
 from benchmark.segmenters.morphological import Morphological
 from benchmark.segmenters.voronoi import Voronoi, prune_spurs
 from envs.maps.gridmap import GridMap
-
-
-def _build_or_none():
-    try:
-        return ipa_build()
-    except FileNotFoundError as e:
-        return str(e)
-
-
-BUILD = _build_or_none()
-NEEDS_BUILD = pytest.mark.skipif(isinstance(BUILD, str), reason=f"no ipa_room_segmentation build: {BUILD}")
+from tests.test_ipa import NEEDS_BUILD  # the build, or why not: one check for both files
 
 # ---------------------------------------------------------------- Voronoi: the pruned graph
 
