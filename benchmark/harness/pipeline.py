@@ -561,10 +561,10 @@ class MethodPipeline(Pipeline):
         # gives them and the classes as its classifier (and the classifier-noise stage) gives them
         def route():  # a SLAM pose error's route: every view's true pose, the cells it can drive, the scan
             # spacing and what the scan plane hits (the scans its front end matched): the map's estimate's key
-            poses = self._render_poses(hid)
+            poses, seen = self._render_poses(hid), self._scan_plane(hid, scene)
             if self._slam_shapes_map():  # the estimate the map is built at, from its shared cache entry
-                self._slam_estimate(hid, scene, poses, timings)
-            return poses, self._route_grid(scene), self._scan_spacing(), self._scan_plane(hid, scene)
+                self._slam_estimate(hid, scene, poses, timings, seen)
+            return poses, self._route_grid(scene), self._scan_spacing(), seen
 
         result = self.method.run(lambda: self._observations(hid, scene, timings), robot_grid,
                                  method.Context(scene=scene, house_id=hid, route=route), _HouseCache(self, hid, scene),

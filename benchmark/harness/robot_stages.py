@@ -202,17 +202,20 @@ class RobotStages:
         map: the house's own unless the map was built at a SLAM estimate (:meth:`_robot_grid`)."""
         return self._frames.get(hid, (scene.instances, scene.grid.walkable))
 
-    def _slam_estimate(self, hid: str, scene, views: np.ndarray, timings: dict | None = None):
+    def _slam_estimate(self, hid: str, scene, views: np.ndarray, timings: dict | None = None,
+                       seen: np.ndarray | None = None):
         """The robot's one pose estimate (:class:`benchmark.conditions.slam.SlamEstimate`) along its views,
         when its ``pose_error`` stage is a SLAM that makes one and errs; else None.
 
         Where it shapes the robot's map, it is cached beside the map (``slam`` entries, keyed
         like it: house, views, mapping and pose error), so every method of a condition shares
-        one solve; the stage is handed the estimate back, so that the views it moves agree."""
+        one solve; the stage is handed the estimate back, so that the views it moves agree.
+        ``seen``: :meth:`_scan_plane`'s answer when the caller has it already (else made here)."""
         stage = self.stage("pose_error")
         if stage is None or not hasattr(stage, "estimate") or stage.is_clean:
             return None
-        grid, spacing, seen = self._route_grid(scene), self._scan_spacing(), self._scan_plane(hid, scene)
+        grid, spacing = self._route_grid(scene), self._scan_spacing()
+        seen = self._scan_plane(hid, scene) if seen is None else seen
         if not self._slam_shapes_map():
             return stage.estimate(grid, views, hid, spacing, seen)
         def load(path: Path) -> SlamEstimate:
