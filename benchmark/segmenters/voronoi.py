@@ -1,5 +1,9 @@
 """Voronoi segmentation, simplified (``segmenter=voronoi``): cut the free space with the
-critical lines at the narrowings of its skeleton (details: :mod:`benchmark.segmenters.common`)."""
+critical lines at the narrowings of its skeleton (details: :mod:`benchmark.segmenters.common`).
+
+``rule="original"`` (``segmenter=voronoi_original``) takes ipa_room_segmentation's Voronoi graph,
+critical-point rule and merging passes instead (:mod:`benchmark.segmenters.voronoi_original`;
+docs/baselines.md, "The ports against the originals", for what that changes)."""
 
 from __future__ import annotations
 
@@ -11,11 +15,12 @@ from skimage.draw import line as draw_line
 from skimage.morphology import skeletonize
 
 from benchmark.interfaces import Segmenter
+from benchmark.segmenters import voronoi_original as original
 from benchmark.segmenters.common import check_area_limits, check_room_area, finish_rooms
 from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
-from envs.ranges import Between, NonNegative, Positive
+from envs.ranges import Between, NonNegative, OneOf, Positive
 
 
 def prune_spurs(skel: np.ndarray, clearance: np.ndarray, room: float) -> np.ndarray:
@@ -74,20 +79,56 @@ class Voronoi(Segmenter):
         window: neighbourhood in which a critical point's clearance is the smallest, metres.
         widening: a critical point needs skeleton clearance at least ``widening`` times its
             own within ``2 * window`` (ratio), i.e. wider space beyond the narrowing.
+        rule: ``narrowing`` (the default): the critical points and merge above; ``original``:
+            ipa_room_segmentation's Voronoi graph, critical-point rule and merging passes
+            (:mod:`benchmark.segmenters.voronoi_original`), with the settings below (the
+            authors' defaults, their pixels at 0.05 m/px in metres); ``max_door``, ``window``
+            and ``widening`` are not used.
+        reach: ``original``: a critical point's neighbourhood on the graph is ``reach`` /
+            its clearance metres long, square metres (the authors' 280 pixels²).
+        max_search: ``original``: the longest search for that neighbourhood, metres (150 steps).
+        min_critical_distance: ``original``: of two critical points closer than this times the
+            first's clearance, the one whose line turns less is dropped (ratio).
+        max_merge_area: ``original``: the first merging pass merges cells under this area,
+            square metres.
+        min_segment_area: ``original``: smaller parts of the cut free space are no cell of
+            their own, square metres.
+        work_resolution: ``original``: the rule runs on the map resampled (nearest) to this
+            many metres per pixel, the authors' 0.05 (their graph's margin from the walls, the
+            lines' width and the borders the merging counts are pixels), and its rooms are
+            sampled back; null: at the map's own resolution.
     """
 
     def __init__(self, min_room_area: Annotated[float, NonNegative()] = 1.0,
                  max_area: Annotated[float, Positive()] = 60.0, max_door: Annotated[float, Positive()] = 1.2,
                  window: Annotated[float, Positive()] = 0.6,
-                 widening: Annotated[float, Between(1, what="a number >= 1")] = 1.25):
+                 widening: Annotated[float, Between(1, what="a number >= 1")] = 1.25,
+                 rule: Annotated[str, OneOf("narrowing", "original")] = "narrowing",
+                 reach: Annotated[float, Positive()] = 0.7, max_search: Annotated[float, Positive()] = 7.5,
+                 min_critical_distance: Annotated[float, NonNegative()] = 0.5,
+                 max_merge_area: Annotated[float, NonNegative()] = 12.5,
+                 min_segment_area: Annotated[float, NonNegative()] = 0.1,
+                 work_resolution: Annotated[float | None, Positive()] = 0.05):
+        if rule not in ("narrowing", "original"):
+            raise ValueError(f"segmenter.rule={rule!r}: expected narrowing or original")
         if max_door <= 0 or window <= 0 or widening < 1:
             raise ValueError(f"Voronoi needs max_door > 0 m, window > 0 m and widening >= 1, got "
                              f"{max_door}, {window}, {widening}")
+        if work_resolution is not None and not work_resolution > 0:
+            raise ValueError(f"segmenter.work_resolution={work_resolution!r}: expected metres per pixel > 0, or null")
+        if not (reach > 0 and max_search > 0 and min_critical_distance >= 0 and max_merge_area >= 0
+                and min_segment_area >= 0):
+            raise ValueError(f"Voronoi needs reach > 0 m², max_search > 0 m, min_critical_distance >= 0, "
+                             f"max_merge_area >= 0 m² and min_segment_area >= 0 m², got {reach}, {max_search}, "
+                             f"{min_critical_distance}, {max_merge_area}, {min_segment_area}")
         self.min_room_area, self.max_area, self.max_door = check_room_area(min_room_area), max_area, max_door
-        self.window, self.widening = window, widening
+        self.window, self.widening, self.rule = window, widening, rule
+        self.reach, self.max_search, self.min_critical_distance = reach, max_search, min_critical_distance
+        self.max_merge_area, self.min_segment_area = max_merge_area, min_segment_area
+        self.work_resolution = None if work_resolution is None else float(work_resolution)
 
     def critical_points(self, grid: GridMap) -> np.ndarray:
-        """(M, 3) float rows of (row, col, clearance px) of the critical points."""
+        """(M, 3) float rows of (row, col, clearance px) of the critical points (``narrowing``)."""
         walk = grid.walkable
         dist = distance_px(np.pad(walk, 1))[1:-1, 1:-1]  # the map edge is an obstacle
         skel = prune_spurs(skeletonize(walk) & (dist > 1), dist, self.max_door / 2 / grid.resolution)
@@ -132,9 +173,34 @@ class Voronoi(Segmenter):
             lines.append(((int(b1[0]) - 1, int(b1[1]) - 1), (r - 1, c - 1), (b2[0] - 1, b2[1] - 1)))
         return lines
 
+    def original_rooms(self, grid: GridMap) -> np.ndarray:
+        """``rule="original"``: the cells of the authors' critical lines after their merging
+        passes ((H, W) int64, ids >= 1 on the cells, 0 on obstacles and on free space no cell
+        reached)."""
+        res = self.work_resolution or grid.resolution
+        walk = grid.walkable if res == grid.resolution else original.resample(grid.walkable, grid.resolution, res)
+        if not walk.any():
+            raise ValueError(f"segmenter.work_resolution={res}: the map has no walkable cell at that resolution "
+                             f"(expected one at most the rooms' size)")
+        # the authors' graph, pruned as they prune it: every tip goes back to the junction it leaves from
+        graph = prune_spurs(original.voronoi_graph(walk), np.zeros(walk.shape), np.inf)
+        clear = original.rounded_clearance(walk)
+        pts = original.critical_points(graph, clear, self.reach / res ** 2, max(int(round(self.max_search / res)), 1))
+        ok, b1, b2, angle, length = original.critical_lines(pts, clear, original.border_pixels(walk))
+        pts, b1, b2, angle, length = pts[ok], b1[ok], b2[ok], angle[ok], length[ok]
+        keep = original.keep_lines(pts, clear[pts[:, 0], pts[:, 1]], angle, length, self.min_critical_distance)
+        lines = [(tuple(p), tuple(q)) for i in np.nonzero(keep)[0] for p, q in ((pts[i], b1[i]), (pts[i], b2[i]))]
+        lab = original.merge_cells(original.cells(walk, lines, res, self.min_segment_area), res, self.max_merge_area)
+        lab = np.where(lab > 0, lab, 0)
+        if res != grid.resolution:
+            lab = np.where(grid.walkable, original.sample_back(lab, grid.shape, grid.resolution, res), 0)
+        return lab
+
     def __call__(self, grid: GridMap) -> np.ndarray:
         """Returns: (H, W) int32 room ids on walkable cells, -1 elsewhere."""
         check_area_limits(grid, self.min_room_area, self.max_area, "min_room_area < max_area")
+        if self.rule == "original":
+            return finish_rooms(self.original_rooms(grid).astype(np.int32), grid, self.min_room_area)
         cut = grid.walkable.copy()
         h, w = grid.shape
         for b1, p, b2 in self.critical_lines(grid):
