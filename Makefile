@@ -101,11 +101,11 @@ robustness-publish: setup  ## fresh timed `make robustness`, its rows -> results
 # the grid at the size target of the robustness claims' houses (100 a dataset), timed as on a fresh
 # clone -> results/published/robustness_timing.md (its time, then where it went); its rows are not published
 ROBUST_TIMING_HOUSES ?= 100
-robustness-timing-publish: setup  ## fresh timed `make robustness ROBUST_HOUSES=100` -> results/published/robustness_timing.md (time and profile)
+robustness-timing-publish: setup  ## fresh timed `make robustness ROBUST_HOUSES=100 ROBUST_IPA=0` (the fresh-clone grid: no ipa rows) -> results/published/robustness_timing.md (time and profile)
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/compile-time.txt $(PY) -m benchmark.commands.compile_kernels
-	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
-	$(PY) -m benchmark.commands.maintainer.grid_profile $(PUBLISH_TMP)/runs/robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES)" --out results/published/robustness_timing.md
+	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) ROBUST_IPA=0 RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
+	$(PY) -m benchmark.commands.maintainer.grid_profile $(PUBLISH_TMP)/runs/robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --command "make robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) ROBUST_IPA=0" --out results/published/robustness_timing.md
 
 # make leaderboard: every method on the same maps (shared ProcTHOR houses from 75, after the
 # objects_procthor classifier's training houses): view-based methods, geometric segmenters,
@@ -239,8 +239,17 @@ ROBUST_HOUSES ?= 200
 ROBUST_OUT ?= results/robustness
 # the generated houses at that size (env=synthetic holds 20), beside the shared ProcTHOR houses
 ROBUST_ENVS := $(subst synthetic,synthetic_robust,$(BENCH_ENVS))
+# the ipa rows (make ipa-env built .ipa-env/bin/ipa_segment): the authors' five algorithms, a second
+# multirun into runs/robustness/ipa (conf/experiment/robustness_ipa.yaml: clean and scan, slam,
+# explore, realistic at severities 1, 3, 5) on the first ROBUST_IPA_HOUSES houses per dataset, on
+# the main sweep's maps (no more than ROBUST_HOUSES); the tables show them apart beside the ports
+# on those houses.
+# ROBUST_IPA=0: none (robustness-timing-publish: the fresh-clone grid).
+ROBUST_IPA_HOUSES ?= 2
+ROBUST_IPA ?= 1
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(ROBUST_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS) run.allow_failures=true
+	$(if $(filter 0,$(ROBUST_IPA)),@echo "ROBUST_IPA=0: no ipa rows (the fresh-clone grid)",$(if $(wildcard $(IPA_ENV)/bin/ipa_segment),ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_IPA_ENV=$(abspath $(IPA_ENV)) $(PY) -m benchmark.commands.bench experiment=robustness_ipa env=$(ROBUST_ENVS) run.limit=$$(( $(ROBUST_IPA_HOUSES) < $(ROBUST_HOUSES) ? $(ROBUST_IPA_HOUSES) : $(ROBUST_HOUSES) )) run.results_dir=$(RESULTS) run.allow_failures=true,@echo "no ipa_room_segmentation build in $(IPA_ENV): no ipa rows (make ipa-env)"))
 	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
 sensitivity: setup  ## oracle noise models x accuracy x aggregator x post on 20 generated houses -> results/sensitivity

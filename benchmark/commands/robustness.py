@@ -79,6 +79,43 @@ def labelled_columns(table) -> list[str]:
                                                                     f"drop {f}")]
 
 
+def earlier_nested_sweeps(paths: Sequence[str | Path]) -> list[tuple[Path, str]]:
+    """Sweep folders inside another sweep folder at or under ``paths`` (``runs/robustness/ipa``, the
+    ipa rows' multirun, which `make robustness` runs after the main one) whose last sweep finished
+    before the enclosing folder's last sweep started: an earlier run's, left out with ``--last-sweep``
+    (a `make robustness` without the ipa build would otherwise show the rows of an older one). Each
+    with one line saying so."""
+    from benchmark.harness.store import LAST_SWEEP, last_sweep
+
+    out = []
+    for p in map(Path, paths):
+        if not p.is_dir():
+            continue
+        sweeps = sorted({m.parent for m in p.rglob(LAST_SWEEP)}, key=lambda d: len(d.parts))
+        for inner in sweeps:
+            outer = next((d for d in reversed(sweeps) if d != inner and d in inner.parents), None)
+            if outer is None:
+                continue
+            started, finished = (last_sweep(outer) or {}).get("started_at"), (last_sweep(inner) or {}).get("finished_at")
+            if started and finished and finished < started:  # ISO 8601, UTC: ordered as text
+                out.append((inner, f"{inner}: left out, an earlier run's sweep (finished {finished}, before the last "
+                                   f"sweep of {outer} started, {started})"))
+    return out
+
+
+def apart_lines(apart: dict, dataset: str, words: str) -> list[str]:
+    """robustness.md's section of the ipa rows of one dataset and metric (:func:`rb.apart_summary`):
+    their houses and conditions, the table beside the ports on those houses, its notes."""
+    houses = apart["houses"]
+    return [f"ipa_room_segmentation ({words}; the authors' C++, `make ipa-env`) beside the ports, on houses of its "
+            f"own: {len(houses)} house(s) ({', '.join(houses)}) under {len(apart['conditions'])} condition(s) "
+            f"({', '.join(apart['conditions'])}); the ports' rows here are theirs on the same houses. Reported apart: "
+            f"in no mean, mCE, reference, ranking or verdict above, which are over the other house set"
+            + (f"; left out (failed in a row of this table): {', '.join(apart['dropped'])}" if apart["dropped"] else "")
+            + ".", "", rb.to_markdown(apart["table"]) if len(apart["table"].columns) else "(no cell)",
+            *[f"- {n}" for n in apart["notes"]], ""]
+
+
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
            delta: float = rb.DELTA, last_sweep: bool = False) -> str:
     """The Markdown of every table (and, with ``out``, the files). ``last_sweep``: only the jobs
@@ -90,7 +127,12 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     scope = sweep_scope(paths, last_sweep)
     if scope.note:
         print(f"robustness: note: {scope.note}", file=sys.stderr)
-    rows = load_rows(scope.files)
+    files = scope.files
+    stale = earlier_nested_sweeps(paths) if last_sweep else []
+    for d, why in stale:
+        print(f"robustness: note: {why}", file=sys.stderr)
+        files = [f for f in files if d.resolve() not in f.resolve().parents]
+    rows = load_rows(files)
     if rows.attrs.get("set_aside"):
         print(f"robustness: {rows.attrs['set_aside']}", file=sys.stderr)
     partial = partial_sweep_lines(paths)
@@ -106,6 +148,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     parts = rb.summarise(rows, metrics, reference, expected, delta=delta, unrecorded=unrecorded)
     del rows
     labelled = [f for f in rb.LABELLED if any(f in p["table"].columns for p in parts.values())]
+    with_ipa = sorted({d for (d, _), p in parts.items() if p.get("apart") is not None})
     ref_words = ("a method every family degrades, chosen per dataset and metric (named under each table)"
                  if reference in (None, "auto") else f"**{reference}**")
     md = ["# Robustness to robot conditions", "",
@@ -122,9 +165,15 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
           + (f" Runs read: {scope.note}." if scope.note else "")
           + (" The labelled conditions (" + ", ".join(f"`{f}`" for f in labelled) + ": each severity a situation of "
              "its own, not a step of one ladder) are reported apart too, each condition in a column of a table of "
-             "its own, and are in neither mean." if labelled else ""), "",
+             "its own, and are in neither mean." if labelled else "")
+          + (f" The ipa_room_segmentation rows (`make ipa-env`) run on houses and conditions of their own: each "
+             f"dataset's are in a table of their own beside the ports on the same houses ({', '.join(with_ipa)}), in "
+             f"no mean, mCE or verdict of the main tables." if with_ipa else
+             " No ipa_room_segmentation rows in these runs (`make ipa-env`, then `make robustness`, adds them)."),
+          "",
           *[f"**Partial sweep**: {x}." for x in partial],
-          *([""] if partial else [])]
+          *[f"**Earlier run left out**: {why}." for _, why in stale],
+          *([""] if partial or stale else [])]
     power = []
     aside = [severity_settings]  # then the figures: run side by side on forked processes (run_forked)
     for (dataset, metric), p in parts.items():
@@ -150,6 +199,12 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
             md += [f"- {r.method} / {rb.FAMILY_WORDS.get(r.family, r.family)}, severity {r.step}: +{r.rise:.1f} "
                    f"[{r.lo:+.1f}, {r.hi:+.1f}]" for r in sig.itertuples()]
             md.append("")
+        if p.get("apart") is not None:
+            md += apart_lines(p["apart"], dataset, words)
+            if out is not None and len(p["apart"]["table"].columns):
+                p["apart"]["table"].round(4).to_csv(out / f"robustness_{dataset}_{metric}_ipa.csv")
+                (out / f"robustness_{dataset}_{metric}_ipa.md").write_text(rb.to_markdown(p["apart"]["table"]),
+                                                                            encoding="utf-8")
         if p.get("power") and metric == "matched_iou":
             power += rb.power_lines(dataset, p["power"], words)
         if out is not None:

@@ -714,6 +714,96 @@ def drop_failed_houses(rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return rows[~rows["house_id"].astype(str).isin(bad | unconverged)], names
 
 
+#: the name prefix of methods run on houses and conditions of their own (``experiment=robustness_ipa``:
+#: the authors' ipa_room_segmentation, ``make ipa-env``): their rows are set apart from the main
+#: tables (in no cell, mean, mCE, reference, ranking or verdict there, and no failure of theirs
+#: drops a house from them) and shown in a table of their own beside the ports on the same houses
+#: (:func:`apart_summary`).
+OWN_HOUSES_PREFIX = "ipa_"
+
+
+def own_house_rows(rows: pd.DataFrame) -> pd.Series:
+    """Which of ``rows`` belong to the methods run on houses of their own (:data:`OWN_HOUSES_PREFIX`)."""
+    return rows["method"].astype(str).str.startswith(OWN_HOUSES_PREFIX)
+
+
+def condition_name(corruption: str, severity: int) -> str:
+    """A condition as ``conf/corruption`` names it: ``clean``, ``scan_3``."""
+    return "clean" if corruption == "clean" else f"{corruption}_{int(severity)}"
+
+
+def _condition_order(key: tuple[str, int]) -> tuple[int, str, int]:
+    c, s = key
+    return (0 if c == "clean" else 1 + FAMILIES.index(c) if c in FAMILIES else len(FAMILIES) + 1, c, s)
+
+
+def _house_words(houses: Sequence[str]) -> str:
+    return ", ".join(houses)
+
+
+def apart_summary(own: pd.DataFrame, rest: pd.DataFrame, metric: str, beside: Sequence[str] = GEOMETRIC,
+                  n_boot: int = stats.N_BOOT) -> dict:
+    """The table of the methods run on houses of their own (``own``: the ipa rows of one dataset)
+    beside the ports (``beside``, their rows taken from ``rest`` on the same houses and
+    conditions): one column per condition the own rows have (``clean``, ``scan_3``, ...), the mean
+    over houses with its 95 % interval (houses resampled alike in every cell). A house that failed
+    in any of the table's rows leaves every cell of it (named), a condition some method of the
+    table lacks leaves it (a line says which), and so does a house not in every remaining cell.
+    For the ranked metrics, one ranking per condition (groups that no paired interval separates,
+    Holm-corrected over the condition's pairs), over these houses only.
+
+    Returns:
+        dict: table (one row per method, sorted by the clean score), houses (the ids every cell
+        holds), dropped (houses left out, named), notes (lines), conditions (column names)."""
+    conds = sorted({(str(c), int(s)) for c, s in zip(own["corruption"], own["severity"])}, key=_condition_order)
+    houses = set(own["house_id"].astype(str))
+    cond_of = list(zip(rest["corruption"].astype(str), rest["severity"].astype(int)))
+    take = (rest["method"].isin(list(beside)) & rest["house_id"].astype(str).isin(houses)
+            & pd.Series([k in set(conds) for k in cond_of], index=rest.index, dtype=bool))
+    both = pd.concat([own, rest[take]], ignore_index=True)
+    both["house_id"] = both["house_id"].astype(str)
+    both, dropped = drop_failed_houses(both)
+    methods = [*sorted(own["method"].unique()), *[m for m in beside if m in set(both["method"])]]
+    notes = []
+    have = {(m, c, int(s)): set(g["house_id"]) for (m, c, s), g in both.groupby(["method", "corruption", "severity"])}
+    kept = []
+    for c, s in conds:
+        lack = [m for m in methods if not have.get((m, c, s))]
+        if lack:
+            notes.append(f"{condition_name(c, s)} left out of this table: no rows for {', '.join(lack)}")
+        else:
+            kept.append((c, s))
+    common = set.intersection(*[have[(m, c, s)] for m in methods for c, s in kept]) if kept else set()
+    odd = sorted(set(both["house_id"]) - common) if kept else []
+    if odd:
+        notes.append(f"left out of this table (not in every cell of it): {_house_words(odd)}")
+    shown = sorted(common)
+    cols = [condition_name(c, s) for c, s in kept]
+    if not shown or not kept:
+        return {"table": pd.DataFrame(index=pd.Index(methods, name="method")), "houses": shown, "dropped": dropped,
+                "notes": notes + ["no house holds rows of every method of this table under any condition"],
+                "conditions": cols}
+    both = both[both["house_id"].isin(common)].sort_values("house_id", kind="stable")
+    values = {(str(m), str(c), int(s)): 100.0 * g[metric].to_numpy(dtype=float)
+              for (m, c, s), g in both.groupby(["method", "corruption", "severity"]) if (c, int(s)) in kept}
+    means = _means(values, n_boot)
+    data: dict[str, list[float]] = {}
+    for (c, s), name in zip(kept, cols):
+        data[name] = [float(means[(m, c, s)][0]) for m in methods]
+        iv = [_interval(means[(m, c, s)]) for m in methods]
+        data[f"{name} lo"], data[f"{name} hi"] = [x[0] for x in iv], [x[1] for x in iv]
+    table = pd.DataFrame(data, index=pd.Index(methods, name="method"))
+    if "clean" in table:
+        table = table.sort_values("clean", ascending=False)
+    if metric in RANKED and len(shown) >= 2:
+        notes.append(f"Rankings over these {len(shown)} houses only (each condition's ranking a family of its "
+                     f"{len(methods) * (len(methods) - 1) // 2} method pairs, Holm-corrected):")
+        for (c, s), name in zip(kept, cols):
+            per = {m: values[(m, c, s)] for m in methods}
+            notes.append(f"{name}: {stats.group_words(stats.groups(per, corrected=True))}")
+    return {"table": table, "houses": shown, "dropped": dropped, "notes": notes, "conditions": cols}
+
+
 def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None = None,
               expected: Mapping[str, Sequence[int]] | None = None, n_boot: int = stats.N_BOOT,
               delta: float = DELTA, unrecorded: Collection[str] = ()) -> dict:
@@ -722,11 +812,19 @@ def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None 
     report. ``reference`` None or ``"auto"``: :func:`pick_reference`. ``expected``: family ->
     severities the sweep asked for, ``unrecorded``: the families among them no sweep record
     names (both :func:`expected_severities` of the rows' folders; :func:`complete_families`).
-    Raises RobustnessError."""
+    The rows of methods run on houses of their own (:func:`own_house_rows`: the ipa rows) are in
+    none of that: each part's ``apart`` holds their table beside the ports (:func:`apart_summary`),
+    None where the dataset has none. Raises RobustnessError."""
     if reference == "auto":
         reference = None
     out = {}
     for dataset, d in rows.groupby("dataset"):
+        own_mask = own_house_rows(d)
+        own, d = d[own_mask], d[~own_mask]  # the ipa rows: a table of their own (apart_summary)
+        if not len(d):
+            raise RobustnessError(f"{dataset}: only rows of {sorted(own['method'].unique())} (houses of their own); "
+                                  f"run experiment=robustness on that dataset first")
+        every = d
         d, dropped = drop_failed_houses(d)
         for metric in metrics:
             cells = cell_means(d, metric)
@@ -752,7 +850,8 @@ def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None 
                                       "reference": table.attrs.get("reference") if ranked else None,
                                       "curves": rising_curves({k: v for k, v in values.items() if k[0] in methods},
                                                               [f for f in kept]),
-                                      "power": power_report(values, methods, delta) if ranked else None}
+                                      "power": power_report(values, methods, delta) if ranked else None,
+                                      "apart": apart_summary(own, every, metric, n_boot=n_boot) if len(own) else None}
     return out
 
 
@@ -798,4 +897,5 @@ __all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "ABLATION",
            "drop_failed_houses", "house_values", "numbers", "pick_reference", "power_lines", "power_report",
            "rank_notes", "family_note", "view_geometric_verdicts", "rising_curves", "summarise", "summary_table",
            "defined_severities", "recorded_severities", "expected_severities", "to_markdown", "to_latex", "family_figure",
-           "zero_key", "own_zero_families", "own_zero_note", "condition_columns"]
+           "zero_key", "own_zero_families", "own_zero_note", "condition_columns", "OWN_HOUSES_PREFIX",
+           "own_house_rows", "condition_name", "apart_summary"]
