@@ -21,9 +21,10 @@ differences port - original in matched IoU and PQ against the ground truth, with
 bootstrap intervals over maps; the maps the port splits most and whether the original splits the
 same ones; on the real maps one row per map. ``morphological_limits`` is the morphological port
 with the original's seed rule and area limits (``rule=limits``, 0.8 and 47 m²), against the same
-original: what is left when the rule is the same. ``--csv`` keeps the per-map rows; ``--markdown``
-writes the tables headed by the command (``results/published/ipa_ports.md``, which
-docs/baselines.md includes, with its per-map rows beside it as ``ipa_ports.csv``).
+original: what is left when the rule is the same; ``voronoi_original`` likewise the Voronoi port with
+the original's graph, critical-point rule and merging passes (``rule=original``). ``--csv`` keeps
+the per-map rows; ``--markdown`` writes the tables headed by the command
+(``results/published/ipa_ports.md``, which docs/baselines.md includes, with its per-map rows beside it as ``ipa_ports.csv``).
 No build, no data: one line, exit 2.
 """
 
@@ -43,7 +44,9 @@ PORTS = {"morphological": ("benchmark.segmenters.morphological", "Morphological"
          "morphological_limits": ("benchmark.segmenters.morphological", "Morphological",
                                   {"rule": "limits", "min_seed_area": 0.8, "max_area": 47.0}, "morphological"),
          "distance": ("benchmark.segmenters.distance", "DistanceTransform", {}, "distance"),
-         "voronoi": ("benchmark.segmenters.voronoi", "Voronoi", {}, "voronoi")}
+         "voronoi": ("benchmark.segmenters.voronoi", "Voronoi", {}, "voronoi"),
+         "voronoi_original": ("benchmark.segmenters.voronoi", "Voronoi", {"rule": "original", "min_room_area": 0.0},
+                              "voronoi")}
 SOURCES = ("selros", "real", "synthetic")
 #: the sets' names in the tables.
 SOURCE_NAMES = {"selros": "SeLRoS release", "real": "real laser maps", "synthetic": "generated houses"}
@@ -177,7 +180,9 @@ def report(df: pd.DataFrame, sources: list[str], houses: int, seed_start: int) -
                     f"from the start), seeds {seed_start}-{seed_start + houses - 1}")
     parts.append("Maps: " + "; ".join(sets) + ". The originals get each map resampled to 0.05 m/px "
                  "(`segmenter=ipa_*`); `morphological_limits`: the morphological port with the original's seed "
-                 "rule and limits (`rule=limits`, 0.8 and 47 m²) against the same original.")
+                 "rule and limits (`rule=limits`, 0.8 and 47 m²) against the same original; `voronoi_original`: the "
+                 "Voronoi port with the original's graph, critical-point rule and merging passes (`rule=original`, "
+                 "run at 0.05 m/px) against the same original.")
     return "\n\n".join(parts)
 
 

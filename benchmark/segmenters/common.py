@@ -35,7 +35,9 @@ around them instead of counting as rooms.
   Simplified: the authors' critical points (the clearance minimum of every stretch of the
   graph, thinned by the angle of their lines) and their merging of rooms (five passes of rules
   on area, wall share and shared border) are replaced by the narrowing rule above and that area
-  rule (VRF learns its merges), so it over-segments cluttered maps.
+  rule (VRF learns its merges), so it over-segments cluttered maps. ``rule=original``
+  (``segmenter=voronoi_original``) takes the authors' graph, critical points and merging
+  passes instead (:mod:`benchmark.segmenters.voronoi_original`).
 
 ``min_seed_area`` (distance, morphological) and ``min_room_area`` (all three) are different
 things: the first is the area of a seed *while* it is found (a part of the thresholded or

@@ -1,10 +1,14 @@
 """The Voronoi segmentation's ``original`` rule (``segmenter.rule=original``): ipa_room_segmentation's
-critical-point rule and its merging passes (Bormann et al., ICRA 2016; ``voronoi_segmentation.cpp``,
-``abstract_voronoi_segmentation.cpp`` and ``room_class.cpp`` of ipa320/ipa_coverage_planning),
-re-implemented on the port's pruned skeleton (:func:`benchmark.segmenters.voronoi.prune_spurs`).
+Voronoi graph, critical-point rule and merging passes (Bormann et al., ICRA 2016;
+``voronoi_segmentation.cpp``, ``abstract_voronoi_segmentation.cpp`` and ``room_class.cpp`` of
+ipa320/ipa_coverage_planning), re-implemented as plain functions over arrays.
 
-The steps, as the authors take them:
+The steps, as the authors take them (:meth:`benchmark.segmenters.voronoi.Voronoi.original_rooms`
+runs them on the map resampled to the authors' 0.05 m/px):
 
+0. **Graph** (:func:`voronoi_graph`): the Voronoi diagram of the free space's border pixels,
+   away from the walls, pruned of every branch that ends in a tip back to the junction it leaves
+   from (:func:`benchmark.segmenters.voronoi.prune_spurs` with no exception).
 1. **Critical points** (:func:`critical_points`): the graph is walked in raster order; from each
    graph pixel not yet taken, a breadth-first search over the graph takes pixels until it has
    counted more than ``reach / clearance`` of them (the authors' ``voronoi_neighborhood_index``,
@@ -24,10 +28,11 @@ The steps, as the authors take them:
    after a merge, on the cells' area, their share of wall on their perimeter and their shared
    borders (the pixels just outside a cell, counted by what lies there); see that function.
 
-Differences kept: the graph is the port's pruned skeleton, not the authors' Voronoi diagram of
-the contour pixels (so stretches and their raster order differ); the authors' cells carry random
-colours as ids, which decide ties of equal shared borders, where these carry numbers in raster
-order; free space that no cell reaches becomes a room of its own instead of staying unlabelled.
+Differences kept: the pruning removes tips until none is left, where the authors stop after 100
+raster sweeps (a spur longer than about 100 pixels keeps its rest); the authors' cells carry random
+colours as ids, which decide ties of equal shared borders, where these carry numbers in contour
+order, and their passes sort cells of equal area in no fixed order, where these keep the order
+before; free space that no cell reaches becomes a room of its own instead of staying unlabelled.
 """
 
 from __future__ import annotations
