@@ -24,7 +24,8 @@ with the original's seed rule and area limits (``rule=limits``, 0.8 and 47 m²),
 original: what is left when the rule is the same; ``voronoi_original`` likewise the Voronoi port with
 the original's graph, critical-point rule and merging passes (``rule=original``). ``--csv`` keeps
 the per-map rows; ``--markdown`` writes the tables headed by the command
-(``results/published/ipa_ports.md``, which docs/baselines.md includes, with its per-map rows beside it as ``ipa_ports.csv``).
+(``results/published/ipa_ports.md``, which docs/baselines.md includes, with its per-map rows beside
+it as ``ipa_ports.csv``).
 No build, no data: one line, exit 2.
 """
 
