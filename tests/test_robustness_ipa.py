@@ -94,6 +94,17 @@ def test_a_failed_ipa_row_drops_its_house_from_the_ipa_table_only():
     assert s["apart"]["table"].loc["voronoi", "scan_3"] == pytest.approx(want)
 
 
+def test_one_ipa_house_gives_means_without_interval_or_ranking():
+    rows = _rows()
+    rows = rows[~(rows["method"].str.startswith("ipa_") & (rows["house_id"] != "h2"))]
+    apart = _summary(rows)["apart"]
+    assert apart["houses"] == ["h2"]
+    assert apart["table"].loc["voronoi", "scan_5"] == pytest.approx(100 * _score("voronoi", "scan", 5, "h2"))
+    assert np.isnan(apart["table"].loc["voronoi", "scan_5 lo"])
+    assert any(n.startswith("one house: no interval and no ranking") for n in apart["notes"])
+    assert not any(n.startswith("Rankings") for n in apart["notes"])
+
+
 def test_an_ipa_condition_a_port_lacks_is_left_out_with_a_line():
     rows = _rows()
     extra = rows[(rows["method"].isin(IPA)) & (rows["corruption"] == "clean")].assign(corruption="explore",

@@ -20,6 +20,11 @@ for, or every one ``conf/corruption`` defines where no sweep record is left) is 
 line naming it; a sweep
 whose jobs did not all finish is named with its missing jobs (stderr and robustness.md). A house that failed under any condition is
 left out of every cell of its dataset (one line names it), so every cell holds the same houses.
+The ipa_room_segmentation rows (``experiment=robustness_ipa``: a sweep of their own in the run's
+``ipa/`` folder) have houses and conditions of their own: per dataset and metric they get a table
+of their own beside the ports on the same houses (``*_ipa.csv`` and ``.md``; robustness.md names
+the houses), in no cell, mean, mCE or verdict of the main tables; with ``--last-sweep`` an ipa
+sweep that finished before the main sweep started (an earlier run's) is left out with a line.
 The output folder is written as a whole (an interrupted command leaves the old set or the new).
 The figures and the severities' settings (a config composed per severity) are made side by side
 on forked processes, one per core (``ROOMSEG_JOBS=1``: one after another in this process).

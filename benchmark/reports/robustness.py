@@ -795,7 +795,9 @@ def apart_summary(own: pd.DataFrame, rest: pd.DataFrame, metric: str, beside: Se
     table = pd.DataFrame(data, index=pd.Index(methods, name="method"))
     if "clean" in table:
         table = table.sort_values("clean", ascending=False)
-    if metric in RANKED and len(shown) >= 2:
+    if len(shown) < 2:
+        notes.append("one house: no interval and no ranking (ROBUST_IPA_HOUSES sets how many houses the ipa rows get)")
+    elif metric in RANKED:
         notes.append(f"Rankings over these {len(shown)} houses only (each condition's ranking a family of its "
                      f"{len(methods) * (len(methods) - 1) // 2} method pairs, Holm-corrected):")
         for (c, s), name in zip(kept, cols):
