@@ -241,6 +241,9 @@ class FrontEndResult:
         broken: (M-1,) bool, the odometry edges across a tracking loss (weak; module docstring, 6).
         tracking_lost: tracking losses detected.
         relocalised: lost segments relocalised on the earlier map.
+        relocalising: (C,) bool, the closures that put a lost segment back on the map (module docstring,
+            6): the online solve takes them without the robust kernel (:func:`benchmark.conditions.pose_graph.online`);
+            None: none.
     """
 
     z: np.ndarray
@@ -258,6 +261,13 @@ class FrontEndResult:
     broken: np.ndarray
     tracking_lost: int = 0
     relocalised: int = 0
+    relocalising: np.ndarray | None = None
+
+    def relocalising_mask(self) -> np.ndarray:
+        """(C,) bool, :attr:`relocalising` or all False."""
+        if self.relocalising is None:
+            return np.zeros(len(self.closures), bool)
+        return np.asarray(self.relocalising, bool).reshape(len(self.closures))
 
 
 def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, scanner: ScanSettings) -> list[np.ndarray]:
@@ -342,10 +352,10 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
                                                  math.radians(st.closure_window_yaw), float(st.odometry_min_score),
                                                  floor, float(st.keyframe_xy), math.radians(st.keyframe_yaw),
                                                  math.log(EPS), EPS, int(st.lost_after), weak)
-    pairs, zc, infos, wrong, tried, place, place_tried, relocalised = _closures(points, ref, dead, cov, true_states,
-                                                                                travelled, key, st, step, broken)
+    pairs, zc, infos, wrong, tried, place, place_tried, relocalised, n_reloc = _closures(
+        points, ref, dead, cov, true_states, travelled, key, st, step, broken)
     return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried,
-                          broken, int(lost), relocalised)
+                          broken, int(lost), relocalised, np.arange(len(pairs)) < n_reloc)
 
 
 @njit(cache=True, nogil=True)
@@ -498,7 +508,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
     docstring, 3-4), and the relocalisation of the segments after a tracking loss (6: ``dead`` and
     ``cov`` of a relocalised segment moved onto the map in place). Returns (pairs, their relative
     poses, square-root informations, wrong, candidates matched, place, place matches verified,
-    segments relocalised)."""
+    segments relocalised, relocalisation closures: the first ones of the pairs)."""
     pairs, zs, infos, place, desc = [], [], [], [], {}
     tried = p_tried = relocalised = 0
     n = len(dead)
@@ -514,6 +524,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
             p_tried += _relocalise(j, seg, on_map, points, ref, dead, cov, key, st, step, desc, pending,
                                    pairs, zs, infos, place)
             relocalised += int(on_map[j])
+    n_reloc = len(pairs)
     if (st.closure_radius > 0 or st.place_recognition) and n > 1:
         r2 = st.closure_radius ** 2
         for j in range(n):
@@ -564,7 +575,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
         wrong = (err_xy > WRONG_XY) | (err_t > math.radians(WRONG_YAW))
     else:
         wrong = np.zeros(0, bool)
-    return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried, relocalised
+    return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried, relocalised, n_reloc
 
 
 def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place) -> int:

@@ -63,7 +63,14 @@ from benchmark.conditions.odometry import (
     to_se2,
 )
 from benchmark.conditions.pose_error import pose_error_stats
-from benchmark.conditions.pose_graph import PoseGraph, check_kernel, move_edge, online, solve
+from benchmark.conditions.pose_graph import (
+    PoseGraph,
+    check_kernel,
+    gtsam_reason,
+    move_edge,
+    online,
+    solve,
+)
 from envs.maps.gridmap import GridMap
 from envs.maps.trajectory import trajectory_with_views
 
@@ -282,10 +289,18 @@ class OdometrySlam:
         if len(ei) > 1:
             graph = PoseGraph(n, np.concatenate(ei), np.concatenate(ej), np.vstack(ez), np.concatenate(einfo),
                               np.concatenate(robust))
-            est, solved = solve(graph, dead, self.robust_kernel, self.kernel_width, self.max_iterations)
+            try:
+                est, solved = solve(graph, dead, self.robust_kernel, self.kernel_width, self.max_iterations)
+            except RuntimeError as e:  # GTSAM's reason runs over lines: one line, the house named
+                raise RuntimeError(f"house {house_id!r}: pose-graph solve: {gtsam_reason(e)}") from None
             chi2, dof = solved["chi2"], solved["dof"]
             if self.views_at == "online":
-                views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width))
+                # online, the closures that put a lost segment back on the map join without the kernel
+                plain = np.concatenate([np.zeros(n - 1, bool), fe.relocalising_mask()])
+                try:
+                    views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width, plain))
+                except RuntimeError as e:
+                    raise RuntimeError(f"house {house_id!r}: {gtsam_reason(e)}") from None
         return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
                             float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()),
                             bool(solved["converged"]), int(solved["iterations"]), int(solved["outliers"]),
