@@ -47,6 +47,10 @@ _POSES_MEMO = ByteLRU()
 #: :meth:`RobotStages._robot_grid` and the ground truth in the map's frame. A rewritten entry
 #: (atomic renames: another file) has another identity, so it is read again.
 _ROBOT_MEMO = ByteLRU()
+#: kept per process: (environment key, house id) -> the house's lowest wall top (metres), what
+#: the scan plane is checked against (:func:`envs.maps.scan.house_wall_height`; a generated house
+#: is built again to read it)
+_WALL_HEIGHTS = ByteLRU()
 
 
 def _read_only(*arrays: np.ndarray) -> int:
@@ -257,11 +261,16 @@ class RobotStages:
         settings = getattr(self.mapping, "settings", None)
         if settings is None or not hasattr(settings, "height"):
             return None
-        from envs.maps.scan import closed_doors, house_wall_height, scan_obstacles
+        from envs.maps.scan import house_wall_height, scan_plane
 
-        wall = house_wall_height(self.env.house(hid))
-        return scan_obstacles(scene, settings.height, wall, settings.legs, settings.leg_size) | closed_doors(
-            scene, settings.door_closed, settings.seed)
+        # the house's walls: read once per house and process where the environment is shared
+        key = (self.env_key, hid)
+        wall = _WALL_HEIGHTS.get(key) if self.env_key is not None else None
+        if wall is None:
+            wall = house_wall_height(self.env.house(hid))
+            if self.env_key is not None:
+                _WALL_HEIGHTS.put(key, wall, 64, 2**20)
+        return scan_plane(scene, settings, wall)  # the mapping stage's own plane (kept per scene)
 
     def _scan_spacing(self) -> float | None:
         """Metres driven between the robot's scans (its ``mapping`` stage's; None without one)."""

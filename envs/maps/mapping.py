@@ -23,10 +23,9 @@ from envs.maps.reachable import reachable_mask, seed_cells
 from envs.maps.scan import (
     DEFAULT_WALL_HEIGHT,
     ScanSettings,
-    closed_doors,
     house_wall_height,
     robot_scan_map,
-    scan_obstacles,
+    scan_plane,
     surface_shares,
 )
 from envs.maps.scene import Scene
@@ -86,8 +85,7 @@ class ScanMapping:
                              f"({wall:g} m)")
         if estimate is not None:
             true, est, views = (np.asarray(a) for a in estimate)
-            obstacles = scan_obstacles(scene, self.settings.height, wall, self.settings.legs, self.settings.leg_size)
-            obstacles |= closed_doors(scene, self.settings.door_closed, self.settings.seed)
+            obstacles = scan_plane(scene, self.settings, wall)  # walls, furniture, legs, closed doors
             surfaces = surface_shares(scene, self.settings.height) if self.settings.surface_dropout > 0 else None
             scan = scan_map_at_estimate(obstacles, scene.grid, true, est, self.settings, surfaces)
             grid = GridMap(scan.free, scene.grid.resolution, scene.grid.origin)

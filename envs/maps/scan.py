@@ -56,7 +56,9 @@ pure-Python version with its own line walk, used by the tests and ``make perf``.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import weakref
 import zlib
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
@@ -71,6 +73,7 @@ from envs.maps.rays import ray_end_of, walk_beam
 from envs.maps.ros import read_ros_map, ros_origin_of, unknown_pixel, write_ros_map
 from envs.maps.scene import Scene
 from envs.maps.trajectory import trajectory
+from envs.memo import ByteLRU
 from envs.ranges import DROPOUT, Angle, Between, Metres, NonNegative, Positive
 
 #: Wall height of generated houses (metres); ProcTHOR's walls carry their own (2.51-5.38 m in
@@ -364,6 +367,40 @@ def scan_obstacles(scene: Scene, height: float, wall_height: float = DEFAULT_WAL
         x, z = grid.pixel_to_world(rr, cc)
         block[r0:r1, c0:c1] |= o.contains(x, z)
     return block
+
+
+#: bytes of scan planes :func:`scan_plane` keeps per process (least recently used dropped first):
+#: the jobs of a sweep ask for the same house's plane again (a SLAM condition's route, its
+#: estimate and its map, in every method job); a ProcTHOR house's plane is about 0.1 MB
+SCAN_PLANE_MEMO_BYTES = 32 * 2**20
+#: kept per process: (id of the scene and of the layers it reads, the plane's settings) -> (weak
+#: reference to the scene, its plane, read-only); an entry serves only the scene object it was
+#: made from (a scene's arrays are not changed in place once built: the harness shares it
+#: between jobs as it is)
+_SCAN_PLANES = ByteLRU()
+
+
+def scan_plane(scene: Scene, settings: ScanSettings, wall_height: float) -> np.ndarray:
+    """(H, W) bool what the scan plane of ``settings`` hits: :func:`scan_obstacles` at its height
+    (legs as it says) with the doors :func:`closed_doors` closes. Kept per process for this scene
+    object and these settings (:data:`SCAN_PLANE_MEMO_BYTES`); each call gets its own copy.
+
+    Raises:
+        ValueError: the scan height is not below ``wall_height`` (:func:`scan_obstacles`)."""
+    # the scene object and what it holds (an attribute set anew is another plane)
+    held = tuple(id(getattr(scene, k, None)) for k in ("grid", "rooms", "walls", "objects", "doors"))
+    key = (id(scene), held, float(settings.height), float(wall_height), bool(settings.legs), float(settings.leg_size),
+           float(settings.door_closed), int(settings.seed))
+    kept = _SCAN_PLANES.get(key)
+    if kept is not None and kept[0]() is scene:
+        return kept[1].copy()
+    plane = scan_obstacles(scene, settings.height, wall_height, settings.legs, settings.leg_size)
+    plane |= closed_doors(scene, settings.door_closed, settings.seed)
+    with contextlib.suppress(TypeError):  # a scene that cannot be weakly referenced is not kept
+        master = plane.copy()
+        master.setflags(write=False)
+        _SCAN_PLANES.put(key, (weakref.ref(scene), master), master.nbytes + 256, SCAN_PLANE_MEMO_BYTES)
+    return plane
 
 
 def occupancy_from_log_odds(log_odds: np.ndarray, settings: ScanSettings) -> np.ndarray:
@@ -776,9 +813,8 @@ def robot_scan_map(scene: Scene, poses: np.ndarray, settings: ScanSettings,
         (the scan map, the (M, 3) scan poses).
     """
     settings.check()
-    obstacles = scan_obstacles(scene, settings.height, wall_height, settings.legs, settings.leg_size)
-    closed = closed_doors(scene, settings.door_closed, settings.seed)
-    obstacles |= closed  # a closed door blocks beams, and the route: the robot cannot pass it
+    obstacles = scan_plane(scene, settings, wall_height)  # a closed door blocks beams, and the route:
+    closed = closed_doors(scene, settings.door_closed, settings.seed)  # the robot cannot pass it
     scans = trajectory(scene.grid.walkable & ~closed, scene.grid, poses, settings.spacing)
     surfaces = surface_shares(scene, settings.height) if settings.surface_dropout > 0 else None
     return scan_map(obstacles, scene.grid, scans, settings, surfaces), scans
@@ -1047,6 +1083,6 @@ def read_scan_occupancy(path_yaml: str | Path) -> np.ndarray:
     return read_ros_map(path_yaml).occupancy
 
 
-__all__ = ["ScanSettings", "ScanMap", "ScanMapper", "ReferenceScanMapper", "scan_obstacles", "scan_map", "robot_scan_map",
+__all__ = ["ScanSettings", "ScanMap", "ScanMapper", "ReferenceScanMapper", "scan_obstacles", "scan_plane", "scan_map", "robot_scan_map",
            "scan_map_reference", "surface_shares", "GLASS_SHARE", "DARK_SHARE", "write_scan_map", "read_scan_occupancy", "house_wall_height",
            "occupancy_from_log_odds", "logit", "scan_ranges", "DEFAULT_WALL_HEIGHT", "UNKNOWN", "FREE", "OCCUPIED"]
