@@ -8,7 +8,7 @@ API::
     g.initial      # (N, 3) the file's initial guess x, y, theta per vertex (row k: ids[k])
     g.i, g.j       # (E,) int ROW indices into ids of each edge's two vertices (j seen from i)
     g.z            # (E, 3) measurement dx, dy, dtheta (j in i's frame)
-    g.information  # (E, 3, 3) symmetric information matrices (order x, y, theta)
+    g.information  # (E, 3, 3) symmetric information matrices (order x, y, theta) of g.errors
     g.format       # "g2o" | "toro"
     g.chi2(states) # sum over edges of e' I e with e = t2v(Z^-1 (X_i^-1 X_j)) (g2o's EdgeSE2 error)
     edge_errors(states, i, j, z)  # that error of any edges (i, j, z) at states, (E, 3)
@@ -26,6 +26,17 @@ The TORO order is the one of TORO's format page (openslam.org/toro.html, "EDGE2 
 inf_ss inf_rr inf_fr inf_sr") and of GTSAM's TORO reading (gtsam/slam/dataset.cpp,
 NoiseFormatTORO: ``[v1 v2 v5; v2 v3 v6; v5 v6 v4]``). Note that ``gtsam.readG2o`` reads every
 file in g2o order, EDGE2 lines included, so it does not serve TORO files: read those here.
+
+The frame of a TORO edge's information: ``information`` always belongs to g2o's error above, whose
+translation part is in the MEASUREMENT's frame, ``e_z = R(dtheta)^T e_i`` with ``e_i`` the same
+residual in pose i's frame. A TORO file's matrix ``I_toro`` belongs to ``e_i``, so the reader turns it
+into ``I = R^T I_toro R``, R the 3x3 rotation by the edge's dtheta (xy block and the cross terms
+rotated, I33 as read). The source: the datasets' own g2o versions by their author, L. Carlone (e.g.
+``data/CSAIL.g2o`` and ``data/manhattan.g2o`` of david-m-rosen/SE-Sync at commit 9b631b6b), hold the
+measurements of ``CSAIL_P_toro.graph`` and ``M3500_P_toro.graph`` with each information matrix so
+rotated (relative difference <= 1e-9); unrotated, the solve weighs a different problem (CSAIL
+chi2 39.13 instead of 40.55). GTSAM's TORO reading (NoiseFormatTORO above) reorders the six
+numbers but does not rotate them.
 
 Empty lines and ``#`` comments are ignored; other tags (FIX, VERTEX_XY, ...) are counted in
 ``skipped``. A malformed line (wrong field count, a value that is not a finite number, an edge to
@@ -120,6 +131,16 @@ def _id(path: Path, no: int, tag: str, text: str, name: str) -> int:
     return v
 
 
+def toro_information_in_g2o_frame(info: np.ndarray, dtheta: float) -> np.ndarray:
+    """The (3, 3) information ``info`` of a TORO edge (its residual in pose i's frame) for g2o's error
+    in the measurement's frame (module docstring): ``R^T info R`` with R the rotation by ``dtheta``
+    radians of x and y (theta kept)."""
+    c, s = math.cos(dtheta), math.sin(dtheta)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    out = rot.T @ np.asarray(info, np.float64) @ rot
+    return (out + out.T) / 2
+
+
 def read_pose_graph(path: str | Path, fmt: str | None = None) -> PoseGraphFile:
     """The pose graph in ``path``; ``fmt`` "g2o" or "toro" requires that format's tags, None takes
     the format of the first vertex or edge line (one file holds one format)."""
@@ -168,6 +189,8 @@ def read_pose_graph(path: str | Path, fmt: str | None = None) -> PoseGraphFile:
                 if np.linalg.eigvalsh(info)[0] <= 0:
                     raise PoseGraphFileError(f"{path}: line {no} ({tag}): information {fields[6:12]} ({order}) is not "
                                              f"positive definite: expected an information matrix ({fmt} order)")
+                if fmt == "toro":
+                    info = toro_information_in_g2o_frame(info, z[2])
                 edges.append((no, a, b, z, info))
     if not vertices:
         raise PoseGraphFileError(f"{path}: no VERTEX_SE2 / VERTEX2 line: expected a 2D pose graph")
