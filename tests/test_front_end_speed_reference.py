@@ -1,7 +1,11 @@
 """The scan matcher's branch and bound (its block sums taken side by side) against a plain exhaustive
 search in NumPy that shares no code with it: every pose of the window scored by the definition, the
 grid rasterised by the definition. The same best pose and score on hand-made scans and on a shared
-house; every pose the bound scores, scored as the reference does."""
+house; every pose the bound scores, scored as the reference does; the mean and covariance of the
+scored poses (taken over the blocks the bound visited, each weight once) as the weighted moments of
+the reference's scores of those poses; the same answer without the surface (scratch buffers reused
+from call to call) and from grids padded wider than a window needs (the compiled chain keeps a
+keyframe's padded grid for the windows after it)."""
 
 from __future__ import annotations
 
@@ -10,7 +14,16 @@ import math
 import numpy as np
 import pytest
 
-from benchmark.conditions.scan_matching import EPS, LikelihoodGrid, match
+from benchmark.conditions.scan_matching import (
+    EPS,
+    SMALL,
+    LikelihoodGrid,
+    _match,
+    _padded,
+    _pool,
+    match,
+    pad_for,
+)
 
 
 def _grid_by_definition(points: np.ndarray, res: float, sigma: float):
@@ -52,6 +65,17 @@ def _exhaustive(grid, x0, y0, res, points, centre, kx, kt, step):
     return out
 
 
+def _moments_by_definition(scores, centre, kx, kt, res, step):
+    """(mean (3,), cov (3, 3)) of the poses with a finite score, each weighted exp(score - best)."""
+    k, i, j = np.nonzero(np.isfinite(scores))
+    poses = np.column_stack([centre[0] + (i - kx) * res, centre[1] + (j - kx) * res, centre[2] + (k - kt) * step])
+    w = np.exp(scores[k, i, j] - scores[k, i, j].max())
+    w /= w.sum()
+    mean = w @ poses
+    d = poses - mean
+    return mean, (w[:, None] * d).T @ d
+
+
 def _check(pts_a, pts_b, centre, window_xy, window_theta, step, res=0.05, sigma=0.05):
     """The compiled search (bounded and exhaustive) against :func:`_exhaustive`; returns the bounded match."""
     kx = int(math.ceil(window_xy / res - 1e-9))
@@ -78,10 +102,21 @@ def _check(pts_a, pts_b, centre, window_xy, window_theta, step, res=0.05, sigma=
     g[on] = (np.exp(grid_ref[r[on], q[on]]) - EPS) / (1.0 - EPS)
     assert bound.score == pytest.approx(g.mean(), abs=1e-12)
     # the bound scored fewer poses, each as the reference does (whole 4 x 4 blocks and blocks cut
-    # by the window's edge alike)
+    # by the window's edge alike); a small window: every pose
     seen = np.isfinite(partial)
-    assert bound.evaluated == seen.sum() < surface.size
+    assert bound.evaluated == seen.sum()
+    assert seen.sum() < surface.size if 2 * kx + 1 > SMALL else seen.all()
     np.testing.assert_allclose(partial[seen], want[seen], rtol=1e-12, atol=1e-9)
+    # the moments: over the poses each search scored, weighted by the reference's scores of them
+    for m, scored in ((bound, np.where(seen, want, -np.inf)), (full, want)):
+        mean, cov = _moments_by_definition(scored, centre, kx, kt, res, step)
+        np.testing.assert_allclose(m.mean, mean, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(m.cov, cov, rtol=1e-9, atol=1e-15)
+    # without the surface: the same match, bit for bit
+    bare, none = match(ref, pts_b, centre, window_xy, window_theta, step, surface=False)
+    assert none is None
+    for name in ("best", "loglik", "score", "mean", "cov", "evaluated"):
+        np.testing.assert_array_equal(getattr(bare, name), getattr(bound, name))
     return bound
 
 
@@ -130,3 +165,30 @@ def test_branch_and_bound_matches_a_plain_exhaustive_search_on_a_shared_house(pr
     m = _check(pts[0], pts[1], truth + np.array([0.3, 0.25, math.radians(2.0)]), 0.8, math.radians(4.0),
                math.radians(0.5))
     assert m.score > 0.8
+
+
+def test_windows_of_every_size_in_turn_and_grids_padded_wider_than_needed_give_the_reference_answer():
+    # one thread's scratch buffers through small, wide and small windows on two grids in turn, and the
+    # compiled match (the chain's) on grids padded wider than each window needs
+    rng = np.random.default_rng(5)
+    a = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+    room = np.column_stack([2.5 * np.cos(a), 1.5 * np.sin(a)])
+    room = np.vstack([room, [[0.8, 0.3], [0.85, 0.3], [-1.0, -0.6]]])
+    other = np.column_stack([np.cos(a) * 1.2, np.sin(a) * 2.0]) + [0.3, 0.0]
+    step = math.radians(0.5)
+    for pts_a, window in ((room, 0.1), (other, 0.9), (room, 0.6), (other, 0.15), (room, 1.0), (other, 0.1)):
+        pts_b = pts_a[rng.permutation(len(pts_a))[:80]] + rng.normal(0, 0.01, (80, 2))
+        _check(pts_a, pts_b, np.array([0.12, -0.07, 0.02]), window, math.radians(3.0), step)
+        ref = LikelihoodGrid(pts_a, 0.05, 0.05)
+        kx = int(math.ceil(window / 0.05 - 1e-9))
+        low = math.log(EPS)
+        p4 = _pool(ref.grid, 3, 1, low)
+        p16 = _pool(p4, 12, 4, low)
+        want, _ = match(ref, pts_b, (0.12, -0.07, 0.02), window, math.radians(3.0), step)
+        for extra in (0, 1, 9):
+            n1, n4, n16 = (n + extra for n in pad_for(kx))
+            got = _match(ref.grid, _padded(ref.grid, n1, low), n1, _padded(p4, n4, low), n4, _padded(p16, n16, low),
+                         n16, ref.x0, ref.y0, 0.05, np.ascontiguousarray(pts_b), 0.12, -0.07, 0.02, window,
+                         math.radians(3.0), step, low, EPS)
+            for g, w in zip(got, (want.best, want.loglik, want.score, want.mean, want.cov)):
+                np.testing.assert_array_equal(g, w)

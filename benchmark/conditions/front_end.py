@@ -81,8 +81,10 @@ from benchmark.conditions.scan_matching import (
     LikelihoodGrid,
     _likelihood_grid,
     _match,
+    _padded,
     _pool,
     match,
+    pad_for,
 )
 from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
@@ -395,6 +397,9 @@ def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing
     grid = np.zeros((1, 1))
     p4 = grid
     p16 = grid
+    # the keyframe's grid and block maxima padded for the search (kept while the pads are wide enough)
+    g1 = g4 = g16 = grid
+    pad1 = pad4 = pad16 = -1
     x0 = y0 = 0.0
     for k in range(n - 1):
         u = sqrt_info[k].copy()
@@ -409,13 +414,24 @@ def _chain(flat, start, true_states, z, sqrt_info, scan_matching, res, smoothing
             if built != kf:
                 grid, x0, y0 = _likelihood_grid(flat[start[kf]:start[kf + 1]], res, smoothing, eps)
                 built, pooled = kf, False
-            if 2 * int(math.ceil(wxy / res - 1e-9)) + 1 > SMALL and not pooled:
+                pad1 = pad4 = pad16 = -1
+            kx = int(math.ceil(wxy / res - 1e-9))
+            bounded = 2 * kx + 1 > SMALL
+            if bounded and not pooled:
                 p4 = _pool(grid, 3, 1, low)
                 p16 = _pool(p4, 12, 4, low)
                 pooled = True
+            need1, need4, need16 = pad_for(kx)
+            if pad1 < need1:
+                g1, pad1 = _padded(grid, need1, low), need1
+            if bounded and pad4 < need4:
+                g4, pad4 = _padded(p4, need4, low), need4
+            if bounded and pad16 < need16:
+                g16, pad16 = _padded(p16, need16, low), need16
             # scan k + 1 on the keyframe's grid, around the chain's pose of k composed with the wheel move
             c = _compose(at, z[k])
-            _, _, score, mean, mcov = _match(grid, p4 if pooled else grid, p16 if pooled else grid, x0, y0, res, b,
+            _, _, score, mean, mcov = _match(grid, g1, pad1, g4 if bounded else g1, pad4 if bounded else pad1,
+                                             g16 if bounded else g1, pad16 if bounded else pad1, x0, y0, res, b,
                                              c[0], c[1], c[2], wxy, wt, step, low, eps)
             if score >= min_score:
                 matched = True
@@ -554,7 +570,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
                 sd_t = math.sqrt(max(q_full[t, 2, 2], 0.0))
                 wxy = min(max(3.0 * sd_xy, st.min_window_xy), st.closure_window_xy)
                 wt = min(max(3.0 * sd_t, math.radians(st.min_window_yaw)), math.radians(st.closure_window_yaw))
-                m, _ = match(ref(i), points[j], centre, wxy, wt, step)
+                m, _ = match(ref(i), points[j], centre, wxy, wt, step, surface=False)
                 if m.score >= st.closure_min_score:
                     pairs.append((i, j))
                     zs.append(m.best)
@@ -676,7 +692,7 @@ def _place(j, cand, points, ref, st: FrontEndSettings, step, desc, tries: int = 
         if dist > st.place_max_distance:
             break
         m, _ = match(ref(i), points[j], np.array([0.0, 0.0, turn]), st.place_window_xy,
-                     math.radians(st.place_window_yaw), step)
+                     math.radians(st.place_window_yaw), step, surface=False)
         verified += 1
         if m.score >= st.place_min_score:
             break

@@ -43,6 +43,7 @@ of the same search that shares no code with it.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,15 +138,27 @@ def _pool(src, pad, stride, low):
 
 
 @njit(cache=True, nogil=True)
-def _moments(out, best, cx, cy, ct, kx, kt, res, step):
-    """Weighted mean (3,) and covariance (3, 3) of the evaluated poses (weights exp(L - best))."""
+def _moments(out, seen, bounded, evaluated, best, cx, cy, ct, kx, kt, res, step):
+    """Weighted mean (3,) and covariance (3, 3) of the evaluated poses (weights exp(L - best)), taken
+    in (k, i, j) order. ``bounded``: only the 4 x 4 blocks ``seen[k, i // 4, j // 4]`` were evaluated
+    (every pose of such a block; ``out`` holds nothing elsewhere); else every pose was. Each pose's
+    weight is computed once and kept for the covariance's pass: the same sums, bit for bit, as reading
+    every pose of ``out`` (the unevaluated at -inf) twice."""
+    nx = out.shape[1]
+    n4 = seen.shape[1]
+    wts = np.empty(evaluated)
     sw = 0.0
     m = np.zeros(3)
+    e = 0
     for k in range(out.shape[0]):
-        for i in range(out.shape[1]):
-            for j in range(out.shape[2]):
-                if out[k, i, j] > -np.inf:
+        for i in range(nx):
+            for bj in range(n4 if bounded else 1):
+                if bounded and not seen[k, i // 4, bj]:
+                    continue
+                for j in range(bj * 4 if bounded else 0, min(bj * 4 + 4, nx) if bounded else nx):
                     wt = np.exp(out[k, i, j] - best)
+                    wts[e] = wt
+                    e += 1
                     sw += wt
                     m[0] += wt * (cx + (i - kx) * res)
                     m[1] += wt * (cy + (j - kx) * res)
@@ -153,11 +166,15 @@ def _moments(out, best, cx, cy, ct, kx, kt, res, step):
     m /= sw
     cov = np.zeros((3, 3))
     d = np.zeros(3)
+    e = 0
     for k in range(out.shape[0]):
-        for i in range(out.shape[1]):
-            for j in range(out.shape[2]):
-                if out[k, i, j] > -np.inf:
-                    wt = np.exp(out[k, i, j] - best) / sw
+        for i in range(nx):
+            for bj in range(n4 if bounded else 1):
+                if bounded and not seen[k, i // 4, bj]:
+                    continue
+                for j in range(bj * 4 if bounded else 0, min(bj * 4 + 4, nx) if bounded else nx):
+                    wt = wts[e] / sw
+                    e += 1
                     d[0] = cx + (i - kx) * res - m[0]
                     d[1] = cy + (j - kx) * res - m[1]
                     d[2] = ct + (k - kt) * step - m[2]
@@ -195,16 +212,38 @@ def _cells(points, ct, st, cx, cy, x0, y0, res, rows, cols):
 
 
 @njit(cache=True, nogil=True)
-def _padded(src, lo, hi, low):
-    """``src`` padded with ``low`` by ``hi - lo + 1`` cells a side, flat, for reads at shifts ``lo..hi``
-    (rows and columns) from cells clamped by :func:`_bases`. Returns (flat, padded width, pad)."""
+def _padded(src, pad, low):
+    """(H + 2 ``pad``, W + 2 ``pad``) ``src`` padded with ``low`` by ``pad`` cells a side: read at shifts
+    ``lo..hi`` (rows and columns) from cells clamped by :func:`_bases` when ``pad >= hi - lo + 1``
+    (:func:`pad_for`; a wider pad reads the same cells and pad cells)."""
     h, w = src.shape
-    pad = hi - lo + 1
+    return _padded_into(np.empty((h + 2 * pad) * (w + 2 * pad)), src, pad, low)
+
+
+@njit(cache=True, nogil=True)
+def _padded_into(buf, src, pad, low):
+    """:func:`_padded` written into the start of the flat ``buf`` (every cell of it: pad and ``src``),
+    returned as a (H + 2 ``pad``, W + 2 ``pad``) view of it."""
+    h, w = src.shape
     wp = w + 2 * pad
-    flat = np.full((h + 2 * pad) * wp, low)
-    for r in range(h):
-        flat[(r + pad) * wp + pad:(r + pad) * wp + pad + w] = src[r]
-    return flat, wp, pad
+    out = buf[:(h + 2 * pad) * wp].reshape((h + 2 * pad, wp))
+    for r in range(h + 2 * pad):
+        if r < pad or r >= pad + h:
+            out[r, :] = low
+        else:
+            out[r, :pad] = low
+            out[r, pad:pad + w] = src[r - pad]
+            out[r, pad + w:] = low
+    return out
+
+
+@njit(cache=True, nogil=True)
+def pad_for(kx):
+    """(pad of the grid, of the 4 x 4 block maxima, of the 16 x 16 ones) a search of ``kx`` translations a
+    side reads (:func:`_search`: shifts ``-kx..kx``, and each block level's first cells)."""
+    n16 = (2 * kx + 1 + 15) // 16
+    n4 = (2 * kx + 1 + 3) // 4
+    return 2 * kx + 1, (n4 - 1) * 4 + 1, (n16 - 1) * 16 + 1
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -259,12 +298,15 @@ def _sums4(flat, base, off, wp, stride, acc):
 
 
 @njit(cache=True, nogil=True)
-def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bounded, exhaustive, low, out):
+def _search(g1, pad, g4, pad4, g16, pad16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bounded, exhaustive,
+            low, out, seen):
     """The search (module docstring, steps 2-3). ``out`` (n_theta, 2 kx + 1, 2 kx + 1) receives the
-    score of every evaluated pose (others stay -inf). ``bounded``: branch and bound over blocks of
-    16 x 16 translations (bounds from ``p16``), then 4 x 4 (``p4``), then poses, each level visited from
-    the highest bound down while a bound can beat the best (``exhaustive``: every block); else every
-    pose in turn. Each grid is read padded (:func:`_padded`): a point's sum at a shift is the same, bit
+    score of every evaluated pose (others are left as they are). ``bounded``: branch and bound over blocks of
+    16 x 16 translations (bounds from the 16 x 16 block maxima), then 4 x 4 (the 4 x 4 ones), then poses, each level visited from
+    the highest bound down while a bound can beat the best (``exhaustive``: every block), ``seen``
+    (n_theta, n4, n4) marking the 4 x 4 blocks evaluated; else every pose in turn. Each grid is read
+    padded (``g1``, ``g4``, ``g16``: the grid and the block maxima padded by ``pad``, ``pad4``, ``pad16``
+    cells a side, :func:`_padded`, at least :func:`pad_for`'s): a point's sum at a shift is the same, bit
     for bit, as with a test whether each shifted cell is on the grid. Returns (best k, i, j, L,
     evaluated) as indices into ``out``; ties go to the lowest (k, i, j)."""
     n = points.shape[0]
@@ -278,8 +320,8 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     bi_ = 0
     bj_ = 0
     evaluated = 0
-    h, w = grid.shape
-    flat, wp, pad = _padded(grid, -kx, kx, low)
+    h, w = g1.shape[0] - 2 * pad, g1.shape[1] - 2 * pad
+    flat, wp = g1.ravel(), g1.shape[1]
     if not bounded:
         offs = np.empty(nx * nx, np.int64)
         acc = np.empty(nx * nx, np.float64)
@@ -308,10 +350,10 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
     # index of a block's first cell)
     lo16, hi16 = 15 - kx, (n16 - 1) * 16 - kx + 15
     lo4, hi4 = 3 - kx, (n4 - 1) * 4 - kx + 3
-    f16, wp16, pad16 = _padded(p16, lo16, hi16, low)
-    f4, wp4, pad4 = _padded(p4, lo4, hi4, low)
-    h16, w16 = p16.shape
-    h4, w4 = p4.shape
+    f16, wp16 = g16.ravel(), g16.shape[1]
+    f4, wp4 = g4.ravel(), g4.shape[1]
+    h16, w16 = g16.shape[0] - 2 * pad16, wp16 - 2 * pad16
+    h4, w4 = g4.shape[0] - 2 * pad4, wp4 - 2 * pad4
     top = np.empty(nt * n16 * n16, np.float64)
     offs = np.empty(max(n16 * n16, 16), np.int64)
     acc = np.empty(max(n16 * n16, 16), np.float64)
@@ -374,6 +416,7 @@ def _search(grid, p4, p16, x0, y0, res, points, cx, cy, ctheta, kx, kt, step, bo
             # of 4 cells (pacc[4 (j - j0) + i - i0]); a block cut by the window's edge pose by pose
             i0 = mid_i[u] * 4
             j0 = mid_j[u] * 4
+            seen[k, mid_i[u], mid_j[u]] = True
             whole = i0 + 4 <= nx and j0 + 4 <= nx
             if whole:
                 _sums4(flat, kbase, (j0 - kx) * wp + i0 - kx, wp, 1, pacc)
@@ -417,16 +460,19 @@ def _likelihood_grid(pts, res, sigma, eps):
 
 
 @njit(cache=True, nogil=True)
-def _match(grid, p4, p16, x0, y0, res, points, cx, cy, ct, window_xy, window_theta, step, low, eps):
-    """:func:`match` compiled, for a caller's compiled loop (``p4``, ``p16``: the block maxima, read only
-    when the window is wider than :data:`SMALL`). Returns (best (3,), loglik, score, mean (3,), cov (3, 3))."""
+def _match(grid, g1, pad, g4, pad4, g16, pad16, x0, y0, res, points, cx, cy, ct, window_xy, window_theta, step, low,
+           eps):
+    """:func:`match` compiled, for a caller's compiled loop: ``grid`` and, padded (:func:`_search`), ``g1``
+    and the block maxima ``g4``, ``g16`` (read only when the window is wider than :data:`SMALL`), each pad
+    at least :func:`pad_for`'s for the window. Returns (best (3,), loglik, score, mean (3,), cov (3, 3))."""
     kx = int(math.ceil(window_xy / res - 1e-9))
     kt = int(math.ceil(window_theta / step - 1e-9))
-    out = np.full((2 * kt + 1, 2 * kx + 1, 2 * kx + 1), -np.inf)
+    out = np.empty((2 * kt + 1, 2 * kx + 1, 2 * kx + 1))
     bounded = 2 * kx + 1 > SMALL
-    k, i, j, best, _ = _search(grid, p4, p16, x0, y0, res, points, cx, cy, ct, kx, kt, step, bounded, False, low,
-                               out)
-    mean, cov = _moments(out, best, cx, cy, ct, kx, kt, res, step)
+    seen = np.zeros((2 * kt + 1, (2 * kx + 4) // 4, (2 * kx + 4) // 4), np.bool_)
+    k, i, j, best, n = _search(g1, pad, g4, pad4, g16, pad16, x0, y0, res, points, cx, cy, ct, kx, kt, step, bounded,
+                               False, low, out, seen)
+    mean, cov = _moments(out, seen, bounded, n, best, cx, cy, ct, kx, kt, res, step)
     bp = np.array([cx + (i - kx) * res, cy + (j - kx) * res, ct + (k - kt) * step])
     score = _mean_g(grid, x0, y0, res, points, bp[0], bp[1], bp[2], eps)
     return bp, best, score, mean, cov
@@ -455,9 +501,39 @@ class LikelihoodGrid:
             self._pools = (p4, _pool(p4, 12, 4, low))
         return self._pools
 
+    def padded(self, kx: int, bounded: bool) -> tuple:
+        """(grid, pad, 4 x 4 block maxima, pad, 16 x 16 block maxima, pad) padded for a search of ``kx``
+        translations a side (:func:`_search`; the block maxima only when ``bounded``, else the grid in
+        their place), in this thread's scratch buffers (:func:`_scratch`): valid until its next call.
+        Padded anew each call: a grid is matched a few times, and memory written again is cheaper than
+        fresh memory kept per grid."""
+        low = math.log(EPS)
+        need = pad_for(kx)
+        srcs = (self.grid, *self.pools()) if bounded else (self.grid,)
+        out = []
+        for level, src in enumerate(srcs):
+            size = (src.shape[0] + 2 * need[level]) * (src.shape[1] + 2 * need[level])
+            out += [_padded_into(_scratch(f"pad{level}", size), src, need[level], low), need[level]]
+        while len(out) < 6:
+            out += out[:2]
+        return tuple(out)
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(name: str, size: int) -> np.ndarray:
+    """This thread's flat float64 buffer ``name`` of at least ``size`` cells (kept, grown when needed):
+    :func:`match`'s padded grids and window scores, written again each call."""
+    kept = getattr(_SCRATCH, name, None)
+    if kept is None or kept.size < size:
+        kept = np.empty(max(size, 1 if kept is None else 2 * kept.size))
+        setattr(_SCRATCH, name, kept)
+    return kept
+
 
 def match(ref: LikelihoodGrid, points: np.ndarray, centre, window_xy: float, window_theta: float, step: float,
-          exhaustive: bool = False) -> tuple[Match, np.ndarray]:
+          exhaustive: bool = False, surface: bool = True) -> tuple[Match, np.ndarray | None]:
     """Match ``points`` (K, 2) of scan ``b`` (its own frame) against ``ref`` around ``centre``.
 
     Args:
@@ -468,26 +544,29 @@ def match(ref: LikelihoodGrid, points: np.ndarray, centre, window_xy: float, win
         window_theta: radians searched either side of the centre's heading.
         step: radians between headings.
         exhaustive: score every pose (no bound): the same best pose, for the tests.
+        surface: False: the scores of the evaluated poses are not returned (None; the window's
+            array is not filled with -inf first), as a caller that wants the match alone.
 
     Returns:
         (the :class:`Match`, (n_theta, n_xy, n_xy) scores of the evaluated poses, -inf elsewhere;
-        axis 1 steps dx, axis 2 dz).
+        axis 1 steps dx, axis 2 dz; None when not ``surface``).
     """
     pts = np.ascontiguousarray(points, np.float64).reshape(-1, 2)
     res = ref.resolution
     kx = int(math.ceil(window_xy / res - 1e-9))
     kt = int(math.ceil(window_theta / step - 1e-9))
     cx, cy, ct = (float(v) for v in centre)
-    out = np.full((2 * kt + 1, 2 * kx + 1, 2 * kx + 1), -np.inf)
+    shape = (2 * kt + 1, 2 * kx + 1, 2 * kx + 1)
+    out = np.full(shape, -np.inf) if surface else _scratch("out", math.prod(shape))[:math.prod(shape)].reshape(shape)
     low = math.log(EPS)
     bounded = 2 * kx + 1 > SMALL
-    p4, p16 = ref.pools() if bounded else (ref.grid, ref.grid)
-    k, i, j, best, n = _search(ref.grid, p4, p16, ref.x0, ref.y0, res, pts, cx, cy, ct, kx, kt, float(step), bounded,
-                               bool(exhaustive), low, out)
-    mean, cov = _moments(out, best, cx, cy, ct, kx, kt, res, float(step))
+    seen = np.zeros((2 * kt + 1, (2 * kx + 4) // 4, (2 * kx + 4) // 4), np.bool_)
+    k, i, j, best, n = _search(*ref.padded(kx, bounded), ref.x0, ref.y0, res, pts, cx, cy, ct, kx, kt, float(step),
+                               bounded, bool(exhaustive), low, out, seen)
+    mean, cov = _moments(out, seen, bounded, n, best, cx, cy, ct, kx, kt, res, float(step))
     bp = np.array([cx + (i - kx) * res, cy + (j - kx) * res, ct + (k - kt) * step])
     score = mean_likelihood(ref, pts, bp)
-    return Match(bp, float(best), score, mean, cov, int(n)), out
+    return Match(bp, float(best), score, mean, cov, int(n)), (out if surface else None)
 
 
 def mean_likelihood(ref: LikelihoodGrid, points: np.ndarray, pose) -> float:
