@@ -108,6 +108,15 @@ def test_the_merging_passes_join_an_alcove_to_its_room_and_keep_two_rooms_apart(
     assert set(np.unique(original.merge_cells(lab, 0.05, 12.5)[lab > 0])) == {1, 2}
 
 
+def test_the_cells_ids_are_the_authors_unseeded_colour_draws():
+    """glibc's rand() under its default seed starts 1804289383, 846930886, 1681692777: the
+    first cells' ids are those draws mod 52224 plus 13056, and a draw a cell already has is
+    skipped (the ids stay distinct)."""
+    assert original.colour_ids(3) == [v % 52224 + 13056 for v in (1804289383, 846930886, 1681692777)]
+    ids = original.colour_ids(500)
+    assert len(set(ids)) == 500 and min(ids) >= 13056 and max(ids) <= 65279
+
+
 # ---------------------------------------------------------------- the segmenter
 
 

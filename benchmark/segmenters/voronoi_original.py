@@ -29,10 +29,10 @@ runs them on the map resampled to the authors' 0.05 m/px):
    borders (the pixels just outside a cell, counted by what lies there); see that function.
 
 Differences kept: the pruning removes tips until none is left, where the authors stop after 100
-raster sweeps (a spur longer than about 100 pixels keeps its rest); the authors' cells carry random
-colours as ids, which decide ties of equal shared borders, where these carry numbers in contour
-order, and their passes sort cells of equal area in no fixed order, where these keep the order
-before; free space that no cell reaches becomes a room of its own instead of staying unlabelled.
+raster sweeps (a spur longer than about 100 pixels keeps its rest); their passes sort cells of
+equal area in no fixed order, where these keep the order before; free space that no cell reaches
+counts as the smallest label in ties of shared borders (theirs as the largest) and becomes a room
+of its own instead of staying unlabelled.
 """
 
 from __future__ import annotations
@@ -242,6 +242,39 @@ def keep_lines(points: np.ndarray, clearance_at: np.ndarray, angle: np.ndarray, 
     return ~(close & (turns_more | shorter)).any(axis=1)
 
 
+def colour_ids(n: int) -> list[int]:
+    """The ids the authors' cells get, in order: each cell draws a colour ``rand() % 52224 + 13056``
+    until it draws one no cell has. Their ``rand()`` is never seeded, so these are the first draws
+    of glibc's generator under its default seed 1 (its additive feedback generator: 34 words from
+    the seed by 16807 x mod 2^31 - 1, then each word the sum of those 31 and 3 before, mod 2^32,
+    the first 310 thrown away, each draw a word halved). The ids matter where borders tie: the
+    merging passes take, of equal shared borders, the cell with the larger id.
+
+    Args:
+        n: how many cells.
+
+    Returns:
+        n distinct ids in [13056, 65279].
+    """
+    r = [1]
+    for _ in range(30):
+        hi, lo = divmod(r[-1], 127773)
+        r.append((16807 * lo - 2836 * hi) % 2147483647)
+    r += r[:3]
+    out: list[int] = []
+    seen: set[int] = set()
+    k = len(r)
+    while len(out) < n:
+        r.append((r[k - 31] + r[k - 3]) & 0xFFFFFFFF)
+        if k >= 344:
+            v = (r[k] >> 1) % 52224 + 13056
+            if v not in seen:
+                seen.add(v)
+                out.append(v)
+        k += 1
+    return out
+
+
 def cells(walkable: np.ndarray, lines: list[tuple[tuple[int, int], tuple[int, int]]], resolution: float,
           min_segment_area: float) -> np.ndarray:
     """The free space cut by the critical lines, as cells (step 4 of the module doc).
@@ -254,8 +287,8 @@ def cells(walkable: np.ndarray, lines: list[tuple[tuple[int, int], tuple[int, in
             encloses, as OpenCV's ``contourArea``) are no cell of their own.
 
     Returns:
-        (H, W) int64: cells 1..N on the free space they reach, :data:`UNASSIGNED` on free pixels
-        none reaches, :data:`WALL` on obstacles.
+        (H, W) int64: the cells' ids (:func:`colour_ids`, in contour order) on the free space they
+        reach, :data:`UNASSIGNED` on free pixels none reaches, :data:`WALL` on obstacles.
     """
     walk = np.asarray(walkable, bool)
     cut = np.ascontiguousarray(np.pad(walk, 1), dtype=np.uint8) * 255
@@ -263,14 +296,14 @@ def cells(walkable: np.ndarray, lines: list[tuple[tuple[int, int], tuple[int, in
         cv2.line(cut, (int(a[1]) + 1, int(a[0]) + 1), (int(b[1]) + 1, int(b[0]) + 1), 0, LINE_PX)
     parts, part = cv2.connectedComponents((cut > 0).view(np.uint8), connectivity=8)
     contours, hierarchy = cv2.findContours(cut, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
-    number = np.zeros(parts, np.int64)  # each part's cell, 0: none
-    n = 0
+    found = []  # each cell's part, in contour order
     for c, hier in zip(contours, hierarchy[0] if hierarchy is not None else []):
         if hier[3] != -1 or cv2.contourArea(c) * resolution ** 2 < min_segment_area:
             continue  # a hole's contour, or too small
         x, y = c[0, 0]
-        n += 1
-        number[part[y, x]] = n
+        found.append(part[y, x])
+    number = np.zeros(parts, np.int64)  # each part's cell id, 0: none
+    number[found] = colour_ids(len(found))
     lab = number[part[1:-1, 1:-1]]
     lab[walk & (lab == 0)] = UNASSIGNED
     return wavefront(lab, walk)
@@ -480,5 +513,5 @@ def merge_cells(lab: np.ndarray, resolution: float, max_merge_area: float) -> np
     return out
 
 
-__all__ = ["resample", "sample_back", "voronoi_graph", "critical_points", "critical_lines", "keep_lines", "cells", "wavefront", "merge_cells",
+__all__ = ["colour_ids", "resample", "sample_back", "voronoi_graph", "critical_points", "critical_lines", "keep_lines", "cells", "wavefront", "merge_cells",
            "cell_statistics", "rounded_clearance", "border_pixels"]
