@@ -14,6 +14,7 @@ class ByteLRU:
 
     def __init__(self) -> None:
         self._items: OrderedDict[Hashable, tuple[Any, int]] = OrderedDict()
+        self._held = 0  # the sizes kept, summed (kept as they change: a put costs no pass over the values)
 
     def get(self, key: Hashable) -> Any | None:
         """The value kept for ``key`` (now the most recently used), or None."""
@@ -25,11 +26,14 @@ class ByteLRU:
     def put(self, key: Hashable, value: Any, nbytes: int, limit: float) -> None:
         """Keep ``value`` (``nbytes`` bytes) for ``key``, then drop the least recently used
         values until at most ``limit`` bytes are kept."""
+        old = self._items.get(key)
+        if old is not None:
+            self._held -= old[1]
         self._items[key] = (value, int(nbytes))
         self._items.move_to_end(key)
-        held = sum(b for _, b in self._items.values())
-        while self._items and held > limit:
-            held -= self._items.popitem(last=False)[1][1]
+        self._held += int(nbytes)
+        while self._items and self._held > limit:
+            self._held -= self._items.popitem(last=False)[1][1]
 
     def values(self) -> Iterator[Any]:
         """The values kept, least recently used first."""

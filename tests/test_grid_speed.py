@@ -121,3 +121,29 @@ def test_a_slam_conditions_scan_plane_is_rasterised_once_per_house_across_its_jo
         rows.append(run(cfg, tmp_path / "R" / "jobs" / aggregator, ch))
     assert all((df["status"] == "ok").all() and len(df) == 2 for df in rows)
     assert sorted(made) == sorted(rows[0]["house_id"])  # once per house, for both jobs
+
+
+def test_the_byte_lru_keeps_what_a_plain_list_that_sums_its_sizes_keeps():
+    """:class:`envs.memo.ByteLRU` keeps its held bytes as they change (a put was a pass over every
+    value kept: thousands a sweep); the same keys, values and order as a list summed each time."""
+    from envs.memo import ByteLRU
+
+    rng = np.random.default_rng(7)
+    lru, ref = ByteLRU(), []  # ref: [key, value, nbytes], least recently used first
+    for step in range(3000):
+        key = int(rng.integers(0, 40))
+        if rng.random() < 0.3:
+            got = lru.get(key)
+            hit = [e for e in ref if e[0] == key]
+            if hit:
+                ref.remove(hit[0])
+                ref.append(hit[0])
+            assert got == (hit[0][1] if hit else None)
+            continue
+        nbytes, limit = int(rng.integers(0, 300)), float(rng.choice([0, 500, 2000, 5000]))
+        ref = [e for e in ref if e[0] != key] + [[key, step, nbytes]]
+        while ref and sum(e[2] for e in ref) > limit:
+            ref.pop(0)
+        lru.put(key, step, nbytes, limit)
+        assert list(lru) == [e[0] for e in ref] and list(lru.values()) == [e[1] for e in ref]
+    assert len(lru) == len(ref)
