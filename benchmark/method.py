@@ -419,8 +419,8 @@ class Method:
                 classification (a robot's map is built along the views the renderer made).
             ctx: the house and its id, when known (the grid is filled in here).
             cache: where the caller keeps the classification and the raw map (default: none).
-            timings: gets ``t_classify``, ``t_aggregate``, ``t_postprocess`` (seconds) of the
-                steps computed.
+            timings: gets ``t_classify``, ``t_transform`` (the view transforms: pose error,
+                label noise), ``t_aggregate``, ``t_postprocess`` (seconds) of the steps computed.
 
         Returns:
             :class:`MethodResult`.
@@ -441,7 +441,10 @@ class Method:
         classified = cache.classified(compute_classified)
         grid = grid() if callable(grid) else grid
         ctx.grid = grid
+        t, inner = time.perf_counter(), sum(timings.values())
         views, info = self.receive(classified, ctx)
+        if self.transforms:  # a stage the transforms cause that times itself (t_slam) is not counted twice
+            timings["t_transform"] = time.perf_counter() - t - (sum(timings.values()) - inner)
 
         def compute_raw() -> np.ndarray:
             t = time.perf_counter()

@@ -147,3 +147,26 @@ def test_the_byte_lru_keeps_what_a_plain_list_that_sums_its_sizes_keeps():
         lru.put(key, step, nbytes, limit)
         assert list(lru) == [e[0] for e in ref] and list(lru.values()) == [e[1] for e in ref]
     assert len(lru) == len(ref)
+
+
+def test_the_view_transforms_have_their_own_timing_column(tmp_path):
+    """The pose error and label noise a method's views go through were time in a house no stage
+    timed (the grid profile's largest block); timings.csv names them ``t_transform``, and the
+    clean robot, whose views go through none, has no such column."""
+    import pandas as pd
+
+    from benchmark.config import compose_job
+    from benchmark.harness.runner import run
+
+    def timings(corruption: str) -> pd.DataFrame:
+        cfg, ch = compose_job(["env=synthetic", "env.resolution=0.1", "env.n_houses=2", "classifier=oracle",
+                               "aggregator=vision_cone", "run.progress=false", f"run.results_dir={tmp_path / 'R'}",
+                               f"corruption={corruption}", "run.workers=1"])
+        df = run(cfg, tmp_path / "R" / "jobs" / corruption, ch)
+        assert (df["status"] == "ok").all() and "t_transform" not in df  # a timing, not a metric
+        return pd.read_csv(tmp_path / "R" / "jobs" / corruption / "timings.csv")
+
+    noisy = timings("realistic_2")  # pose error on the SLAM estimate, label noise
+    assert noisy["t_transform"].notna().all() and (noisy["t_transform"] >= 0).all()
+    assert (noisy["t_transform"] + noisy["t_slam"] <= noisy["house_s"]).all()  # the estimate is not counted twice
+    assert "t_transform" not in timings("clean")

@@ -5,14 +5,17 @@ Reads a finished sweep folder (``results/runs/robustness``): each job's ``summar
 (its wall time), ``job.json`` (its condition and dataset) and ``timings.csv`` (per house, the
 seconds of each stage the pipeline timed: ``t_scene`` builds the house, ``t_slam`` solves the
 SLAM estimate a robot's map is built at, ``t_map`` builds that map, ``t_viewpoints``,
-``t_render``, ``t_classify``, ``t_aggregate``, ``t_postprocess``, ``t_score``). For each dataset and condition family (``scan``, ``slam``, ``explore``, ...) it
+``t_render``, ``t_classify``, ``t_transform`` (the view transforms a method's views go
+through: pose error, label noise), ``t_aggregate``, ``t_postprocess``, ``t_score``). For each dataset and condition family (``scan``, ``slam``, ``explore``, ...) it
 prints one row:
 
 - jobs and house-runs (computed / read from the results cache);
 - job-seconds: the sum of the jobs' wall times, and its share of the sweep's total;
 - per stage, seconds summed over the houses computed;
-- ``in houses, untimed s``: time inside the houses computed that no stage timer covers (the
-  pose-error and label-noise transforms, cache reads), summed;
+- ``in houses, untimed s``: time inside the houses computed that no stage timer covers, summed:
+  cache entries read, checked and written (the score row, the raw label map, the classification,
+  the map and its estimate, their locks and content keys), the row's view-accuracy, coverage and
+  map columns, the ground truth brought to a SLAM map's frame;
 - ``outside houses s``: job wall time not spent inside a house (composing the job, loading the
   houses, writing and checking rows), summed over jobs.
 
@@ -36,7 +39,7 @@ from benchmark.commands import cli
 
 #: stages in pipeline order (others follow alphabetically)
 STAGES = ("t_scene", "t_slam", "t_map", "t_viewpoints", "t_coverage", "t_render", "t_render_load", "t_classify",
-          "t_aggregate", "t_postprocess", "t_segment", "t_score")
+          "t_transform", "t_aggregate", "t_postprocess", "t_segment", "t_score")
 
 
 def job_rows(sweep: Path) -> pd.DataFrame:
