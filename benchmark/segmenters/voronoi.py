@@ -185,7 +185,9 @@ class Voronoi(Segmenter):
         # the authors' graph, pruned as they prune it: every tip goes back to the junction it leaves from
         graph = prune_spurs(original.voronoi_graph(walk), np.zeros(walk.shape), np.inf)
         clear = original.rounded_clearance(walk)
-        pts = original.critical_points(graph, clear, self.reach / res ** 2, max(int(round(self.max_search / res)), 1))
+        # the authors count in whole pixels: 0.7 m² at 0.05 m/px is their 280 (0.7 / 0.05 ** 2 is 279.99...)
+        reach_px2, steps = round(self.reach / res ** 2), max(int(round(self.max_search / res)), 1)
+        pts = original.critical_points(graph, clear, reach_px2, steps)
         ok, b1, b2, angle, length = original.critical_lines(pts, clear, original.border_pixels(walk))
         pts, b1, b2, angle, length = pts[ok], b1[ok], b2[ok], angle[ok], length[ok]
         keep = original.keep_lines(pts, clear[pts[:, 0], pts[:, 1]], angle, length, self.min_critical_distance)
