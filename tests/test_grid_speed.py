@@ -170,3 +170,23 @@ def test_the_view_transforms_have_their_own_timing_column(tmp_path):
     assert noisy["t_transform"].notna().all() and (noisy["t_transform"] >= 0).all()
     assert (noisy["t_transform"] + noisy["t_slam"] <= noisy["house_s"]).all()  # the estimate is not counted twice
     assert "t_transform" not in timings("clean")
+
+
+def test_a_pipelines_kept_entry_paths_are_the_stores(tmp_path):
+    """:meth:`Pipeline.entry` keeps each house's entry paths (a house's stages asked the store
+    for them again and again: tens of microseconds a time); what it keeps is what the store gives."""
+    from benchmark.config import compose_job
+    from benchmark.harness.runner import build_pipeline
+    from benchmark.harness.store import CacheStore
+
+    cfg, ch = compose_job(["env=synthetic", "env.n_houses=2", "classifier=oracle", "aggregator=vision_cone",
+                           f"run.results_dir={tmp_path / 'R'}", "corruption=realistic_2"])
+    pipe = build_pipeline(cfg, ch)
+    for _ in range(2):  # made, then kept
+        for hid in ("synthetic-s000000", "synthetic-s000001"):
+            for kind in CacheStore.KINDS:
+                want = CacheStore(tmp_path / "R" / "cache").entry(kind, pipe.keys, pipe.contents(hid), hid)
+                assert pipe.entry(kind, hid) == want
+    assert pipe.entry("score", "synthetic-s000000") != pipe.entry("score", "synthetic-s000001")
+    pipe.cache_dir = tmp_path / "other"  # another cache: other paths
+    assert pipe.entry("score", "synthetic-s000000").is_relative_to(tmp_path / "other")

@@ -246,6 +246,7 @@ class Pipeline(RobotStages):
     _contents: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
     _leaves: dict[str, tuple[tuple[str, str], ...]] = field(default_factory=dict, repr=False)
     _frames: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
+    _entries: dict[tuple[str, str, str], Path] = field(default_factory=dict, repr=False)
 
     #: the stage groups whose input files feed each cached stage, in order.
     CONTENT_STAGES: ClassVar[tuple[tuple[str, tuple[str, ...]], ...]] = ()
@@ -352,8 +353,13 @@ class Pipeline(RobotStages):
 
     def entry(self, kind: str, hid: str) -> Path:
         """Where house ``hid``'s cache entry of ``kind`` lives (:meth:`CacheStore.entry`: render,
-        classify, aggregate, score, failure, maps, robot_map, coverage)."""
-        return self.store.entry(kind, self.keys, self.contents(hid), hid)
+        classify, aggregate, score, failure, maps, robot_map, coverage). Kept per pipeline, as the
+        house's contents are (a house's stages ask for its entries again and again)."""
+        key = (kind, hid, str(self.cache_dir))
+        path = self._entries.get(key)
+        if path is None:
+            path = self._entries[key] = self.store.entry(kind, self.keys, self.contents(hid), hid)
+        return path
 
     # ---- the one cached-stage helper
     def _cached(self, stage: str, path: Path, load: Callable[[Path], T], compute: Callable[[], T],
