@@ -243,9 +243,10 @@ ROBUST_ENVS := $(subst synthetic,synthetic_robust,$(BENCH_ENVS))
 # multirun into runs/robustness/ipa (conf/experiment/robustness_ipa.yaml: clean and scan, slam,
 # explore, realistic at severities 1, 3, 5) on the first ROBUST_IPA_HOUSES houses per dataset, on
 # the main sweep's maps (no more than ROBUST_HOUSES); the tables show them apart beside the ports
-# on those houses.
+# on those houses. 1: about 10 minutes on the 2-core machine (its VRF and semantic segmentations
+# are nearly all of it; docs/robustness.md), each house more about as long again.
 # ROBUST_IPA=0: none (robustness-timing-publish: the fresh-clone grid).
-ROBUST_IPA_HOUSES ?= 2
+ROBUST_IPA_HOUSES ?= 1
 ROBUST_IPA ?= 1
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
 	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(ROBUST_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS) run.allow_failures=true
