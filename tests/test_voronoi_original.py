@@ -153,6 +153,21 @@ def test_the_original_rule_at_the_maps_own_resolution_and_resampled():
     assert inst.max() + 1 == 2
 
 
+def test_the_settings_in_metres_are_the_authors_pixels(monkeypatch):
+    """At 0.05 m/px ``reach`` 0.7 m² and ``max_search`` 7.5 m are the authors' 280 pixels² and
+    150 steps (0.7 / 0.05² is 279.99... in floating point: counted as 280, in whole pixels²)."""
+    seen = {}
+    real = original.critical_points
+
+    def spy(graph, clearance, reach_px2, max_steps):
+        seen.update(reach=reach_px2, steps=max_steps)
+        return real(graph, clearance, reach_px2, max_steps)
+
+    monkeypatch.setattr(original, "critical_points", spy)
+    Voronoi(rule="original", min_room_area=0.0)(two_rooms())
+    assert seen == {"reach": 280, "steps": 150}
+
+
 def test_the_rule_is_checked_in_one_line():
     with pytest.raises(ValueError, match=r"segmenter.rule='voronoi': expected narrowing or original"):
         Voronoi(rule="voronoi")
