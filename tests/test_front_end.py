@@ -439,3 +439,32 @@ def test_the_harness_hands_the_front_end_the_mapping_stages_scan_plane(tmp_path)
     legs = _run(tmp_path, "l", "corruption=slam_3", "mapping.legs=true", results="l")
     assert (boxes["status"] == "ok").all() and (legs["status"] == "ok").all()
     assert (boxes["ate_rmse_m"] != legs["ate_rmse_m"]).any()
+
+
+def test_closure_search_gives_the_same_answer_whatever_grids_it_keeps(monkeypatch):
+    # the closure search keeps the last KEPT_GRIDS reference grids and makes an evicted one again: keeping one
+    # grid (every candidate's made anew), and one grid for every keyframe, give the same closures bit for bit
+    from benchmark.conditions import front_end
+
+    grid = _two_rooms()
+    states, z, info, travelled, _, _ = _kidnapped_between_rooms(grid)
+    st = FrontEndSettings(closure_min_travel=3.0, closure_every=0.5, closure_candidates=3, place_recognition=True)
+    made = []
+    real = front_end.LikelihoodGrid
+
+    def counted(*args):
+        made.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(front_end, "LikelihoodGrid", counted)
+    answers = {}
+    for kept in (1, len(states)):
+        monkeypatch.setattr(front_end, "KEPT_GRIDS", kept)
+        made.clear()
+        fe = run_front_end(~grid.walkable, grid, states, z, info, travelled, st)
+        answers[kept] = (len(made), fe)
+    (n_one, one), (n_all, every) = answers[1], answers[len(states)]
+    assert n_one > n_all and len(every.closures) >= 2  # grids made again, on a route that closes loops
+    for name in ("closures", "closure_z", "closure_sqrt_info", "wrong", "place", "dead"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(every, name))
+    assert (one.candidates, one.place_tried) == (every.candidates, every.place_tried)

@@ -68,6 +68,7 @@ robot knows only the ranges and its beams' angles, so the points are in its own 
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -95,6 +96,8 @@ from envs.ranges import Angle, Between, Metres, NonNegative, Positive, Share
 WRONG_XY = 0.3
 #: ... or its heading this far (degrees)
 WRONG_YAW = 3.0
+#: reference grids the loop-closure search keeps (the keyframes last matched against)
+KEPT_GRIDS = 8
 
 
 @dataclass(frozen=True)
@@ -331,13 +334,19 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
     scanner = ScanSettings(max_range=st.max_range, angular_step=st.angular_step, range_noise=st.range_noise,
                            dropout=st.dropout, seed=int(scan_seed))
     points = robot_points(obstacles, grid, true_states, scanner)
-    grids: dict[int, LikelihoodGrid] = {}
+    grids: OrderedDict[int, LikelihoodGrid] = OrderedDict()
     # a point's spread: the matcher's own smoothing and the range noise of both scans it compares
     smoothing = math.hypot(st.sigma, math.sqrt(2.0) * st.range_noise)
 
     def ref(k: int) -> LikelihoodGrid:
-        if k not in grids:
+        # the last KEPT_GRIDS keyframes matched against are kept (a grid made again is the same grid):
+        # memory let go and written again costs less than fresh memory for every keyframe's grid
+        if k in grids:
+            grids.move_to_end(k)
+        else:
             grids[k] = LikelihoodGrid(points[k], st.resolution, smoothing)
+            while len(grids) > KEPT_GRIDS:
+                grids.popitem(last=False)
         return grids[k]
 
     step = math.radians(st.step_yaw)
