@@ -376,6 +376,32 @@ def test_the_real_logs_fetch_from_a_local_server_is_verified(tmp_path, capsys):
         assert (tmp_path / "data" / "real_logs" / f.path).read_bytes() == files[prefix + f.path]
 
 
+# --- SE-Sync's cost -----------------------------------------------------------------------------------
+
+def test_sesync_cost_on_a_hand_made_graph(tmp_path):
+    """Poses (0, 0, 0), (1, 0, 0), (1, 1, pi/2); per edge kappa 4 (1 - cos(theta_j - theta_i -
+    dtheta)) + tau |t_j - t_i - R_i t~|^2 with tau = 2 / tr(inverse xy information):
+    0->1 exact: 0; 1->2 (1, 0, 0), diag(2, 2, 3): 3 * 4 * 1 + 2 * |(-1, 1)|^2 = 16;
+    0->2 (1, 1, pi), diag(1, 4, 5): 5 * 4 * 1 + 1.6 * 0 = 20;
+    2->0 (1, 1, -pi/2), diag(4, 4, 7): 0 + 4 * |(-1, -1) - R(pi/2)(1, 1)|^2 = 4 * |(0, -2)|^2 = 16."""
+    from benchmark.commands.real_logs import sesync_cost
+
+    p = tmp_path / "three.g2o"
+    h = math.pi / 2
+    p.write_text(f"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 1 1 {h!r}\n"
+                 "EDGE_SE2 0 1 1 0 0 9 0 0 9 0 9\n"
+                 "EDGE_SE2 1 2 1 0 0 2 0 0 2 0 3\n"
+                 f"EDGE_SE2 0 2 1 1 {math.pi!r} 1 0 0 4 0 5\n"
+                 f"EDGE_SE2 2 0 1 1 {-h!r} 4 0 0 4 0 7\n")
+    g = read_g2o(p)
+    assert sesync_cost(g, g.initial) == pytest.approx(52.0, rel=1e-12)
+    # vertex 1 at (1.5, 0, 0): edge 0->1 off by (0.5, 0) with tau = 2 / (1/9 + 1/9) = 9, edge 1->2 by
+    # (-1.5, 1) instead of (-1, 1)
+    moved = g.initial.copy()
+    moved[1] = [1.5, 0.0, 0.0]
+    assert sesync_cost(g, moved) == pytest.approx(52.0 + 9 * 0.25 + 2 * (3.25 - 2.0), rel=1e-12)
+
+
 # --- the command ------------------------------------------------------------------------------------
 
 def test_the_graphs_command_writes_its_table_and_refuses_a_bad_line_in_one_line(tmp_path, capsys):
@@ -394,6 +420,7 @@ def test_the_graphs_command_writes_its_table_and_refuses_a_bad_line_in_one_line(
     m = rows["m3500-excerpt.graph"]
     assert m[1:4] == ["toro", "40", "45"] and m[9] == "yes"
     assert float(m[6]) == pytest.approx(float(m[10]), rel=1e-5)  # ours == readG2o + LM
+    assert m[11:13] == ["–", "–"]  # SE-Sync publishes no optimum of this graph
     (d / "broken.g2o").write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 0 1 0\n")
     assert main(["graphs", "--dir", str(d)]) == 2
     err = capsys.readouterr().err.strip()

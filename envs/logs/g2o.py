@@ -31,7 +31,9 @@ The frame of a TORO edge's information: ``information`` always belongs to g2o's 
 translation part is in the MEASUREMENT's frame, ``e_z = R(dtheta)^T e_i`` with ``e_i`` the same
 residual in pose i's frame. A TORO file's matrix ``I_toro`` belongs to ``e_i``, so the reader turns it
 into ``I = R^T I_toro R``, R the 3x3 rotation by the edge's dtheta (xy block and the cross terms
-rotated, I33 as read). The source: the datasets' own g2o versions by their author, L. Carlone (e.g.
+rotated, I33 as read). TORO's own 2D error (``TreeOptimizer2::error`` in its treeoptimizer2.cpp)
+weighs the world-frame residual ``X_i Z - X_j`` with ``R_i I_toro R_i^T``: ``I_toro`` on the residual
+in pose i's frame. The datasets' own g2o versions by their author, L. Carlone (e.g.
 ``data/CSAIL.g2o`` and ``data/manhattan.g2o`` of david-m-rosen/SE-Sync at commit 9b631b6b), hold the
 measurements of ``CSAIL_P_toro.graph`` and ``M3500_P_toro.graph`` with each information matrix so
 rotated (relative difference <= 1e-9); unrotated, the solve weighs a different problem (CSAIL
