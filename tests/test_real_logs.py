@@ -402,6 +402,24 @@ def test_sesync_cost_on_a_hand_made_graph(tmp_path):
     assert sesync_cost(g, moved) == pytest.approx(52.0 + 9 * 0.25 + 2 * (3.25 - 2.0), rel=1e-12)
 
 
+def test_sesync_weighted_carries_tau_tau_and_twice_kappa(tmp_path):
+    """The hand-made graph above reweighted: diag(tau, tau, 2 kappa) per edge, the rest as read; a
+    g2o cross term or an anisotropic block leaves only tau."""
+    from benchmark.commands.real_logs import sesync_weighted
+
+    p = tmp_path / "two.g2o"
+    p.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n"
+                 "EDGE_SE2 0 1 1 0 0 2 0 0 2 0 3\n"
+                 "EDGE_SE2 1 0 -1 0 0.1 1 0 0.5 4 0.2 5\n")
+    g = read_g2o(p)
+    w = sesync_weighted(g)
+    np.testing.assert_allclose(w.information[0], np.diag([2.0, 2.0, 6.0]), rtol=1e-14)
+    np.testing.assert_allclose(w.information[1], np.diag([1.6, 1.6, 10.0]), rtol=1e-14)
+    np.testing.assert_array_equal(w.z, g.z)
+    assert (w.i.tolist(), w.j.tolist()) == (g.i.tolist(), g.j.tolist())
+    np.testing.assert_array_equal(g.information[1], [[1, 0, 0.5], [0, 4, 0.2], [0.5, 0.2, 5]])  # g untouched
+
+
 # --- the command ------------------------------------------------------------------------------------
 
 def test_the_graphs_command_writes_its_table_and_refuses_a_bad_line_in_one_line(tmp_path, capsys):
@@ -420,7 +438,7 @@ def test_the_graphs_command_writes_its_table_and_refuses_a_bad_line_in_one_line(
     m = rows["m3500-excerpt.graph"]
     assert m[1:4] == ["toro", "40", "45"] and m[9] == "yes"
     assert float(m[6]) == pytest.approx(float(m[10]), rel=1e-5)  # ours == readG2o + LM
-    assert m[11:13] == ["–", "–"]  # SE-Sync publishes no optimum of this graph
+    assert m[11:14] == ["–", "–", "–"]  # SE-Sync publishes no optimum of this graph
     (d / "broken.g2o").write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 0 1 0\n")
     assert main(["graphs", "--dir", str(d)]) == 2
     err = capsys.readouterr().err.strip()
