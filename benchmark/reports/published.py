@@ -12,19 +12,23 @@ def header(command: str) -> str:
     return f"Written by `{command}`."
 
 
-def write_published(out: Path, command: str, text: str) -> str | None:
-    """Write ``text`` to ``out`` (atomically) under :func:`header` and a blank line.
+def write_published(out: Path, command: str, text: str, csv: str | None = None) -> str | None:
+    """Write ``text`` to ``out`` (atomically) under :func:`header` and a blank line; with ``csv``
+    (the table's rows as CSV text), that text to ``out`` with the suffix ``.csv`` after it.
 
     Returns:
-        None, or the one line a command prints when the file cannot be written (a full disk, a
+        None, or the one line a command prints when a file cannot be written (a full disk, a
         read-only folder), naming the file."""
     from benchmark.harness.write_errors import cannot_write  # noqa: PLC0415
     from envs.atomic import atomic_write_text  # noqa: PLC0415
 
-    try:
-        atomic_write_text(out, f"{header(command)}\n\n{text.rstrip()}\n")
-    except OSError as e:
-        return cannot_write(e, out)
+    files = [(out, f"{header(command)}\n\n{text.rstrip()}\n")]
+    files += [(out.with_suffix(".csv"), csv)] if csv is not None else []
+    for path, content in files:
+        try:
+            atomic_write_text(path, content)
+        except OSError as e:
+            return cannot_write(e, path)
     return None
 
 

@@ -207,18 +207,11 @@ def main(argv: list[str] | None = None) -> int:
         df.to_csv(a.csv, index=False)
     if a.markdown:
         from benchmark.reports.published import write_published
-        from envs.atomic import atomic_write_text
 
         cmd = ["python -m benchmark.commands.maintainer.vrf_causes"] + ([f"--data {a.data}"] if a.data else []) \
             + ([f"--limit {a.limit}"] if a.limit else [])
-        err = write_published(a.markdown, " ".join([*cmd, f"--markdown {a.markdown}"]), text)
-        if err is None:
-            try:
-                atomic_write_text(a.markdown.with_suffix(".csv"), df.to_csv(index=False, float_format="%.6g"))
-            except OSError as e:
-                from benchmark.harness.write_errors import cannot_write
-
-                err = cannot_write(e, a.markdown.with_suffix(".csv"))
+        err = write_published(a.markdown, " ".join([*cmd, f"--markdown {a.markdown}"]), text,
+                              csv=df.to_csv(index=False, float_format="%.6g"))
         if err:
             print(f"error: {err}", file=sys.stderr)
             return 2
