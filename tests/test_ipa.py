@@ -150,17 +150,24 @@ print("rooms 2")
 '''
 
 
-@pytest.fixture
-def standin(tmp_path: Path) -> Path:
-    """A build folder whose ipa_segment is the stand-in."""
+def standin_build(tmp_path: Path, script: str, **build) -> Path:
+    """A build folder under ``tmp_path`` whose ipa_segment runs ``script`` (Python, ``{python}``
+    its interpreter), and whose build.json holds ``build`` (``vrf``, ``vrf_fix``) beside a source
+    and a commit."""
     env = tmp_path / "ipa-env"
     (env / "bin").mkdir(parents=True)
     driver = env / "bin" / "ipa_segment"
-    driver.write_text(STANDIN.replace("{python}", sys.executable))
+    driver.write_text(script.replace("{python}", sys.executable))
     driver.chmod(driver.stat().st_mode | stat.S_IXUSR)
     (env / "build.json").write_text(json.dumps({"ipa_src": str(tmp_path / "src"), "ipa_commit": "f" * 40,
-                                                "vrf": False}))
+                                                **build}))
     return env
+
+
+@pytest.fixture
+def standin(tmp_path: Path) -> Path:
+    """A build folder whose ipa_segment is the stand-in."""
+    return standin_build(tmp_path, STANDIN, vrf=False)
 
 
 def _bench(tmp_path: Path, env_dir: Path | None, *args: str, mode: str = "ok", extra_env: dict | None = None,

@@ -16,16 +16,9 @@ from benchmark.segmenters import voronoi_original as original
 from benchmark.segmenters.voronoi import Voronoi, prune_spurs
 from envs.maps.gridmap import GridMap
 from tests.test_ipa import NEEDS_BUILD
-
-
-def two_rooms() -> GridMap:
-    """Two 4 x 4 m rooms (0.05 m/px) joined by a 0.8 m door (columns 82-83, rows 34-49)."""
-    walk = np.zeros((84, 166), bool)
-    walk[2:82, 2:82] = True
-    walk[2:82, 84:164] = True
-    walk[34:50, 82:84] = True
-    return GridMap(walk, 0.05, (0.0, 0.0))
-
+from tests.test_ipa_ports import (
+    two_rooms,  # two 4 x 4 m rooms at 0.05 m/px, a 0.8 m door (columns 82-83, rows 34-49)
+)
 
 # ---------------------------------------------------------------- the critical-point rule
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import json
 import re
-import stat
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +18,7 @@ from benchmark.commands.maintainer import vrf_causes
 from benchmark.commands.maintainer.vrf_causes import COLUMNS, one_class, summary, table
 from benchmark.segmenters.ipa import PAD_PX, IpaSegmenter, ipa_build, ipa_image, labels_to_instances
 from envs.maps.gridmap import GridMap
+from tests.test_ipa import standin_build
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -98,14 +97,7 @@ print("rooms 1")
 
 @pytest.fixture
 def standin(tmp_path: Path) -> Path:
-    env = tmp_path / "ipa-env"
-    (env / "bin").mkdir(parents=True)
-    driver = env / "bin" / "ipa_segment"
-    driver.write_text(STANDIN.replace("{python}", sys.executable))
-    driver.chmod(driver.stat().st_mode | stat.S_IXUSR)
-    (env / "build.json").write_text(json.dumps({"ipa_src": str(tmp_path / "src"), "ipa_commit": "f" * 40,
-                                                "vrf": True, "vrf_fix": True}))
-    return env
+    return standin_build(tmp_path, STANDIN, vrf=True, vrf_fix=True)
 
 
 def _argv(env: Path) -> dict:
