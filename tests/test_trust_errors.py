@@ -58,12 +58,43 @@ def big_example(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("big")
     subprocess.run([sys.executable, "-m", "benchmark.commands.segment_example", str(out), "--rooms", "20x20",
                     "--no-gt"], cwd=ROOT, env=ENV, check=True, capture_output=True, timeout=300)
-    # one whole run first: numba's cache then holds every kernel the command uses, so the Ctrl-C
-    # below never lands while numba compiles (its cache callback swallows a KeyboardInterrupt)
+    # one whole run first: numba's cache then holds the kernels the command uses, so the Ctrl-C
+    # below lands in the command's work rather than in its first compilation
     subprocess.run([str(BIN / "roomseg-segment"), f"map={out / 'map.yaml'}", f"poses={out / 'poses.csv'}", "frame=ros",
                     f"labels={out / 'labels.csv'}", f"out={tmp_path_factory.mktemp('warm') / 'seg'}"],
                    cwd=ROOT, env=ENV, check=True, capture_output=True, timeout=600)
     return out
+
+
+_CALLBACK_CTRL_C = """
+import atexit, ctypes, ctypes.util, os, signal, sys
+from pathlib import Path
+from benchmark.commands.cli import handle_interrupts
+handle_interrupts()
+atexit.register(lambda: Path(sys.argv[1]).write_text("cleaned"))
+libc = ctypes.CDLL(ctypes.util.find_library("c"))
+CMP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int))
+def cmp(a, b):
+    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C lands while Python runs the callback
+    return a[0] - b[0]
+values = (ctypes.c_int * 4)(3, 1, 2, 0)
+libc.qsort(values, 4, ctypes.sizeof(ctypes.c_int), CMP(cmp))
+print("went on")
+"""
+
+
+def test_ctrl_c_inside_a_ctypes_callback_still_stops_the_command(tmp_path):
+    """Before: a Ctrl-C that landed while numba's compiler was in llvmlite's object-cache
+    callback was printed as "Exception ignored on calling ctypes callback function" and the
+    command finished with exit 0 (CI of stop 65). The same with libc's qsort calling back into
+    Python: one line, exit 130, the atexit cleanup ran, nothing after the call ran."""
+    marker = tmp_path / "cleanup"
+    r = subprocess.run([sys.executable, "-c", _CALLBACK_CTRL_C, str(marker)], cwd=ROOT, env=ENV,
+                       capture_output=True, text=True, timeout=60, preexec_fn=default_sigint)
+    assert r.returncode == 130, r.stderr[-2000:]
+    assert len(_lines(r.stderr)) == 1 and _lines(r.stderr)[0].endswith(": interrupted"), r.stderr
+    assert "went on" not in r.stdout and "Exception ignored" not in r.stderr
+    assert marker.read_text() == "cleaned"
 
 
 @NEEDS_PROC

@@ -174,6 +174,19 @@ def handle_interrupts() -> None:
     hook._roomseg_interrupts = True  # type: ignore[attr-defined]
     sys.excepthook = hook
 
+    # A Ctrl-C that lands while Python runs a ctypes callback (numba's compiler calls back into
+    # llvmlite's object cache) or a ``__del__`` cannot propagate: Python reports it as
+    # "Exception ignored ..." and the command went on to finish with exit 0. Such exceptions
+    # reach sys.unraisablehook; a KeyboardInterrupt there is the same Ctrl-C.
+    previous_unraisable = sys.unraisablehook
+
+    def unraisable(info):  # noqa: ANN001 - sys.unraisablehook's signature
+        if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+            interrupted()
+        previous_unraisable(info)
+
+    sys.unraisablehook = unraisable
+
 
 def one_line_warnings(prog: str | None = None) -> None:
     """Print warnings as one line each, ``<prog>: warning: <message>`` (the category's name
