@@ -224,8 +224,10 @@ def test_the_cache_entry_keeps_convergence_and_the_online_views():
         est = OdometrySlam(**kw, views_at=views_at, max_iterations=cap).estimate(scene.grid, poses, "h")
         back = check_slam_entry(slam_arrays(est), len(poses))
         assert back.converged == est.converged and back.iterations == est.iterations
-        np.testing.assert_array_equal(back.views, est.views)
-        assert (back.online is None) == (views_at == "final")
+        # the entry serves both settings: it keeps the online views either way, the stage chooses
+        assert back.online is not None and back.online.shape == (len(poses), 3)
+        np.testing.assert_array_equal(back.online, est.online)
+        np.testing.assert_array_equal(back.view_poses(views_at), est.views)
     old = {k: v for k, v in slam_arrays(est).items() if k != "converged"}  # an entry from before
     with pytest.raises(BadEntry, match="converged"):
         check_slam_entry(old, len(poses))
@@ -262,6 +264,14 @@ def test_views_at_online_and_final_through_the_stage():
     np.testing.assert_allclose(onl.views[early, :2], onl.odometry[onl.view_index[early], :2], atol=1e-6)
     got, _ = OdometrySlam(**kw, views_at="online")(poses, scene.grid, "h")
     np.testing.assert_array_equal(got, onl.views)
+    # one estimate serves both settings (views_final_1 takes slam_3's cache entry and map): the
+    # final views' stage handed the online stage's estimate back gives the final views
+    np.testing.assert_array_equal(fin.online, onl.online)
+    stage = OdometrySlam(**kw, views_at="final")
+    stage.remember(scene.grid, poses, "h", None, onl)
+    got, _ = stage(poses, scene.grid, "h")
+    np.testing.assert_array_equal(got, fin.views)
+    assert not np.allclose(got, onl.views)
 
 
 def test_bad_back_end_settings_are_one_line():
@@ -309,6 +319,25 @@ def test_the_final_views_condition_is_slam_3_with_views_at_final():
     final = OmegaConf.to_container(compose(overrides=["corruption=views_final_1"]).pose_error)
     assert online.pop("views_at") == "online" and final.pop("views_at") == "final" and online == final
     assert "views_final" in FAMILIES and "views_final" in LABELLED and defined_severities()["views_final"] == [1]
+
+
+def test_the_final_views_condition_shares_slam_3s_estimate_and_map_not_its_rows():
+    """views_at only chooses the views' poses from the one estimate: views_final_1's map (and
+    the SLAM entry beside it) has slam_3's key, so the grid solves and maps once for both; the
+    view-based rows (aggregate, score) keep keys of their own."""
+    from benchmark.config import compose
+    from benchmark.harness.runner import stage_keys
+
+    def keys(corruption: str, **group) -> dict:
+        over = [f"corruption={corruption}", *(f"{g}={v}" for g, v in group.items())]
+        return stage_keys(compose(overrides=over), {"corruption": corruption}, "synthetic")
+
+    online, final = keys("slam_3"), keys("views_final_1")
+    assert online["map"] == final["map"]
+    assert online["aggregate"] != final["aggregate"] and online["score"] != final["score"]
+    assert keys("slam_3")["map"] != keys("slam_4")["map"]  # the estimate's own settings still count
+    seg_online, seg_final = keys("slam_3", segmenter="voronoi"), keys("views_final_1", segmenter="voronoi")
+    assert seg_online["map"] == seg_final["map"]
 
 
 def test_a_solve_that_can_take_no_step_is_not_converged_and_a_minimum_still_is():

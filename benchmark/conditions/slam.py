@@ -48,7 +48,7 @@ from __future__ import annotations
 import math
 import zlib
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -97,8 +97,9 @@ class SlamEstimate:
         rejected: loop closures (true or wrong) the robust back end rejected or down-weighted.
         tracking_lost: tracking losses the front end detected (failed scan matches in a row).
         relocalised: segments after a loss the front end put back on the map (verified place matches).
-        online: (N, 3) each view's pose as the robot estimated it when taking the view
-            (``views_at=online``), or None: the views take ``estimate``.
+        online: (N, 3) each view's pose as the robot estimated it when taking the view (made
+            whatever ``views_at`` says, so that one estimate serves both), or None where no loop
+            closure was found (then it is ``estimate``'s, dead reckoning at every moment).
         odometry_edges: (M-1, 3) the odometry edges the back end got (the front end's fused moves
             between consecutive nodes: dx, dz metres in the earlier node's frame, dphi radians), or
             None where there is no front end (a clean estimate) or it is not kept (a cached one).
@@ -121,11 +122,20 @@ class SlamEstimate:
     odometry_edges: np.ndarray | None = None
     tracking_lost: int = 0
     relocalised: int = 0
+    views_at: str = "online"
 
     @property
     def views(self) -> np.ndarray:
-        """(N, 3) the views' estimated poses: :attr:`online` when set, else the final estimate's."""
-        return self.estimate[self.view_index] if self.online is None else self.online
+        """(N, 3) the views' estimated poses, as :attr:`views_at` says: ``online`` (:attr:`online`
+        where set) or ``final`` (the final estimate's)."""
+        return self.view_poses(self.views_at)
+
+    def view_poses(self, views_at: str) -> np.ndarray:
+        """(N, 3) the views' estimated poses at capture time (``online``) or at the final optimum
+        (``final``)."""
+        if views_at not in ("online", "final"):
+            raise ValueError(f"views_at = {views_at!r}: expected online or final")
+        return self.estimate[self.view_index] if views_at == "final" or self.online is None else self.online
 
     def stats(self) -> dict[str, float]:
         """Row columns: ATE RMSE after rigid alignment of the whole trajectory (metres), the same
@@ -239,6 +249,8 @@ class OdometrySlam:
         """Keep ``est`` as :meth:`estimate`'s answer for these arguments (the last four kept):
         a caller that stored an estimate made with these settings hands it back here."""
         key = self._key(grid, poses, house_id, spacing, obstacles)[0]
+        if est.views_at != self.views_at:  # one estimate serves both: its views as this stage takes them
+            est = replace(est, views_at=self.views_at)
         self._memo[key] = est
         while len(self._memo) > 4:
             self._memo.popitem(last=False)
@@ -294,17 +306,19 @@ class OdometrySlam:
             except RuntimeError as e:  # GTSAM's reason runs over lines: one line, the house named
                 raise RuntimeError(f"house {house_id!r}: pose-graph solve: {gtsam_reason(e)}") from None
             chi2, dof = solved["chi2"], solved["dof"]
-            if self.views_at == "online":
-                # online, the closures that put a lost segment back on the map join without the kernel
-                plain = np.concatenate([np.zeros(n - 1, bool), fe.relocalising_mask()])
-                try:
-                    views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width, plain))
-                except RuntimeError as e:
-                    raise RuntimeError(f"house {house_id!r}: {gtsam_reason(e)}") from None
+            # the online views whatever views_at says: one estimate (and one cache entry, one
+            # map) for both settings, which only choose the views' poses from it.
+            # Online, the closures that put a lost segment back on the map join without the kernel
+            plain = np.concatenate([np.zeros(n - 1, bool), fe.relocalising_mask()])
+            try:
+                views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width, plain))
+            except RuntimeError as e:
+                raise RuntimeError(f"house {house_id!r}: {gtsam_reason(e)}") from None
         return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,
                             float(np.hypot(*np.diff(true[:, :2], axis=0)[kidnapped].T).sum()),
                             bool(solved["converged"]), int(solved["iterations"]), int(solved["outliers"]),
-                            online=views, odometry_edges=fe.z, tracking_lost=int(fe.tracking_lost), relocalised=int(fe.relocalised))
+                            online=views, odometry_edges=fe.z, tracking_lost=int(fe.tracking_lost), relocalised=int(fe.relocalised),
+                            views_at=self.views_at)
 
     def _kidnap(self, travelled: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(M-1,) bool moves made while carried: ``kidnap_m`` metres of route from a point drawn
@@ -341,7 +355,7 @@ class OdometrySlam:
             extra = {"ate_rmse_m": 0.0}
         else:
             est = self.estimate(grid, route_poses, house_id, spacing, obstacles)
-            noisy = est.views[subsequence(route_poses, poses)]
+            noisy = est.view_poses(self.views_at)[subsequence(route_poses, poses)]
             extra = est.stats()
         stats = pose_error_stats(poses, noisy, grid)
         stats.update(extra)

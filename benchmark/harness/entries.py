@@ -149,7 +149,8 @@ _SLAM_SCALARS = ("chi2", "dof", "kidnapped_m", "converged", "iterations", "rejec
 
 def slam_arrays(est) -> dict[str, np.ndarray]:
     """A :class:`benchmark.conditions.slam.SlamEstimate` as named arrays (a cache entry; ``online``
-    (0, 3) when the views take the final estimate)."""
+    (0, 3) where the estimate has none, no loop closure found). ``views_at`` is not kept: the
+    entry serves both settings, and the stage it is handed back to chooses."""
     out = {k: np.asarray(getattr(est, k)) for k in _SLAM_ARRAYS if k != "online"}
     out["online"] = np.zeros((0, 3)) if est.online is None else np.asarray(est.online, np.float64)
     out.update({k: np.asarray(getattr(est, k)) for k in _SLAM_SCALARS})

@@ -102,7 +102,10 @@ def stage_keys(cfg: DictConfig, names: Mapping[str, str], dataset: str) -> dict[
     classify = config_key("classify", render, _plain(cfg.get("classifier")))
     keys = {"render": render, "classify": classify}
     if "mapping" in robot:  # the robot's map: the house, the views it drove through, the mapping
-        slam = [{"pose_error": robot["pose_error"]}] if shapes_map(robot) else []
+        # views_at only chooses the views' poses from the one estimate: the estimate and the map
+        # it places the scans at are the same either way, so views_final_1 shares slam_3's
+        slam = [{"pose_error": {k: v for k, v in robot["pose_error"].items() if k != "views_at"}}] \
+            if shapes_map(robot) else []
         keys["map"] = config_key("map", salt, env, _plain(cfg.get("viewpoints")), robot["mapping"], *slam)
     if cfg.get("segmenter") is not None:
         parts = [{"mapping": keys["map"]}] if "mapping" in robot else []
