@@ -181,3 +181,48 @@ def test_the_timing_grid_is_the_fresh_clone_one():
     recipe = recipe[:recipe.index("\n\n")]
     assert "no ipa rows" in recipe.splitlines()[0]  # its help line says so
     assert "$(MAKE) --no-print-directory robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) ROBUST_IPA=0" in recipe
+
+
+def _run_with_ipa(tmp_path: Path) -> Path:
+    rows = _rows()
+    rows["pq"] = rows["matched_iou"] * 0.9  # the docs block reports PQ beside matched IoU
+    run = tmp_path / "runs" / "robustness"
+    main, ipa = rows[~rows["method"].str.startswith("ipa_")], rows[rows["method"].str.startswith("ipa_")]
+    for m in MAIN:
+        _job(run / m.replace(" ", "_").replace("+", "_"), main[main["method"] == m])
+    for m in IPA:
+        _job(run / "ipa" / m, ipa[ipa["method"] == m])
+    return run
+
+
+def test_the_html_report_and_the_docs_block_show_the_ipa_table(tmp_path):
+    """Before: the ipa rows' table was only on the summary page (robustness.md); the HTML report's
+    robustness section and docs/robustness.md's generated block showed the main tables alone.
+    Known means over h1..h3: ipa_voronoi clean 0.90 + 0.04 + 0.005 * 2 = 95.0; the port distance
+    there 65.0, and 62.5 over the eight houses of the main table."""
+    import re
+
+    from benchmark.reports.html_report import _robustness_section
+    from benchmark.reports.readme_tables import _robustness_block
+    from benchmark.reports.tables import load_rows
+
+    run = _run_with_ipa(tmp_path)
+    html = _robustness_section([run], [(None, None, load_rows([run]))])
+    ipa_table = html.split('class="robust-table ipa-table"', 1)[1].split("</table>", 1)[0]
+    cell = re.search(r"<tr><td>ipa_voronoi</td><td[^>]*>([0-9.]+)<", ipa_table)
+    assert cell and cell.group(1) == "95.0"
+    assert re.search(r"<tr><td>distance</td><td[^>]*>65\.0<", ipa_table)
+    assert "on houses of its own: 3 house(s) (h1, h2, h3)" in html
+    main_table = html.split('class="robust-table"', 1)[1].split("</table>", 1)[0]
+    assert "ipa_voronoi" not in main_table and re.search(r"<tr><td>distance</td><td[^>]*>62\.5<", main_table)
+
+    from benchmark.reports.readme_tables import PROVENANCE, PUBLISHED
+
+    prov = tmp_path / PUBLISHED / "robustness" / PROVENANCE
+    prov.parent.mkdir(parents=True)
+    prov.write_text(json.dumps({"command": "make robustness", "date_utc": "2026-01-02", "commit": "abc1234"}))
+    block = _robustness_block(tmp_path, [run], ["robustness"])
+    assert "ipa_room_segmentation (matched IoU in percent, mean [95 % interval]; the authors' C++" in block
+    ipa_lines = block.split("ipa_room_segmentation (", 1)[1]
+    assert re.search(r"\| ipa_voronoi \| 95\.0", ipa_lines)
+    assert "ipa_voronoi" not in block.split("ipa_room_segmentation (", 1)[0]  # in no main cell

@@ -108,19 +108,6 @@ def earlier_nested_sweeps(paths: Sequence[str | Path]) -> list[tuple[Path, str]]
     return out
 
 
-def apart_lines(apart: dict, dataset: str, words: str) -> list[str]:
-    """robustness.md's section of the ipa rows of one dataset and metric (:func:`rb.apart_summary`):
-    their houses and conditions, the table beside the ports on those houses, its notes."""
-    houses = apart["houses"]
-    return [f"ipa_room_segmentation ({words}; the authors' C++, `make ipa-env`) beside the ports, on houses of its "
-            f"own: {len(houses)} house(s) ({', '.join(houses)}) under {len(apart['conditions'])} condition(s) "
-            f"({', '.join(apart['conditions'])}); the ports' rows here are theirs on the same houses. Reported apart: "
-            f"in no mean, mCE, reference, ranking or verdict above, which are over the other house set"
-            + (f"; left out (failed in a row of this table): {', '.join(apart['dropped'])}" if apart["dropped"] else "")
-            + ".", "", rb.to_markdown(apart["table"]) if len(apart["table"].columns) else "(no cell)",
-            *[f"- {n}" for n in apart["notes"]], ""]
-
-
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
            delta: float = rb.DELTA, last_sweep: bool = False) -> str:
     """The Markdown of every table (and, with ``out``, the files). ``last_sweep``: only the jobs
@@ -205,7 +192,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
                    f"[{r.lo:+.1f}, {r.hi:+.1f}]" for r in sig.itertuples()]
             md.append("")
         if p.get("apart") is not None:
-            md += apart_lines(p["apart"], dataset, words)
+            md += rb.apart_lines(p["apart"], words)
             if out is not None and len(p["apart"]["table"].columns):
                 p["apart"]["table"].round(4).to_csv(out / f"robustness_{dataset}_{metric}_ipa.csv")
                 (out / f"robustness_{dataset}_{metric}_ipa.md").write_text(rb.to_markdown(p["apart"]["table"]),

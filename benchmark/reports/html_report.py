@@ -442,6 +442,27 @@ def _house_section(hid: str, jobs) -> str:
     return "".join(out)
 
 
+def _apart_table(apart: dict) -> str:
+    """The robustness section's table of the ipa rows of one dataset (:func:`benchmark.reports.
+    robustness.apart_summary`): matched IoU per condition beside the ports on the same houses,
+    reported apart, and its notes."""
+    table, houses = apart["table"], apart["houses"]
+    lead = (f"ipa_room_segmentation (the authors' C++, <code>make ipa-env</code>) beside the ports, on houses of "
+            f"its own: {len(houses)} house(s) ({_esc(', '.join(houses))}); matched IoU in percent with its 95 % "
+            "interval; reported apart, in no mean, mCE, reference or ranking above"
+            + (f"; left out (failed in a row of this table): {_esc(', '.join(apart['dropped']))}"
+               if apart["dropped"] else "") + ".")
+    notes = "".join(f'<p class="muted">{_esc(n)}</p>' for n in apart["notes"])
+    cols = list(apart["conditions"])
+    if not cols or not len(table.columns):
+        return f'<p class="muted">{lead}</p>{notes}'
+    head = "".join(f'<th class="num">{_esc(c)}</th>' for c in cols)
+    body = "".join(f"<tr><td>{_esc(m)}</td>" + "".join(_robust_cell(table, m, c) for c in cols) + "</tr>"
+                   for m in table.index)
+    return (f'<p class="muted">{lead}</p><table class="robust-table ipa-table"><thead><tr><th>method</th>{head}'
+            f"</tr></thead><tbody>{body}</tbody></table>{notes}")
+
+
 def _robust_cell(table: pd.DataFrame, m: str, c: str) -> str:
     """One cell of the robustness table: the number and its 95 % interval (a dash when missing)."""
     v, lo, hi = (table.loc[m, k] if k in table else float("nan") for k in (c, f"{c} lo", f"{c} hi"))
@@ -505,7 +526,11 @@ def _robustness_section(run_dirs: Sequence[str | Path], jobs) -> str:
         out += [f"<h3>{_esc(formatting.value_label('dataset', dataset))}</h3>",
                 f'<p class="muted">{part["houses"]} houses per cell{_esc(dropped)}.</p>',
                 f'<table class="robust-table"><thead><tr><th>method</th>{head}</tr></thead><tbody>{body}</tbody></table>',
-                "".join(f'<p class="muted">{_esc(n)}</p>' for n in part["notes"]), '<div class="robust">']
+                "".join(f'<p class="muted">{_esc(n)}</p>' for n in part["notes"])]
+        apart = part.get("apart")
+        if apart is not None:  # the authors' ipa_room_segmentation on houses of its own, beside the ports
+            out.append(_apart_table(apart))
+        out.append('<div class="robust">')
         with tempfile.TemporaryDirectory() as tmp:
             for family in rb.FAMILIES:
                 if family not in set(part["cells"]["corruption"]) or family in rb.LABELLED:  # no ladder to draw

@@ -358,8 +358,10 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
     (``realistic`` apart), and what the intervals support in words (rankings in groups no
     paired interval separates; where the best view-based and the best geometric method are
     ahead, tied or change places); the curves that rise with severity beyond chance; the power
-    report (how many houses 3 points need; the smallest difference this run detects); with
-    ``power_only``, the power report alone (the README's block)."""
+    report (how many houses 3 points need; the smallest difference this run detects); the table
+    of the authors' ipa_room_segmentation beside the ports, on its houses of its own, where the
+    run has those rows (:func:`benchmark.reports.robustness.apart_lines`); with ``power_only``,
+    the power report alone (the README's block)."""
     from benchmark.reports import robustness as rb
     from benchmark.reports.tables import load_rows
     from benchmark.stats import METHOD_WORDS
@@ -398,6 +400,8 @@ def _robustness_block(root: Path, paths: Sequence[Path], sources: Sequence[str],
                     f"{r.method} / {rb.FAMILY_WORDS.get(r.family, r.family)} {r.step} +{r.rise:.1f} "
                     f"[{r.lo:+.1f}, {r.hi:+.1f}]" for r in sig.itertuples()) if len(sig) else "none beyond noise")
                 + ".", ""]
+        if p.get("apart") is not None:  # the authors' ipa_room_segmentation, on houses of its own
+            out += rb.apart_lines(p["apart"], "matched IoU in percent, mean [95 % interval]")
         power += rb.power_lines(formatting.value_label("dataset", dataset), p["power"], "matched IoU")
     houses = ["**How many houses** (paired differences of two methods under one condition; "
               f"{METHOD_WORDS}):", "", *[f"- {x}" for x in power], ""]

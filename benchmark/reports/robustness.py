@@ -806,6 +806,21 @@ def apart_summary(own: pd.DataFrame, rest: pd.DataFrame, metric: str, beside: Se
     return {"table": table, "houses": shown, "dropped": dropped, "notes": notes, "conditions": cols}
 
 
+def apart_lines(apart: dict, words: str) -> list[str]:
+    """The Markdown lines of the ipa rows of one dataset and metric (:func:`apart_summary`; ``words``
+    names the metric): their houses and conditions, the table beside the ports on those houses,
+    its notes. robustness.md (``python -m benchmark.commands.robustness``) and the robustness
+    block of docs/robustness.md (``make readme-tables``) both print it."""
+    houses = apart["houses"]
+    return [f"ipa_room_segmentation ({words}; the authors' C++, `make ipa-env`) beside the ports, on houses of its "
+            f"own: {len(houses)} house(s) ({', '.join(houses)}) under {len(apart['conditions'])} condition(s) "
+            f"({', '.join(apart['conditions'])}); the ports' rows here are theirs on the same houses. Reported apart: "
+            f"in no mean, mCE, reference, ranking or verdict above, which are over the other house set"
+            + (f"; left out (failed in a row of this table): {', '.join(apart['dropped'])}" if apart["dropped"] else "")
+            + ".", "", to_markdown(apart["table"]) if len(apart["table"].columns) else "(no cell)",
+            *[f"- {n}" for n in apart["notes"]], ""]
+
+
 def summarise(rows: pd.DataFrame, metrics: Sequence[str], reference: str | None = None,
               expected: Mapping[str, Sequence[int]] | None = None, n_boot: int = stats.N_BOOT,
               delta: float = DELTA, unrecorded: Collection[str] = ()) -> dict:
@@ -900,4 +915,4 @@ __all__ = ["FAMILIES", "METRICS", "RANKED", "COMPOSITE", "LABELLED", "ABLATION",
            "rank_notes", "family_note", "view_geometric_verdicts", "rising_curves", "summarise", "summary_table",
            "defined_severities", "recorded_severities", "expected_severities", "to_markdown", "to_latex", "family_figure",
            "zero_key", "own_zero_families", "own_zero_note", "condition_columns", "OWN_HOUSES_PREFIX",
-           "own_house_rows", "condition_name", "apart_summary"]
+           "own_house_rows", "condition_name", "apart_summary", "apart_lines"]
