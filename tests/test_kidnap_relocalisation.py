@@ -176,3 +176,15 @@ def test_shared_house_00101_solves_at_kidnap_1_and_2(procthor_file, monkeypatch)
         graph, plain = seen["graph"], seen["plain"]
         assert plain.sum() == 2 * est.relocalised and graph.robust[plain].all()
         assert not plain[: graph.n - 1].any()
+
+
+def test_a_relocalising_closure_is_not_entered_twice(house):
+    """Before: the closure search at a relocalised keyframe proposed the pair the relocalisation
+    had just joined, and the graph held it twice (its information counted twice; shared house 2 at
+    kidnap_1: 27 closures, one pair twice). Now every node pair is one edge, and the relocalisation
+    is still made (its two closures are in the graph)."""
+    scene, poses = house
+    est = OdometrySlam(**KIDNAP, kidnap_m=3.0).estimate(scene.grid, poses, "2", 0.5)
+    pairs = np.vstack([est.closures, est.wrong])
+    assert est.relocalised >= 1 and len(pairs) >= 2
+    assert len(np.unique(pairs, axis=0)) == len(pairs), pairs

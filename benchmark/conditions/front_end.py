@@ -550,6 +550,9 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
                                    pairs, zs, infos, place)
             relocalised += int(on_map[j])
     n_reloc = len(pairs)
+    # the node pairs joined so far: a pair the relocalisation joined is not entered again when the
+    # closure search (or place recognition) proposes it (its information would count twice)
+    joined = {(int(a), int(b)) for a, b in pairs}
     if (st.closure_radius > 0 or st.place_recognition) and n > 1:
         r2 = st.closure_radius ** 2
         for j in range(n):
@@ -570,7 +573,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
             ok = np.flatnonzero(gate <= st.closure_gate) if st.closure_radius > 0 else np.zeros(0, np.int64)
             for t in ok[np.argsort(gate[ok], kind="stable")][: st.closure_candidates]:
                 i = int(cand[t])
-                if not len(points[i]):
+                if not len(points[i]) or (i, j) in joined:
                     continue
                 tried += 1
                 centre = relative(dead, np.array([i]), np.array([j]))[0]
@@ -587,7 +590,8 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
                     break
             else:
                 if st.place_recognition:
-                    p_tried += _recognise(j, points, ref, key, travelled, st, step, desc, pairs, zs, infos, place)
+                    p_tried += _recognise(j, points, ref, key, travelled, st, step, desc, pairs, zs, infos, place,
+                                          joined)
                 continue
             place.append(False)
     pairs = np.array(pairs, np.int64).reshape(-1, 2)
@@ -603,12 +607,14 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
     return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried, relocalised, n_reloc
 
 
-def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place) -> int:
+def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place,
+               joined=frozenset()) -> int:
     """Place recognition at keyframe ``j`` (module docstring, 5): the earlier keyframe whose descriptor
-    is nearest, verified by the matcher; appends an accepted closure. Returns the matches verified (0, 1)."""
+    is nearest, verified by the matcher; appends an accepted closure unless that pair is among
+    ``joined`` (node pairs already in the graph). Returns the matches verified (0, 1)."""
     cand = np.flatnonzero(key & (travelled <= travelled[j] - st.closure_min_travel))
     i, m, verified = _place(j, cand, points, ref, st, step, desc)
-    if m is not None and m.score >= st.place_min_score:
+    if m is not None and m.score >= st.place_min_score and (int(i), int(j)) not in joined:
         pairs.append((i, j))
         zs.append(m.best)
         infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
