@@ -250,6 +250,29 @@ def test_online_views_equal_the_final_ones_when_every_measurement_is_exact():
     assert np.hypot(*(now[-1, :2] - final[-1, :2])) < 0.2 * np.hypot(*(dead[-1, :2] - final[-1, :2]))
 
 
+def test_an_edge_known_later_joins_the_online_estimate_there():
+    """``known_at``: a closure the robot learns only at a later node (a relocalisation confirmed
+    by a second place match) changes no estimate before that node. The circle's closure (2, 9)
+    known at node 11: nodes 9 and 10 read as with no such closure at all; from node 11 on, as with
+    both closures known at 11."""
+    graph, dead, _ = _circle_graph()
+    later = np.maximum(graph.i, graph.j)
+    delayed = later.copy()
+    delayed[-1] = 11  # the closure (2, 9): known at node 11
+    got = online(graph, dead, np.arange(12), kernel="none", known_at=delayed)
+    keep = np.ones(len(graph.i), bool)
+    keep[-1] = False
+    without = PoseGraph(12, graph.i[keep], graph.j[keep], graph.z[keep], graph.sqrt_info[keep], graph.robust[keep])
+    before = online(without, dead, np.arange(11), kernel="none")
+    np.testing.assert_allclose(got[:11], before, atol=1e-9)
+    default = online(graph, dead, np.arange(12), kernel="none")
+    assert np.abs(default[9:11, :2] - got[9:11, :2]).max() > 1e-4  # known at 9 it moves 9 and 10
+    final, _ = solve(graph, dead, kernel="none")
+    assert np.hypot(*(got[11, :2] - final[11, :2])) < 0.2 * np.hypot(*(dead[11, :2] - final[11, :2]))
+    with pytest.raises(ValueError, match="known_at must be at least each edge's later node"):
+        online(graph, dead, np.arange(12), known_at=later - 1)
+
+
 def test_views_at_online_and_final_through_the_stage():
     scene, poses = _loop_poses()
     kw = dict(alpha1=0.01, alpha2=0.01, alpha3=0.01, alpha4=0.001, closure_min_travel=2.0)

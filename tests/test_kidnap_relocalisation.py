@@ -159,9 +159,9 @@ def test_shared_house_00101_solves_at_kidnap_1_and_2(procthor_file, monkeypatch)
     seen = {}
     real_online = slam_module.online
 
-    def spy(graph, initial, nodes, kernel, width, plain=None):
-        seen.update(graph=graph, plain=plain)
-        return real_online(graph, initial, nodes, kernel, width, plain)
+    def spy(graph, initial, nodes, kernel, width, plain=None, known_at=None):
+        seen.update(graph=graph, plain=plain, known_at=known_at)
+        return real_online(graph, initial, nodes, kernel, width, plain, known_at)
 
     monkeypatch.setattr(slam_module, "online", spy)
     for level in ("kidnap_1", "kidnap_2"):
@@ -176,6 +176,14 @@ def test_shared_house_00101_solves_at_kidnap_1_and_2(procthor_file, monkeypatch)
         graph, plain = seen["graph"], seen["plain"]
         assert plain.sum() == 2 * est.relocalised and graph.robust[plain].all()
         assert not plain[: graph.n - 1].any()
+        # each relocalisation's two closures are known online at the node whose match confirmed it
+        # (the later of the two), every other edge at its own later node
+        known, later = seen["known_at"], np.maximum(graph.i, graph.j)
+        reloc = np.flatnonzero(plain)
+        np.testing.assert_array_equal(known[~plain], later[~plain])
+        for a, b in reloc.reshape(-1, 2):
+            assert known[a] == known[b] == max(later[a], later[b])
+        assert (known[reloc] > later[reloc]).any()  # the first of a pair waits for the second
 
 
 def test_a_relocalising_closure_is_not_entered_twice(house):

@@ -249,6 +249,9 @@ class FrontEndResult:
         relocalising: (C,) bool, the closures that put a lost segment back on the map (module docstring,
             6): the online solve takes them without the robust kernel (:func:`benchmark.conditions.pose_graph.online`);
             None: none.
+        known_at: (C,) int, the node at which the robot knows each closure: its later node, but for a
+            relocalising closure the node whose place match confirmed the relocalisation (the later of
+            its two closures' nodes; the online solve adds it there); None: every closure's later node.
     """
 
     z: np.ndarray
@@ -267,12 +270,19 @@ class FrontEndResult:
     tracking_lost: int = 0
     relocalised: int = 0
     relocalising: np.ndarray | None = None
+    known_at: np.ndarray | None = None
 
     def relocalising_mask(self) -> np.ndarray:
         """(C,) bool, :attr:`relocalising` or all False."""
         if self.relocalising is None:
             return np.zeros(len(self.closures), bool)
         return np.asarray(self.relocalising, bool).reshape(len(self.closures))
+
+    def closures_known_at(self) -> np.ndarray:
+        """(C,) int, :attr:`known_at` or each closure's later node."""
+        if self.known_at is None:
+            return np.asarray(self.closures, np.int64).reshape(-1, 2).max(axis=1, initial=0)
+        return np.asarray(self.known_at, np.int64).reshape(len(self.closures))
 
 
 def robot_points(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray, scanner: ScanSettings) -> list[np.ndarray]:
@@ -365,8 +375,13 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
                                                  math.log(EPS), EPS, int(st.lost_after), weak)
     pairs, zc, infos, wrong, tried, place, place_tried, relocalised, n_reloc = _closures(
         points, ref, dead, cov, true_states, travelled, key, st, step, broken)
+    # the robot knows a closure at its later node; a relocalisation's two closures (the first
+    # n_reloc pairs, each relocalisation's two appended together) only once the second confirms it
+    known = pairs.max(axis=1, initial=0) if len(pairs) else np.zeros(0, np.int64)
+    for a in range(0, n_reloc, 2):
+        known[a:a + 2] = known[a:a + 2].max()
     return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried,
-                          broken, int(lost), relocalised, np.arange(len(pairs)) < n_reloc)
+                          broken, int(lost), relocalised, np.arange(len(pairs)) < n_reloc, known)
 
 
 @njit(cache=True, nogil=True)

@@ -287,10 +287,10 @@ def solve(graph: PoseGraph, initial: np.ndarray, kernel: str = "cauchy", width: 
 
 
 def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str = "cauchy",
-           width: float = 3.37, plain: np.ndarray | None = None) -> np.ndarray:
+           width: float = 3.37, plain: np.ndarray | None = None, known_at: np.ndarray | None = None) -> np.ndarray:
     """The estimate the robot had of each of ``nodes`` when it reached it: iSAM2 updated in travel
-    order (node k joins with every edge whose later node is k), each node's pose read right after
-    it joined.
+    order (node k joins with every edge whose later node is k, or that ``known_at`` makes known
+    at k), each node's pose read right after it joined.
 
     A node whose only new edge is the odometry edge from node k - 1 changes no earlier estimate:
     its pose is its predecessor's current estimate composed with that edge's measurement (what
@@ -318,6 +318,9 @@ def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str
             a loop closure starts at its predecessor's estimate composed with the dead-reckoning move.
         nodes: (V,) node indices wanted (the views' nodes).
         plain: (E,) bool, robust edges taken without the kernel here; None: none.
+        known_at: (E,) int, the node at which the robot learns each edge (at least its later node:
+            a relocalising closure is known only when a second place match confirms it); None:
+            every edge at its later node.
 
     Returns:
         (V, 3) states.
@@ -333,6 +336,11 @@ def online(graph: PoseGraph, initial: np.ndarray, nodes: np.ndarray, kernel: str
     gtsam = _gtsam()
     n = graph.n
     later = np.maximum(graph.i, graph.j)
+    if known_at is not None:
+        known_at = np.asarray(known_at, np.int64).reshape(len(graph.i))
+        if (known_at < later).any() or (known_at >= n).any():
+            raise ValueError(f"online: known_at must be at least each edge's later node and below {n}")
+        later = known_at
     order = np.argsort(later, kind="stable")
     bounds = np.searchsorted(later[order], np.arange(n + 1))
     robust = graph.robust_mask()

@@ -310,8 +310,10 @@ class OdometrySlam:
             # map) for both settings, which only choose the views' poses from it.
             # Online, the closures that put a lost segment back on the map join without the kernel
             plain = np.concatenate([np.zeros(n - 1, bool), fe.relocalising_mask()])
+            known = np.concatenate([np.arange(1, n), fe.closures_known_at()])  # when the robot learns each edge
             try:
-                views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width, plain))
+                views = from_se2(online(graph, dead, view_index, self.robust_kernel, self.kernel_width, plain,
+                                        known))
             except RuntimeError as e:
                 raise RuntimeError(f"house {house_id!r}: {gtsam_reason(e)}") from None
         return SlamEstimate(true, from_se2(est), from_se2(dead), view_index, travelled, closures, wrong, chi2, dof,

@@ -79,7 +79,8 @@ LEADING_COLUMNS = ("house_id", "dataset", "env", "viewpoints", "renderer", "clas
 #: ``empty`` walls no longer drawn, so scenes changed with no change in any config; 3: the kidnapped
 #: robot's relocalising closures join the online solve without the robust kernel, so the online
 #: view poses of lost and kidnap levels changed; 4: a relocalising closure that the closure search
-#: proposes again is not entered twice, so estimates after a tracking loss changed).
+#: proposes again is not entered twice, and the online solve takes a relocalisation's closures at
+#: the node that confirmed it, so estimates after a tracking loss changed).
 CACHE_VERSION = 4
 
 
