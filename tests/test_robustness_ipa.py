@@ -124,17 +124,24 @@ def _sweep(folder: Path, jobs: list[str], started: str, finished: str) -> None:
                                                         "command": [], "jobs": jobs}))
 
 
-def test_the_summary_page_names_the_ipa_houses_and_leaves_an_earlier_runs_out(tmp_path, monkeypatch):
-    # the severities' settings table (a config composed per conf/corruption file) is not what this
-    # tests, and is most of the page's time
-    monkeypatch.setattr(robustness_command, "severity_settings", lambda: {})
+def _run_with_ipa(tmp_path: Path) -> Path:
+    """A main sweep of the three ports and an ipa sweep of its own under it, one job folder a method."""
     rows = _rows()
+    rows["pq"] = rows["matched_iou"] * 0.9  # the docs block reports PQ beside matched IoU
     run = tmp_path / "runs" / "robustness"
     main, ipa = rows[~rows["method"].str.startswith("ipa_")], rows[rows["method"].str.startswith("ipa_")]
     for m in MAIN:
         _job(run / m.replace(" ", "_").replace("+", "_"), main[main["method"] == m])
     for m in IPA:
         _job(run / "ipa" / m, ipa[ipa["method"] == m])
+    return run
+
+
+def test_the_summary_page_names_the_ipa_houses_and_leaves_an_earlier_runs_out(tmp_path, monkeypatch):
+    # the severities' settings table (a config composed per conf/corruption file) is not what this
+    # tests, and is most of the page's time
+    monkeypatch.setattr(robustness_command, "severity_settings", lambda: {})
+    run = _run_with_ipa(tmp_path)
     _sweep(run, [m.replace(" ", "_").replace("+", "_") for m in MAIN], "2026-01-02T10:00:00+00:00",
            "2026-01-02T11:00:00+00:00")
     _sweep(run / "ipa", list(IPA), "2026-01-02T11:00:01+00:00", "2026-01-02T11:05:00+00:00")
@@ -181,18 +188,6 @@ def test_the_timing_grid_is_the_fresh_clone_one():
     recipe = recipe[:recipe.index("\n\n")]
     assert "no ipa rows" in recipe.splitlines()[0]  # its help line says so
     assert "$(MAKE) --no-print-directory robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) ROBUST_IPA=0" in recipe
-
-
-def _run_with_ipa(tmp_path: Path) -> Path:
-    rows = _rows()
-    rows["pq"] = rows["matched_iou"] * 0.9  # the docs block reports PQ beside matched IoU
-    run = tmp_path / "runs" / "robustness"
-    main, ipa = rows[~rows["method"].str.startswith("ipa_")], rows[rows["method"].str.startswith("ipa_")]
-    for m in MAIN:
-        _job(run / m.replace(" ", "_").replace("+", "_"), main[main["method"] == m])
-    for m in IPA:
-        _job(run / "ipa" / m, ipa[ipa["method"] == m])
-    return run
 
 
 def test_the_html_report_and_the_docs_block_show_the_ipa_table(tmp_path):

@@ -16,9 +16,9 @@ import pytest
 
 from benchmark.commands.maintainer import vrf_causes
 from benchmark.commands.maintainer.vrf_causes import COLUMNS, one_class, summary, table
-from benchmark.segmenters.ipa import PAD_PX, IpaSegmenter, ipa_build, ipa_image, labels_to_instances
+from benchmark.segmenters.ipa import PAD_PX, IpaSegmenter, ipa_image, labels_to_instances
 from envs.maps.gridmap import GridMap
-from tests.test_ipa import standin_build
+from tests.test_ipa import BUILD, standin_build
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -167,16 +167,6 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, monkeypatch):
 
 
 # ---------------------------------------------------------------- with the build and the release
-def _build_or_none():
-    try:
-        return ipa_build()
-    except FileNotFoundError as e:
-        return str(e)
-
-
-BUILD = _build_or_none()
-
-
 def _selros() -> Path | None:
     from benchmark.baselines.selros import default_selros_dir
 

@@ -187,6 +187,19 @@ def report(df: pd.DataFrame, sources: list[str], houses: int, seed_start: int) -
     return "\n\n".join(parts)
 
 
+def selros_scoring(data: Path) -> tuple[object, float]:
+    """(metric parameters, metres a pixel) of the SeLRoS release at ``data``: the score command's
+    ``external=vrf`` configuration over its VRF and ground-truth folders."""
+    from hydra.utils import instantiate
+
+    from benchmark.baselines.selros import GT_FOLDER
+    from benchmark.commands.selros import _quote, compose_score
+
+    cfg = compose_score(["external=vrf", f"external.pred_dir={_quote(data / 'vrf')}",
+                         f"external.gt_dir={_quote(data / GT_FOLDER)}"])
+    return instantiate(cfg.metrics), float(instantiate(cfg.external).resolution)
+
+
 def selros_maps(data: Path, limit: int | None, resolution: float, params  # noqa: ANN001
                 ) -> Iterator[tuple[str, str, object, np.ndarray]]:
     from benchmark.baselines.external import _glob_ids, read_gt
@@ -240,10 +253,9 @@ def _progress(maps: Iterable, label: str, total: int) -> Iterable:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hydra.utils import instantiate
 
-    from benchmark.baselines.selros import GT_FOLDER, default_selros_dir
-    from benchmark.commands.selros import _quote, compose_score, ipa_line
+    from benchmark.baselines.selros import default_selros_dir
+    from benchmark.commands.selros import ipa_line
     from benchmark.paths import data_dir
 
     ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
@@ -279,9 +291,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: the {SOURCE_NAMES[source]} are not at {folder} (give {flag} DIR)", file=sys.stderr)
             return 2
     try:
-        cfg = compose_score(["external=vrf", f"external.pred_dir={_quote(data / 'vrf')}",
-                             f"external.gt_dir={_quote(data / GT_FOLDER)}"])
-        params, res = instantiate(cfg.metrics), float(instantiate(cfg.external).resolution)
+        params, res = selros_scoring(data)
         parts = []
         for source in sources:
             if source == "selros":

@@ -166,11 +166,9 @@ def run_maps(maps: Iterable[tuple[str, str, object, np.ndarray]], params, own: f
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hydra.utils import instantiate
-
-    from benchmark.baselines.selros import GT_FOLDER, default_selros_dir
-    from benchmark.commands.ipa_ports import selros_maps
-    from benchmark.commands.selros import _quote, compose_score, ipa_line
+    from benchmark.baselines.selros import default_selros_dir
+    from benchmark.commands.ipa_ports import selros_maps, selros_scoring
+    from benchmark.commands.selros import ipa_line
     from benchmark.harness.progress import house_progress
 
     ap = cli.ArgumentParser(from_root=True, description=__doc__.split("\n\n")[0])
@@ -188,9 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: the SeLRoS release is not at {data} (give --data DIR)", file=sys.stderr)
         return 2
     try:
-        cfg = compose_score(["external=vrf", f"external.pred_dir={_quote(data / 'vrf')}",
-                             f"external.gt_dir={_quote(data / GT_FOLDER)}"])
-        params, res = instantiate(cfg.metrics), float(instantiate(cfg.external).resolution)
+        params, res = selros_scoring(data)
         maps = selros_maps(data, a.limit, res, params)
         wrap = house_progress("vrf causes · selros", workers=1)
         df = run_maps(wrap(maps, total=a.limit or 30) if wrap else maps, params, res)
