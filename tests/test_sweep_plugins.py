@@ -301,3 +301,39 @@ def test_kill9_of_the_launching_process_leaves_no_worker(tmp_path, start_method)
     os.kill(p.pid, signal.SIGKILL)
     p.wait(timeout=30)
     assert gone_within(p.pid, 5.0) == []
+
+
+def test_a_worker_keeps_its_heap_apart_and_frees_what_died_since():
+    """Before a sweep worker's 1st, 2nd, 4th, ... job its heap is collected and frozen (no full
+    collection walks it again); what died since (a cycle let go of between freezes) is freed at
+    the next one; a process that is not a sweep worker is left alone."""
+    code = textwrap.dedent("""
+        import gc, weakref
+        from hydra_plugins.roomseg_sweep import roomseg_sweep as rs
+
+        class Cycle:
+            pass
+
+        rs._keep_heap_apart()  # not a worker: nothing frozen
+        assert gc.get_freeze_count() == 0, gc.get_freeze_count()
+        rs._HEAP[:] = [0, True]  # as _init_worker leaves a worker
+        kept = Cycle(); kept.me = kept
+        rs._keep_heap_apart()  # job 1: frozen
+        frozen = gc.get_freeze_count()
+        assert frozen > 0
+        gone = weakref.ref(kept)
+        del kept  # a cycle kept through job 1, let go of before job 2: frozen, not collected
+        gc.collect()
+        assert gone() is not None
+        rs._keep_heap_apart()  # job 2: unfrozen, collected, frozen again
+        assert gone() is None
+        assert gc.get_freeze_count() > 0
+        made = Cycle(); made.me = made
+        rs._keep_heap_apart()  # job 3: not a power of two, nothing done
+        counts = gc.get_freeze_count()
+        rs._keep_heap_apart()  # job 4
+        assert gc.get_freeze_count() > counts
+        print("ok")
+    """)
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert p.returncode == 0 and p.stdout.strip() == "ok", p.stderr[-2000:]
