@@ -277,3 +277,31 @@ def test_each_row_configuration_and_method_name_are_those_written_out_row_by_row
     assert len(set(want_config)) == 13 and {"ROSE2", "SeLRoS", "voronoi", "grid", "oracle@0.8+graph_knn +post",
                                             "oracle@0.9+graph_knn +post", "oracle@0+graph_knn +post",
                                             "oracle@-0+graph_knn +post"} <= set(want_method)
+
+
+def test_rows_read_on_forked_processes_are_the_rows_read_here(tmp_path, monkeypatch):
+    """Many files are read on forked processes (runs of consecutive files): the same frame as
+    reading them one after the other here (columns in their order of first appearance, a column
+    only some jobs have, an older job's row set aside), and a bad file is named the same way."""
+    import benchmark.reports.tables as tables
+
+    runs = tmp_path / "runs"
+    for j in range(9):
+        extra = {"only_some": 0.5 * j} if j % 4 == 1 else {}
+        _job(runs / "x" / f"j{j}", {"aggregator.k": j % 3}, [_row(f"h{i}", 0.1 * (i + j) % 1, **extra) for i in range(3)],
+             finished=f"2026-01-01T10:00:0{j}+00:00")
+    monkeypatch.setenv("ROOMSEG_JOBS", "3")
+    monkeypatch.setattr(tables, "FILES_PER_PROCESS", 10**9)
+    here = load_rows([runs])
+    monkeypatch.setattr(tables, "FILES_PER_PROCESS", 2)
+    forked = load_rows([runs])
+    pd.testing.assert_frame_equal(forked, here, check_exact=True)
+    assert forked.attrs == here.attrs and here.attrs["set_aside"]
+    assert "only_some" in forked.columns
+    (runs / "x" / "j7" / "metrics.csv").write_text("house_id,iou\nh0,not a number\n", encoding="utf-8")
+    with pytest.raises(ValueError) as forked_error:
+        load_rows([runs])
+    monkeypatch.setattr(tables, "FILES_PER_PROCESS", 10**9)
+    with pytest.raises(ValueError) as here_error:
+        load_rows([runs])
+    assert str(forked_error.value) == str(here_error.value) and "j7" in str(here_error.value)

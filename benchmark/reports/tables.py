@@ -28,7 +28,9 @@ What a cell holds (:func:`load_rows`, :func:`summarise`):
 
 from __future__ import annotations
 
+import functools
 import json
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -274,6 +276,30 @@ def read_rows(path: str | Path) -> pd.DataFrame:
     return df
 
 
+#: metrics files a process reads at least before :func:`load_rows` spreads them over forked
+#: processes (below it, starting one costs more than it saves)
+FILES_PER_PROCESS = 100
+
+
+def _read_chunk(files: Sequence[Path]) -> pd.DataFrame:
+    return pd.concat([read_rows(f) for f in files], ignore_index=True)
+
+
+def _read_files(files: Sequence[Path]) -> list[pd.DataFrame]:
+    """Each file's :func:`read_rows`, in order: on the cores this process may use (forked
+    processes, each reading a run of consecutive files) when there are at least
+    :data:`FILES_PER_PROCESS` files per process, else one after the other here. Concatenated,
+    the same frame either way (columns in their order of first appearance, each file's rows in
+    the files' order); a bad file raises the same one-line error, the first in file order."""
+    from benchmark.harness.processes import available_cores, run_forked
+
+    n = min(int(os.environ.get("ROOMSEG_JOBS") or available_cores()), len(files) // FILES_PER_PROCESS)
+    if n <= 1:
+        return [read_rows(f) for f in files]
+    bounds = np.linspace(0, len(files), n + 1).round().astype(int)
+    return run_forked([functools.partial(_read_chunk, list(files[a:b])) for a, b in zip(bounds[:-1], bounds[1:])], n)
+
+
 def load_rows(paths: Sequence[str | Path], newest: bool = True) -> pd.DataFrame:
     """All rows of the metrics files at or under ``paths``, each file read by :func:`read_rows`
     (its checks), and (``newest``) each (configuration, house) once: the newest job's row (see
@@ -289,7 +315,7 @@ def load_rows(paths: Sequence[str | Path], newest: bool = True) -> pd.DataFrame:
         ValueError: a malformed file or value, or one file holding a house twice for one
             configuration (one line naming the file).
     """
-    df = pd.concat([read_rows(f) for f in find_metric_files(paths)], ignore_index=True)
+    df = pd.concat(_read_files(find_metric_files(paths)), ignore_index=True)
     n_read = len(df)
     df, line = _newest_only(df) if newest else (df, "")
     df = df.reset_index(drop=True)
