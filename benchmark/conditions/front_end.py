@@ -373,13 +373,8 @@ def run_front_end(obstacles: np.ndarray, grid: GridMap, true_states: np.ndarray,
                                                  math.radians(st.closure_window_yaw), float(st.odometry_min_score),
                                                  floor, float(st.keyframe_xy), math.radians(st.keyframe_yaw),
                                                  math.log(EPS), EPS, int(st.lost_after), weak)
-    pairs, zc, infos, wrong, tried, place, place_tried, relocalised, n_reloc = _closures(
+    pairs, zc, infos, wrong, tried, place, place_tried, relocalised, n_reloc, known = _closures(
         points, ref, dead, cov, true_states, travelled, key, st, step, broken)
-    # the robot knows a closure at its later node; a relocalisation's two closures (the first
-    # n_reloc pairs, each relocalisation's two appended together) only once the second confirms it
-    known = pairs.max(axis=1, initial=0) if len(pairs) else np.zeros(0, np.int64)
-    for a in range(0, n_reloc, 2):
-        known[a:a + 2] = known[a:a + 2].max()
     return FrontEndResult(z, sqrt_info, laser, dead, pairs, zc, infos, wrong, tried, key, place, place_tried,
                           broken, int(lost), relocalised, np.arange(len(pairs)) < n_reloc, known)
 
@@ -548,8 +543,10 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
     docstring, 3-4), and the relocalisation of the segments after a tracking loss (6: ``dead`` and
     ``cov`` of a relocalised segment moved onto the map in place). Returns (pairs, their relative
     poses, square-root informations, wrong, candidates matched, place, place matches verified,
-    segments relocalised, relocalisation closures: the first ones of the pairs)."""
-    pairs, zs, infos, place, desc = [], [], [], [], {}
+    segments relocalised, relocalisation closures: the first ones of the pairs, the node at which the
+    robot knows each pair: the keyframe whose match made it, for a relocalisation's two the one whose
+    match confirmed it)."""
+    pairs, zs, infos, place, desc, known = [], [], [], [], {}, []
     tried = p_tried = relocalised = 0
     n = len(dead)
     last = -np.inf
@@ -562,7 +559,7 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
             if on_map[j] or not key[j] or not len(points[j]):
                 continue
             p_tried += _relocalise(j, seg, on_map, points, ref, dead, cov, key, st, step, desc, pending,
-                                   pairs, zs, infos, place)
+                                   pairs, zs, infos, place, known)
             relocalised += int(on_map[j])
     n_reloc = len(pairs)
     # the node pairs joined so far: a pair the relocalisation joined is not entered again when the
@@ -602,11 +599,12 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
                     pairs.append((i, j))
                     zs.append(m.best)
                     infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
+                    known.append(j)
                     break
             else:
                 if st.place_recognition:
                     p_tried += _recognise(j, points, ref, key, travelled, st, step, desc, pairs, zs, infos, place,
-                                          joined)
+                                          known, joined)
                 continue
             place.append(False)
     pairs = np.array(pairs, np.int64).reshape(-1, 2)
@@ -619,14 +617,15 @@ def _closures(points, ref, dead, cov, true_states, travelled, key, st: FrontEndS
         wrong = (err_xy > WRONG_XY) | (err_t > math.radians(WRONG_YAW))
     else:
         wrong = np.zeros(0, bool)
-    return pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried, relocalised, n_reloc
+    return (pairs, zs, infos, wrong, tried, np.array(place, bool).reshape(-1), p_tried, relocalised, n_reloc,
+            np.array(known, np.int64).reshape(-1))
 
 
-def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place,
+def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc, pairs, zs, infos, place, known,
                joined=frozenset()) -> int:
     """Place recognition at keyframe ``j`` (module docstring, 5): the earlier keyframe whose descriptor
-    is nearest, verified by the matcher; appends an accepted closure unless that pair is among
-    ``joined`` (node pairs already in the graph). Returns the matches verified (0, 1)."""
+    is nearest, verified by the matcher; appends an accepted closure (known at ``j``) unless that pair is
+    among ``joined`` (node pairs already in the graph). Returns the matches verified (0, 1)."""
     cand = np.flatnonzero(key & (travelled <= travelled[j] - st.closure_min_travel))
     i, m, verified = _place(j, cand, points, ref, st, step, desc)
     if m is not None and m.score >= st.place_min_score and (int(i), int(j)) not in joined:
@@ -634,6 +633,7 @@ def _recognise(j, points, ref, key, travelled, st: FrontEndSettings, step, desc,
         zs.append(m.best)
         infos.append(_upper(np.linalg.inv(_floored(m.cov, st))))
         place.append(True)
+        known.append(j)
     return verified
 
 
@@ -655,12 +655,13 @@ def _turn3(th: float) -> np.ndarray:
 
 
 def _relocalise(j, seg, on_map, points, ref, dead, cov, key, st: FrontEndSettings, step, desc, pending,
-                pairs, zs, infos, place) -> int:
+                pairs, zs, infos, place, known) -> int:
     """Relocalisation at keyframe ``j`` of a segment not yet on the map (module docstring, 6): place
     recognition against the keyframes on the map before the segment began; a verified match is kept
     and the segment is relocalised when two of its keyframes' matches agree on where it is (within
-    ``relocalise_xy`` metres and ``relocalise_yaw`` degrees): both become closures, the segment's
-    ``dead`` is moved onto the map and its ``cov`` made the map's. Returns the matches verified (0, 1)."""
+    ``relocalise_xy`` metres and ``relocalise_yaw`` degrees): both become closures, known at ``j`` (the
+    robot knows neither before the second match confirms the first), the segment's ``dead`` is moved
+    onto the map and its ``cov`` made the map's. Returns the matches verified (0, 1)."""
     s = int(seg[j])
     first = int(np.flatnonzero(seg == s)[0])
     cand = np.flatnonzero(key & on_map & (np.arange(len(seg)) < first))
@@ -683,6 +684,7 @@ def _relocalise(j, seg, on_map, points, ref, dead, cov, key, st: FrontEndSetting
         zs.append(zz)
         infos.append(ii)
         place.append(True)
+        known.append(j)
     members = np.flatnonzero(seg == s)
     later = np.arange(first, len(seg))
     c, sn = math.cos(t[2]), math.sin(t[2])
