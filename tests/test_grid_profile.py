@@ -80,3 +80,23 @@ def test_a_timed_profile_is_headed_by_the_commands_time_and_houses(tmp_path, cap
     assert grid_profile.main([str(sweep), "--time", str(tmp_path / "bad.txt")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bad.txt" in err[0] and "GNU time" in err[0]
+
+
+def test_the_rerun_on_the_filled_cache_gives_the_jobs_fixed_cost(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    for name in ("a", "b", "c", "d"):
+        _job(sweep, name, "procthor", "scan", 10.0, [{"house_id": "h0", "cached": False, "house_s": 3.0, "t_map": 2.0}])
+    (tmp_path / "time.txt").write_text("905.37 1248000\n")
+    (tmp_path / "rerun.txt").write_text("Command exited with non-zero status 0\n50.2 400000 1.5 0.5\n")
+    out = tmp_path / "t.md"
+    assert grid_profile.main([str(sweep), "--time", str(tmp_path / "time.txt"), "--rerun-time",
+                              str(tmp_path / "rerun.txt"), "--out", str(out)]) == 0
+    paragraphs = out.read_text().split("\n\n")
+    assert paragraphs[1].startswith("Measured with `/usr/bin/time`")
+    assert paragraphs[2].startswith("Run again at once on the cache it filled")
+    assert "what its 4 jobs cost" in paragraphs[2] and "took 50 s wall and 2 CPU-s: about 0.50 CPU-s a job." in paragraphs[2]
+    (tmp_path / "short.txt").write_text("50.2 400000\n")  # '%e %M' only: no CPU seconds
+    assert grid_profile.main([str(sweep), "--time", str(tmp_path / "time.txt"), "--rerun-time",
+                              str(tmp_path / "short.txt")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "short.txt" in err[0] and "%e %M %U %S" in err[0]

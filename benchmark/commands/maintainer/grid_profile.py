@@ -23,8 +23,9 @@ Job-seconds are wall seconds of one job each; with W workers the sweep's wall ti
 their sum over W. A row ``all`` closes each dataset. With ``--time`` (GNU time's ``-f "%e %M"``
 of the whole command, ``--command`` naming it) the table is preceded by the command's wall time
 and peak memory, the machine, the houses per dataset and the 5-minute load average at its end
-(its own workers included; ``make robustness-timing-publish``). Exit status 2 when the folder holds no job or a time file
-is unreadable.
+(its own workers included; ``make robustness-timing-publish``); with ``--rerun-time`` (GNU time's
+``-f "%e %M %U %S"`` of the sweep run again at once on the cache it filled) a line on the jobs'
+fixed cost follows it. Exit status 2 when the folder holds no job or a time file is unreadable.
 """
 
 from __future__ import annotations
@@ -115,6 +116,27 @@ def timing_line(jobs: pd.DataFrame, time_file: Path, command: str, compile_time_
             f"from an empty cache{load}{numba}).")
 
 
+def rerun_line(jobs: pd.DataFrame, rerun_file: Path) -> str:
+    """The line on the jobs' fixed cost: the sweep run again at once on the cache it filled
+    (``rerun_file``: GNU time's ``-f "%e %M %U %S"``), every row read from that cache, so what it
+    takes is what each job costs besides its houses' work: Hydra composing its config and
+    setting it up, the job's own set-up and result files (no stage column holds it; the
+    ``outside houses`` column only the part inside the app).
+
+    Raises:
+        ValueError: an unreadable time file (one line naming it)."""
+    try:
+        wall, _, user, system = Path(rerun_file).read_text().split()[-4:]
+        wall, cpu = float(wall), float(user) + float(system)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{rerun_file}: expected GNU time's '%e %M %U %S' (seconds, KiB, CPU seconds), "
+                         f"got an error: {e}") from None
+    return (f"Run again at once on the cache it filled (every row read back from it: what its {len(jobs)} jobs cost "
+            f"besides their houses' work, composing, setting up, reading the rows back and writing the results), "
+            f"the same sweep took {wall:.0f} s wall and {cpu:.0f} CPU-s: about {cpu / max(len(jobs), 1):.2f} "
+            f"CPU-s a job.")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = cli.ArgumentParser(description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                             epilog="e.g. python -m benchmark.commands.maintainer.grid_profile results/runs/robustness")
@@ -125,6 +147,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--compile-time", type=Path, default=None,
                     help="GNU time's output of the numba compile step run before it (with --time)")
     ap.add_argument("--command", default="make robustness", help="the timed command, as the heading names it")
+    ap.add_argument("--rerun-time", type=Path, default=None,
+                    help="GNU time's '%%e %%M %%U %%S' output of the sweep run again at once on the cache it filled "
+                         "(with --time): a line on the jobs' fixed cost follows the heading")
     a = ap.parse_args(argv)
     try:
         jobs = job_rows(a.sweep)
@@ -137,6 +162,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         head = "" if a.time is None else timing_line(jobs, a.time, a.command, a.compile_time) + "\n\n"
+        if a.time is not None and a.rerun_time is not None:
+            head += rerun_line(jobs, a.rerun_time) + "\n\n"
     except ValueError as e:
         print(f"grid_profile: error: {e}", file=sys.stderr)
         return 2
