@@ -237,7 +237,8 @@ def _keep_heap_apart() -> None:
     that live long enough to reach the oldest generation, and each full collection they set off
     otherwise walks the whole kept heap again (measured: about a tenth of a worker's time in a
     sweep of one-house jobs). Unfrozen first: whatever died since the last time (an evicted cache
-    entry in a cycle) is freed then, so nothing is kept for good that a job let go of."""
+    entry in a cycle) is freed then; what a job lets go of is kept at most until the next of these
+    (or the worker's end), as much as the worker held at the one before."""
     import gc
 
     _HEAP[0] += 1
