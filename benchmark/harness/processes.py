@@ -212,6 +212,12 @@ def _run_task(i: int):
     return _TASKS[i]()
 
 
+def forked_workers() -> int:
+    """Processes :func:`run_forked` uses by default: ``ROOMSEG_JOBS`` if set, else the cores this
+    process may run on."""
+    return int(os.environ.get("ROOMSEG_JOBS") or available_cores())
+
+
 def run_forked(tasks: list, workers: int | None = None) -> list:
     """Each task's result (``tasks``: callables without arguments), in order, the tasks run on
     ``workers`` forked processes where the platform forks (Linux), else one after the other
@@ -231,7 +237,7 @@ def run_forked(tasks: list, workers: int | None = None) -> list:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    n = workers if workers is not None else int(os.environ.get("ROOMSEG_JOBS") or available_cores())
+    n = workers if workers is not None else forked_workers()
     n = max(1, min(n, len(tasks)))
     if n == 1 or sys.platform != "linux":
         return [t() for t in tasks]
@@ -253,4 +259,5 @@ def run_forked(tasks: list, workers: int | None = None) -> list:
 
 
 __all__ = ["available_cores", "available_memory", "worker_cap", "die_with_parent", "worker_init", "share_threads",
-           "OPENCV_THREADS_ENV", "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered", "run_forked"]
+           "OPENCV_THREADS_ENV", "PR_SET_PDEATHSIG", "JOB_SLOT_ENV", "job_slot", "staggered", "forked_workers",
+           "run_forked"]

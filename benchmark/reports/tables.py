@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import functools
 import json
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -291,9 +290,9 @@ def _read_files(files: Sequence[Path]) -> list[pd.DataFrame]:
     :data:`FILES_PER_PROCESS` files per process, else one after the other here. Concatenated,
     the same frame either way (columns in their order of first appearance, each file's rows in
     the files' order); a bad file raises the same one-line error, the first in file order."""
-    from benchmark.harness.processes import available_cores, run_forked
+    from benchmark.harness.processes import forked_workers, run_forked
 
-    n = min(int(os.environ.get("ROOMSEG_JOBS") or available_cores()), len(files) // FILES_PER_PROCESS)
+    n = min(forked_workers(), len(files) // FILES_PER_PROCESS)
     if n <= 1:
         return [read_rows(f) for f in files]
     bounds = np.linspace(0, len(files), n + 1).round().astype(int)
