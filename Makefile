@@ -105,7 +105,7 @@ robustness-timing-publish: setup  ## fresh timed `make robustness ROBUST_HOUSES=
 	rm -rf $(PUBLISH_TMP) && mkdir -p $(PUBLISH_TMP)
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/compile-time.txt $(PY) -m benchmark.commands.compile_kernels
 	$(FRESH_NUMBA) /usr/bin/time -f '%e %M' -o $(PUBLISH_TMP)/time.txt $(MAKE) --no-print-directory robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) ROBUST_IPA=0 RESULTS=$(PUBLISH_TMP) ROBUST_OUT=$(PUBLISH_TMP)/robustness
-	ROOMSEG_SHARED_DATA=$(SHARED) $(FRESH_NUMBA) /usr/bin/time -f '%e %M %U %S' -o $(PUBLISH_TMP)/rerun-time.txt $(PY) -m benchmark.commands.bench experiment=robustness env=$(ROBUST_ENVS) run.limit=$(ROBUST_TIMING_HOUSES) run.results_dir=$(PUBLISH_TMP)/rerun run.cache_dir=$(PUBLISH_TMP)/cache run.allow_failures=true
+	$(FRESH_NUMBA) /usr/bin/time -f '%e %M %U %S' -o $(PUBLISH_TMP)/rerun-time.txt env $(ROBUST_SWEEP) run.limit=$(ROBUST_TIMING_HOUSES) run.results_dir=$(PUBLISH_TMP)/rerun run.cache_dir=$(PUBLISH_TMP)/cache
 	$(PY) -m benchmark.commands.maintainer.grid_profile $(PUBLISH_TMP)/runs/robustness --time $(PUBLISH_TMP)/time.txt --compile-time $(PUBLISH_TMP)/compile-time.txt --rerun-time $(PUBLISH_TMP)/rerun-time.txt --command "make robustness ROBUST_HOUSES=$(ROBUST_TIMING_HOUSES) ROBUST_IPA=0" --out results/published/robustness_timing.md
 
 # make leaderboard: every method on the same maps (shared ProcTHOR houses from 75, after the
@@ -250,8 +250,10 @@ ROBUST_ENVS := $(subst synthetic,synthetic_robust,$(BENCH_ENVS))
 # ROBUST_IPA=0: none (robustness-timing-publish: the fresh-clone grid).
 ROBUST_IPA_HOUSES ?= 1
 ROBUST_IPA ?= 1
+# the robustness sweep (its houses and folders follow): `make robustness`, and its rerun on a filled cache in robustness-timing-publish
+ROBUST_SWEEP = ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(ROBUST_ENVS) run.allow_failures=true
 robustness: setup  ## robustness benchmark: methods x robot conditions x severities -> results/runs/robustness; tables, figures -> results/robustness
-	ROOMSEG_SHARED_DATA=$(SHARED) $(PY) -m benchmark.commands.bench experiment=robustness env=$(ROBUST_ENVS) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS) run.allow_failures=true
+	$(ROBUST_SWEEP) run.limit=$(ROBUST_HOUSES) run.results_dir=$(RESULTS)
 	$(if $(filter 0,$(ROBUST_IPA)),@echo "ROBUST_IPA=0: no ipa rows (the fresh-clone grid)",$(if $(wildcard $(IPA_ENV)/bin/ipa_segment),ROOMSEG_SHARED_DATA=$(SHARED) ROOMSEG_IPA_ENV=$(abspath $(IPA_ENV)) $(PY) -m benchmark.commands.bench experiment=robustness_ipa env=$(ROBUST_ENVS) run.limit=$$(( $(ROBUST_IPA_HOUSES) < $(ROBUST_HOUSES) ? $(ROBUST_IPA_HOUSES) : $(ROBUST_HOUSES) )) run.results_dir=$(RESULTS) run.allow_failures=true,@echo "no ipa_room_segmentation build in $(IPA_ENV): no ipa rows (make ipa-env)"))
 	$(PY) -m benchmark.commands.robustness $(RESULTS)/runs/robustness --last-sweep --out $(ROBUST_OUT)
 
