@@ -282,6 +282,39 @@ def test_a_killed_pools_spec_folder_is_removed_by_the_next_pool(tmp_path, monkey
     assert not pool._dir.exists()
 
 
+def test_a_ctrl_c_while_the_pool_takes_a_jobs_houses_stops_its_workers_at_once():
+    """A Ctrl-C that lands while the pool is being handed a job's houses (its first submission
+    starts the workers) stops the workers now and closes the pool; the houses already handed
+    over are not run. Before, it left the pool open with the houses queued, and the run's
+    closing of the pool then waited for every one of them (a run of 600 houses hung for minutes
+    after its Ctrl-C)."""
+    import functools
+
+    from benchmark.harness.executor import JobSpec, LocalPool
+
+    pool = LocalPool(2)
+    real, procs = pool._pool.submit, []
+
+    def submit(*args, **kwargs):
+        f = real(*args, **kwargs)
+        procs[:] = list(pool._pool._processes.values())
+        if len(procs) and submit.calls == 1:
+            raise KeyboardInterrupt
+        submit.calls += 1
+        return f
+
+    submit.calls = 0
+    pool._pool.submit = submit
+    spec = JobSpec(key="ctrl-c", build=functools.partial(time.sleep, 60), cwd=os.getcwd())
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            pool.map(spec, [f"h{i}" for i in range(50)])
+        assert pool.closed and procs
+        assert all(not p.is_alive() for p in procs)  # terminated and joined, not left to run 50 sleeps
+    finally:
+        pool.close()
+
+
 @pytest.mark.parametrize("workers,method", [(1, "fork"), (2, "fork"), (3, "fork"), (2, "spawn")])
 def test_each_pool_worker_gets_its_share_of_the_cores_for_opencv(workers, method, monkeypatch):
     """A worker of a pool of n gets cores // n OpenCV threads (at least 1): forked workers from

@@ -328,17 +328,19 @@ class LocalPool:
             where: str = "") -> list[HouseResult]:
         if self._pool is None:
             raise RuntimeError("the pool is closed")
-        path = self._publish(spec)
-        futures = [self._pool.submit(_pool_task, spec.key, path, h) for h in house_ids]
-        if not self._procs:
-            self._procs = list((getattr(self._pool, "_processes", None) or {}).values())
-            self._listen()
-        index = {f: i for i, f in enumerate(futures)}
-        out: list[HouseResult | None] = [None] * len(futures)
-        done: Iterable[Future] = as_completed(futures)
-        if progress:
-            done = progress(done, total=len(futures))
-        try:
+        futures: list[Future] = []
+        try:  # (from the first submission on: a Ctrl-C while the pool starts its workers stops them too)
+            path = self._publish(spec)
+            for h in house_ids:
+                futures.append(self._pool.submit(_pool_task, spec.key, path, h))
+            if not self._procs:
+                self._procs = list((getattr(self._pool, "_processes", None) or {}).values())
+                self._listen()
+            index = {f: i for i, f in enumerate(futures)}
+            out: list[HouseResult | None] = [None] * len(futures)
+            done: Iterable[Future] = as_completed(futures)
+            if progress:
+                done = progress(done, total=len(futures))
             for f in done:
                 out[index[f]] = f.result()
         except BrokenProcessPool:
