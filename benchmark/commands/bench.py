@@ -45,12 +45,15 @@ register_resolvers()  # hydra.sweep.subdir's job_dir, before Hydra composes anyt
 def _save_config_whole(cfg, filename: str, output_dir: Path) -> None:
     """Hydra's ``_save_config`` (``.hydra/config.yaml``, ``hydra.yaml``, ``overrides.yaml`` of
     every job), written atomically: a job that cannot write them (a full disk) or is killed
-    leaves the file whole or absent, never empty or cut."""
+    leaves the file whole or absent, never empty or cut. Its text is ``OmegaConf.to_yaml``'s
+    (:func:`benchmark.config.yaml_text`)."""
     from omegaconf import OmegaConf
 
+    from benchmark.config import yaml_text
     from envs.atomic import atomic_write_text
 
-    atomic_write_text(Path(output_dir) / filename, OmegaConf.to_yaml(cfg), durable=False)
+    text = yaml_text(OmegaConf.to_container(cfg, enum_to_str=True)) if OmegaConf.is_config(cfg) else OmegaConf.to_yaml(cfg)
+    atomic_write_text(Path(output_dir) / filename, text, durable=False)
 
 
 def _whole_hydra_files() -> None:

@@ -333,12 +333,10 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
 def resolved_yaml(plain: dict[str, Any]) -> str:
     """``OmegaConf.to_yaml(body, resolve=True)`` of a config body whose resolved container is
     ``plain`` (``OmegaConf.to_container(body, resolve=True)``; the configs hold no enums), written
-    from that container instead of resolving the config again."""
-    import yaml
-    from omegaconf._utils import get_omega_conf_dumper
+    from that container instead of resolving the config again (:func:`benchmark.config.yaml_text`)."""
+    from benchmark.config import yaml_text
 
-    return yaml.dump(plain, default_flow_style=False, allow_unicode=True, sort_keys=False,
-                     Dumper=get_omega_conf_dumper())
+    return yaml_text(plain)
 
 
 def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -> pd.DataFrame:
