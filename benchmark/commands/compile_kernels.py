@@ -116,6 +116,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     from benchmark.metrics import segments
     from benchmark.postprocess import PostProcess
     from benchmark.segmenters.distance import DistanceTransform
+    from benchmark.segmenters.voronoi import Voronoi
     from benchmark.viewpoints import Autotrace
     from envs.logs.raw_map import raw_log_odds
     from envs.maps.rays import cast_rays
@@ -137,6 +138,7 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
         ("euclidean_knn", lambda: EuclideanKNN()(grid, poses, proba)),
         ("postprocess", lambda: PostProcess()(labels, grid)),
         ("distance segmenter", lambda: DistanceTransform()(grid)),
+        ("voronoi segmenter", lambda: Voronoi()(grid)),
         ("segments", lambda: [segments(labels.astype(t), c) for t in (np.int16, np.int32, np.int64) for c in (4, 8)]),
         ("scan map", lambda: robot_scan_map(scene, poses[:4], ScanSettings(range_noise=0.02, dropout=0.1, seed=1),
                                             house_wall_height(house))),

@@ -17,6 +17,7 @@ from skimage.morphology import skeletonize
 from benchmark.interfaces import Segmenter
 from benchmark.segmenters import voronoi_original as original
 from benchmark.segmenters.common import check_area_limits, check_room_area, finish_rooms
+from envs.kernel_cache import njit
 from envs.maps.components import components
 from envs.maps.distance import distance_px
 from envs.maps.gridmap import GridMap
@@ -48,22 +49,41 @@ def prune_spurs(skel: np.ndarray, clearance: np.ndarray, room: float) -> np.ndar
     s = np.asarray(skel, bool).copy()
     count = ndimage.convolve(s.astype(np.int32), np.ones((3, 3), np.int32), mode="constant") - s
     node = s & (count > 2)
+    tips = np.flatnonzero(s & (count <= 1) & ~node)  # row-major: taken from the last
+    _prune(s, count, node, np.ascontiguousarray(clearance, np.float64), float(room), tips, int(s.sum()))
+    return s
+
+
+@njit(cache=True)
+def _prune(s, count, node, clearance, room, tips, n):
+    """:func:`prune_spurs`' loop, in place on ``s`` and ``count``: a stack of tips (flat indices),
+    taken from its end; a tip's 8-neighbours on the skeleton visited row by row. ``n``: the
+    skeleton's pixels (each goes at most once, pushing at most 8)."""
     h, w = s.shape
-    stack = list(zip(*np.nonzero(s & (count <= 1) & ~node)))
-    while stack:
-        r, c = stack.pop()
+    stack = np.empty(tips.shape[0] + 8 * n, np.int64)
+    top = tips.shape[0]
+    stack[:top] = tips
+    around = np.empty(8, np.int64)
+    while top > 0:
+        top -= 1
+        r, c = divmod(stack[top], w)
         if not s[r, c] or count[r, c] > 1:
             continue
-        around = [(rr, cc) for rr in range(max(r - 1, 0), min(r + 2, h))
-                  for cc in range(max(c - 1, 0), min(c + 2, w)) if s[rr, cc] and (rr, cc) != (r, c)]
-        if around and clearance[r, c] >= clearance[around[0]] and clearance[r, c] > room:
+        m = 0
+        for rr in range(max(r - 1, 0), min(r + 2, h)):
+            for cc in range(max(c - 1, 0), min(c + 2, w)):
+                if s[rr, cc] and (rr != r or cc != c):
+                    around[m] = rr * w + cc
+                    m += 1
+        if m and clearance[r, c] >= clearance[around[0] // w, around[0] % w] and clearance[r, c] > room:
             continue
         s[r, c] = False
-        for rr, cc in around:
+        for i in range(m):
+            rr, cc = divmod(around[i], w)
             count[rr, cc] -= 1
             if count[rr, cc] <= 1 and not node[rr, cc]:
-                stack.append((rr, cc))
-    return s
+                stack[top] = around[i]
+                top += 1
 
 
 class Voronoi(Segmenter):
