@@ -103,3 +103,26 @@ def test_a_severity_missing_for_all_methods_in_a_published_copy_is_caught_from_t
     assert robustness([str(sweep)]) == 0
     out = capsys.readouterr().out
     assert "scan map left out of the summary: severity 1 has no rows for any method" in out
+
+
+def test_overrides_files_read_as_omegaconf_reads_them(tmp_path):
+    """A finished job's overrides are the strings Hydra wrote (read with PyYAML's safe loader,
+    libyaml's: the same as OmegaConf.load on values that quote, hold paths, spaces, braces,
+    numbers and non-ASCII); a file that is no YAML list counts as missing."""
+    from omegaconf import OmegaConf
+
+    from benchmark.config import yaml_text
+    from benchmark.reports.sweep_jobs import _finished
+
+    sweep = _sweep(tmp_path)
+    tricky = ["corruption=clean", "env=synthetic", "run.label='a b: c'", "run.houses=[h1,h2]", "run.limit=2",
+              "paths.data_dir=/data/ünï code", "+x={a: 1}", "y=1e-5", "z=true", "w=\"q\"", "~run.force"]
+    job = sweep / "aggregator=vision_cone,corruption=clean"
+    (job / ".hydra" / "overrides.yaml").write_text(yaml_text(OmegaConf.to_container(OmegaConf.create(tricky))),
+                                                   encoding="utf-8")
+    bad = sweep / "aggregator=vision_cone,corruption=scan_1"
+    (bad / ".hydra" / "overrides.yaml").write_text("a: 1\n")
+    got = _finished(sweep)
+    want = {tuple(sorted(str(x) for x in OmegaConf.load(f))) for f in sweep.glob("*/.hydra/overrides.yaml")
+            if f.parent.parent != bad}
+    assert got == want and tuple(sorted(tricky)) in got and len(got) == 5

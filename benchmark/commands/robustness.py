@@ -108,6 +108,20 @@ def earlier_nested_sweeps(paths: Sequence[str | Path]) -> list[tuple[Path, str]]
     return out
 
 
+def _summary_part(rows, metric: str, reference: str, expected, delta: float, unrecorded, out: Path | None) -> dict:
+    """:func:`benchmark.reports.robustness.summarise` of one dataset's rows and one metric; with
+    ``out``, its figures too (matched IoU and IoU: one per family, a labelled condition's
+    severities being no ladder)."""
+    parts = rb.summarise(rows, [metric], reference, expected, delta=delta, unrecorded=unrecorded)
+    if out is not None and metric in ("iou", "matched_iou"):
+        for (dataset, _), p in parts.items():
+            for family in rb.FAMILIES:
+                if family in set(p["cells"]["corruption"]) and family not in rb.LABELLED:
+                    rb.family_figure(p["cells"], family, out / "figures" / f"robustness_{dataset}_{metric}_{family}",
+                                     metric_words(metric), f"{dataset}: {rb.FAMILY_WORDS[family]}")
+    return parts
+
+
 def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str], reference: str,
            delta: float = rb.DELTA, last_sweep: bool = False) -> str:
     """The Markdown of every table (and, with ``out``, the files). ``last_sweep``: only the jobs
@@ -137,8 +151,16 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     rows = rows.copy()
     rows["severity"] = rows["severity"].astype(int)
     expected, unrecorded = rb.expected_severities(paths)  # the sweep's, else every one conf/corruption defines
-    parts = rb.summarise(rows, metrics, reference, expected, delta=delta, unrecorded=unrecorded)
-    del rows
+    # each dataset and metric summarised (and its figures drawn) on its own, side by side on forked
+    # processes with the severities' settings (run_forked): the same parts, in the same order, as
+    # rb.summarise of every dataset and metric at once
+    tasks = [functools.partial(severity_settings)]
+    for _, d in rows.groupby("dataset"):
+        tasks += [functools.partial(_summary_part, d, metric, reference, expected, delta, unrecorded, out)
+                  for metric in metrics]
+    settings, *done = run_forked(tasks)
+    del rows, tasks
+    parts = {k: v for part in done for k, v in part.items()}
     labelled = [f for f in rb.LABELLED if any(f in p["table"].columns for p in parts.values())]
     with_ipa = sorted({d for (d, _), p in parts.items() if p.get("apart") is not None})
     ref_words = ("a method every family degrades, chosen per dataset and metric (named under each table)"
@@ -167,7 +189,6 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
           *[f"**Earlier run left out**: {why}." for _, why in stale],
           *([""] if partial or stale else [])]
     power = []
-    aside = [severity_settings]  # then the figures: run side by side on forked processes (run_forked)
     for (dataset, metric), p in parts.items():
         words = metric_words(metric)
         t = p["table"]
@@ -211,13 +232,6 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
                                                          + "; mean [95 % interval] over houses", f"tab:{stem}"),
                                              encoding="utf-8")
             (out / f"{stem}.md").write_text(rb.to_markdown(t), encoding="utf-8")
-            if metric in ("iou", "matched_iou"):
-                for family in rb.FAMILIES:  # a labelled condition's severities are no ladder: its table only
-                    if family in set(p["cells"]["corruption"]) and family not in rb.LABELLED:
-                        aside.append(functools.partial(rb.family_figure, p["cells"], family,
-                                                       out / "figures" / f"{stem}_{family}", words,
-                                                       f"{dataset}: {rb.FAMILY_WORDS[family]}"))
-    settings = run_forked(aside)[0]
     if power:
         md += ["## How many houses", "", *[f"- {x}" for x in power], ""]
     md += ["## Severities", "", "What each severity's `conf/corruption` file sets, as the composed config has it (units: "

@@ -59,17 +59,23 @@ def expected_jobs(sweep_dir: str | Path) -> list[tuple[str, ...]] | None:
 
 
 def _finished(sweep_dir: Path) -> set[tuple[str, ...]]:
-    from omegaconf import OmegaConf
+    """The overrides of every finished job in the sweep folder (each sorted). Hydra writes a job's
+    ``overrides.yaml`` as a YAML list of ``key=value`` strings: read by PyYAML's safe loader (libyaml's
+    where PyYAML has it: a thirtieth of ``OmegaConf.load``'s time, the same strings)."""
+    import yaml
 
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     out = set()
     for ov in sweep_dir.glob("*/.hydra/overrides.yaml"):
         job = Job(ov.parent.parent)
         if not job.is_finished():
             continue
         try:
-            out.add(tuple(sorted(str(x) for x in OmegaConf.load(ov))))
+            items = yaml.load(ov.read_text(encoding="utf-8"), Loader=loader)
         except Exception:  # noqa: BLE001 - an unreadable overrides file: the job counts as missing
             continue
+        if isinstance(items, list):  # anything else is no overrides file Hydra wrote: missing too
+            out.add(tuple(sorted(str(x) for x in items)))
     return out
 
 
