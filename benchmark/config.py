@@ -54,6 +54,17 @@ def register_resolvers() -> None:
 _PARSED_CONFIGS: dict[str, Any] = {}
 
 
+def resolved_body(cfg: Any) -> dict[str, Any]:
+    """A job's config without Hydra's node, as a plain container with its interpolations resolved:
+    ``OmegaConf.to_container(OmegaConf.masked_copy(cfg, [every key but hydra]), resolve=True)``.
+    A config with no ``hydra`` node (the one a Hydra app's job receives) is resolved as it is,
+    without the copy (the same content: a twentieth of a sweep job's set-up went to copying it)."""
+    from omegaconf import OmegaConf
+
+    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
+    return OmegaConf.to_container(body, resolve=True)  # type: ignore[return-value]
+
+
 def yaml_text(container: Any) -> str:
     """``OmegaConf.to_yaml``'s text of a plain container (``OmegaConf.to_container`` of a config:
     dicts, lists, scalars, no enums), emitted by libyaml where PyYAML was built with it (about a
@@ -401,4 +412,4 @@ def build_classifier(model: str, overrides: Sequence[str] = ()):
     return instantiate(cfg.classifier), cfg
 
 
-__all__ = ["build_method", "shapes_map", "MAP_POSE_ERRORS", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "parse_configs_once", "yaml_text", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]
+__all__ = ["build_method", "shapes_map", "MAP_POSE_ERRORS", "classifier_config", "build_classifier", "robot_settings", "ROBOT_STAGES", "compose", "compose_job", "parse_configs_once", "yaml_text", "resolved_body", "job_dirname", "quote_braces", "register_resolvers", "valid_keys_hint", "CONF_DIR"]

@@ -41,11 +41,12 @@ from benchmark.harness.typed import (  # ConfigError, overrides: callers import 
 
 def _plain(cfg: Any) -> Mapping[str, Any]:
     try:
-        from omegaconf import DictConfig, OmegaConf
+        from omegaconf import DictConfig
 
         if isinstance(cfg, DictConfig):
-            body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
-            return OmegaConf.to_container(body, resolve=True)  # type: ignore[return-value]
+            from benchmark.config import resolved_body
+
+            return resolved_body(cfg)
     except ImportError:  # pragma: no cover - omegaconf is a core dependency
         pass
     return cfg

@@ -37,7 +37,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from benchmark.config import ROBOT_STAGES, robot_settings, shapes_map
+from benchmark.config import ROBOT_STAGES, resolved_body, robot_settings, shapes_map
 from benchmark.harness.cache import atomic_write_json, atomic_write_text, config_inputs, config_key
 from benchmark.harness.checks import ConfigError, check_config, check_writable
 from benchmark.harness.executor import (
@@ -320,7 +320,7 @@ def job_identity(cfg: DictConfig, ids: list[str], plain: dict[str, Any] | None =
         (key, settings): ``settings`` flat {dotted key: value} for "what differs" messages.
     """
     if plain is None:
-        plain = OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True)
+        plain = resolved_body(cfg)
     settings = {k: v for k, v in flat_settings(plain).items() if k not in NON_ROW_KEYS}
     root = str((plain.get("paths") or {}).get("data_dir") or "")
     if root and from_data_root:  # where the shared data sits is the machine's, not the job's: the same job on any checkout
@@ -356,8 +356,7 @@ def run(cfg: DictConfig, out_dir: Path, choices: dict[str, str] | None = None) -
     """
     t0 = time.perf_counter()
     LAST_RUN.clear()  # this run's folder once claimed (an error before that belongs to out_dir)
-    body = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
-    plain = OmegaConf.to_container(body, resolve=True)
+    plain = resolved_body(cfg)
     check_config(plain)
     check_typed(plain)
     try:
