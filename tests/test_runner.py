@@ -213,3 +213,26 @@ def test_postprocessing_variants_share_one_aggregation(tmp_path, procthor_file):
     assert "t_aggregate" not in timings and "t_postprocess" in timings and not timings["cached"].any()
     raws = [load_npz(j.maps_path(df["house_id"][0]))["raw"] for j in find_jobs([tmp_path / "none", tmp_path / "default"])]
     assert np.array_equal(raws[0], raws[1])
+
+
+def test_without_cached_aggregates_the_rows_are_the_same_and_no_entry_is_written(tmp_path, procthor_file):
+    """run.cache_aggregates=false (the robustness sweep's): no aggregated label map is written to
+    the cache, nor read; the rows, the raw maps and the job's identity are those of the job that
+    keeps them (the setting changes no row)."""
+    from benchmark.harness.cache import load_npz
+    from benchmark.harness.store import Job
+
+    houses = _houses_file(tmp_path, procthor_file, n=2)
+    cfg, ch = _compose(tmp_path, houses, "run.cache_aggregates=false", "run.cache_salt=off")
+    off = run(cfg, tmp_path / "off", ch)
+    assert not (tmp_path / "results" / "cache" / "aggregate").exists()
+    assert "t_aggregate" in pd.read_csv(tmp_path / "off" / "timings.csv")
+    cfg, ch = _compose(tmp_path, houses, "run.cache_salt=on")
+    on = run(cfg, tmp_path / "on", ch)
+    assert len(list((tmp_path / "results" / "cache" / "aggregate").rglob("*.npz"))) == 2
+    cols = [c for c in on.columns if not c.endswith("_key")]  # (the cache keys hold the salt)
+    pd.testing.assert_frame_equal(off[cols].reset_index(drop=True), on[cols].reset_index(drop=True))
+    for hid in on["house_id"]:
+        assert np.array_equal(load_npz(Job(tmp_path / "off").maps_path(hid))["raw"],
+                              load_npz(Job(tmp_path / "on").maps_path(hid))["raw"])
+    assert Job(tmp_path / "off").identity()["key"] == Job(tmp_path / "on").identity()["key"]

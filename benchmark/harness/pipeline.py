@@ -219,6 +219,7 @@ class Pipeline(RobotStages):
             content goes into the house's cache entries (:func:`config_inputs`).
         force: stages to recompute (see :func:`expand_force`).
         save_maps: keep label maps for figures.
+        cache_aggregates: keep each house's aggregated label map in the cache (``run.cache_aggregates``).
         extra: more columns for every row.
         cache_failures: serve a house's logged failure instead of retrying it.
         classes: the environment's ordered class names; a classifier with other names or
@@ -237,6 +238,7 @@ class Pipeline(RobotStages):
     inputs: Mapping[str, Any] = field(default_factory=dict)
     force: set[str] = field(default_factory=set)
     save_maps: bool = True
+    cache_aggregates: bool = True
     extra: dict[str, Any] = field(default_factory=dict)
     cache_failures: bool = False
     classes: tuple[str, ...] | None = None
@@ -647,6 +649,8 @@ class _HouseCache:
         return pipe._cached("classify", pipe.entry("classify", hid), load, compute_seen, save)
 
     def aggregated(self, grid, views: method.Views, compute: Callable[[], np.ndarray]) -> np.ndarray:
+        if not self.pipe.cache_aggregates:  # run.cache_aggregates=false: no entry read or written
+            return compute()
         n_classes = views.proba.shape[1]
 
         def load(path: Path) -> np.ndarray:

@@ -118,6 +118,9 @@ class RunSettings:
         force: stages to redo even if cached (:class:`StageNames`); None or [] for none.
         progress: draw a progress bar.
         save_maps: keep the raw and post-processed label maps (for figures).
+        cache_aggregates: keep each house's aggregated label map in the stage cache, for the jobs
+            that differ from this one only in post-processing or metrics (they read it instead of
+            aggregating again); false: none is written (a sweep with no two such jobs).
         results_dir: the folder of runs, rows and caches (a path).
         cache_dir: the stage caches (a path; default ``<results_dir>/cache``).
         cache_salt: text in every cache key; change it to start a fresh cache.
@@ -135,6 +138,7 @@ class RunSettings:
     force: Annotated[list[str] | str | None, StageNames()] = field(default_factory=list)
     progress: bool = True
     save_maps: bool = True
+    cache_aggregates: bool = True
     results_dir: str = "results"
     cache_dir: str = "results/cache"
     cache_salt: Annotated[str | int | float, Text()] = ""

@@ -231,7 +231,8 @@ def build_pipeline(cfg: DictConfig, choices: dict[str, str] | None = None) -> Pi
     common = dict(
         env=env, cache_dir=Path(cfg.run.cache_dir), keys=stage_keys(cfg, names, getattr(env, "name", "env")), names=names,
         metric_params=metric_params, force=expand_force(cfg.run.get("force")),
-        save_maps=bool(cfg.run.get("save_maps", True)), extra=extra,
+        save_maps=bool(cfg.run.get("save_maps", True)), cache_aggregates=bool(cfg.run.get("cache_aggregates", True)),
+        extra=extra,
         builders={k: _builder(cfg.get(k)) for k in (*groups, *robot_groups)},
         inputs={k: _plain(cfg.get(k)) for k in (*groups, *robot_groups, "metrics")},
         cache_failures=bool(cfg.run.get("cache_failures", False)), env_key=env_key,

@@ -128,7 +128,8 @@ class CacheStore:
 SELECTION_KEYS = ("start", "stop", "n_houses", "seed_start", "name", "houses")
 #: run settings that change nothing in the rows (left out of a job's identity, see
 #: :func:`benchmark.harness.runner.job_identity`, and of the configuration tables compare).
-NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps", "run.cache_salt",
+NON_ROW_KEYS = ("run.force", "run.progress", "run.results_dir", "run.cache_dir", "run.save_maps",
+                "run.cache_aggregates", "run.cache_salt",
                 "run.allow_failures", "run.cache_failures", "run.name", "run.workers", "run.executor",
                 "run.ray.address", "run.ray.connect_timeout")
 
