@@ -340,3 +340,23 @@ def test_a_process_reads_each_classification_once_and_a_rewritten_one_again(tmp_
     alone = run(cfg, tmp_path / "knn", ch)
     pd.testing.assert_frame_equal(knn[METRICS], again[METRICS])
     pd.testing.assert_frame_equal(knn[METRICS], alone[METRICS])
+
+
+def test_json_entries_are_one_line_and_indented_ones_of_earlier_versions_still_read(tmp_path):
+    """A score entry is written on one line (json's C encoder); the checksum is over the
+    canonical content, so an entry an earlier version wrote indented reads the same, and a
+    changed value in either is refused."""
+    e = tmp_path / "scores" / "h.json"
+    row = {"iou": 0.3518, "n": np.int64(3), "nan": float("nan"), "name": "kitchen ünï", "t": [1, 2.5]}
+    write_entry(e, row)
+    text = e.read_text(encoding="utf-8")
+    assert "\n" not in text.strip()
+    raw = json.loads(text)
+    old = tmp_path / "scores" / "old.json"
+    old.write_text(json.dumps(raw, indent=1, sort_keys=True, allow_nan=True), encoding="utf-8")  # as before
+    got = read_entry(e)
+    assert read_entry(old) == got and got["n"] == 3 and got["name"] == "kitchen ünï" and np.isnan(got["nan"])
+    for f in (e, old):
+        f.write_text(f.read_text(encoding="utf-8").replace("0.3518", "0.3519"), encoding="utf-8")
+        with pytest.raises(ChecksumError, match="does not match its checksum"):
+            read_entry(f)

@@ -280,7 +280,10 @@ def write_entry(path: Path, obj: Any, files: Mapping[str, str | Path] | None = N
     for role, f in (files or {}).items():
         recorded[role] = {"path": os.path.relpath(f, path.parent), "sha256": file_digest(f)}
     body = {"entry": obj, "files": recorded}
-    atomic_write_text(path, json.dumps({"sha256": hashlib.sha256(_canonical(body)).hexdigest(), **body}, indent=1,
+    # one line, written by json's C encoder (an indented dump takes its pure-Python one: a score
+    # entry per house and job); the checksum is over the canonical form, whatever the layout, so
+    # entries written indented by earlier versions read as before
+    atomic_write_text(path, json.dumps({"sha256": hashlib.sha256(_canonical(body)).hexdigest(), **body},
                                        sort_keys=True, allow_nan=True), durable=False)  # verified on read
 
 
