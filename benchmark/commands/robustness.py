@@ -108,6 +108,11 @@ def earlier_nested_sweeps(paths: Sequence[str | Path]) -> list[tuple[Path, str]]
     return out
 
 
+def _stem(dataset: str, metric: str) -> str:
+    """The name every file of one dataset's table of one metric starts with."""
+    return f"robustness_{dataset}_{metric}"
+
+
 def _summary_part(rows, metric: str, reference: str, expected, delta: float, unrecorded, out: Path | None) -> dict:
     """:func:`benchmark.reports.robustness.summarise` of one dataset's rows and one metric; with
     ``out``, its figures too (matched IoU and IoU: one per family, a labelled condition's
@@ -117,7 +122,7 @@ def _summary_part(rows, metric: str, reference: str, expected, delta: float, unr
         for (dataset, _), p in parts.items():
             for family in rb.FAMILIES:
                 if family in set(p["cells"]["corruption"]) and family not in rb.LABELLED:
-                    rb.family_figure(p["cells"], family, out / "figures" / f"robustness_{dataset}_{metric}_{family}",
+                    rb.family_figure(p["cells"], family, out / "figures" / f"{_stem(dataset, metric)}_{family}",
                                      metric_words(metric), f"{dataset}: {rb.FAMILY_WORDS[family]}")
     return parts
 
@@ -154,7 +159,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
     # each dataset and metric summarised (and its figures drawn) on its own, side by side on forked
     # processes with the severities' settings (run_forked): the same parts, in the same order, as
     # rb.summarise of every dataset and metric at once
-    tasks = [functools.partial(severity_settings)]
+    tasks = [severity_settings]
     for _, d in rows.groupby("dataset"):
         tasks += [functools.partial(_summary_part, d, metric, reference, expected, delta, unrecorded, out)
                   for metric in metrics]
@@ -221,7 +226,7 @@ def render(paths: Sequence[str | Path], out: Path | None, metrics: Sequence[str]
         if p.get("power") and metric == "matched_iou":
             power += rb.power_lines(dataset, p["power"], words)
         if out is not None:
-            stem = f"robustness_{dataset}_{metric}"
+            stem = _stem(dataset, metric)
             t.round(4).to_csv(out / f"{stem}.csv")
             if len(curves):
                 curves.round(4).to_csv(out / f"{stem}_rising.csv", index=False)

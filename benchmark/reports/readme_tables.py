@@ -189,6 +189,17 @@ def gnu_time(path: str | Path) -> tuple[float, int]:
         raise ValueError(f"{path}: expected GNU time's '%e %M' (seconds, KiB), got an error: {e}") from None
 
 
+def gnu_time_cpu(path: str | Path) -> tuple[float, int, float]:
+    """(wall seconds, peak RSS KiB, CPU seconds: user + system) from GNU time's ``-f "%e %M %U %S"``
+    output; ValueError naming the file."""
+    try:
+        wall, rss_kb, user, system = Path(path).read_text().split()[-4:]
+        return float(wall), int(rss_kb), float(user) + float(system)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{path}: expected GNU time's '%e %M %U %S' (seconds, KiB, CPU seconds), "
+                         f"got an error: {e}") from None
+
+
 #: the two timed ``make bench`` runs of each fresh-clone repetition of ``make bench-publish``: into an
 #: empty results folder (stage cache empty), then again into the same folder (its cache filled).
 TIMING_CASES = ("empty", "filled")
@@ -468,5 +479,5 @@ def write(readme: str | Path = "README.md", root: str | Path = ".") -> list[str]
     return changed
 
 
-__all__ = ["BLOCKS", "Block", "PUBLISHED", "publish", "provenance", "gnu_time", "head_commit", "render_block",
+__all__ = ["BLOCKS", "Block", "PUBLISHED", "publish", "provenance", "gnu_time", "gnu_time_cpu", "head_commit", "render_block",
            "blocks_in", "update_text", "check", "write", "machine", "read_timings", "timings_line"]

@@ -125,12 +125,9 @@ def rerun_line(jobs: pd.DataFrame, rerun_file: Path) -> str:
 
     Raises:
         ValueError: an unreadable time file (one line naming it)."""
-    try:
-        wall, _, user, system = Path(rerun_file).read_text().split()[-4:]
-        wall, cpu = float(wall), float(user) + float(system)
-    except (OSError, ValueError) as e:
-        raise ValueError(f"{rerun_file}: expected GNU time's '%e %M %U %S' (seconds, KiB, CPU seconds), "
-                         f"got an error: {e}") from None
+    from benchmark.reports.readme_tables import gnu_time_cpu
+
+    wall, _, cpu = gnu_time_cpu(rerun_file)
     return (f"Run again at once on the cache it filled (every row read back from it: what its {len(jobs)} jobs cost "
             f"besides their houses' work, composing, setting up, reading the rows back and writing the results), "
             f"the same sweep took {wall:.0f} s wall and {cpu:.0f} CPU-s: about {cpu / max(len(jobs), 1):.2f} "
