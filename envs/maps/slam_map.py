@@ -126,12 +126,20 @@ def _estimate_kernel(obstacles, rows, cols, erows, ecols, dyaw, n_beams, range_p
             last_r = -1
             last_c = -1
             beyond = False
-            # cell j lies at most j sqrt(2) px from the start: below ``sure`` it is within range
+            # cell j lies at most j sqrt(2) px from the start: below ``sure`` it is within range;
+            # past it, the squared distance in whole pixels settles the test unless it lies within
+            # a billionth of the range's square, where the distance itself decides (the same
+            # answer as that test at every cell, without a square root at most of them)
             sure = int(d_m / res / 1.4142135623730951 * (1.0 - 1e-9)) - 1 if hit else 0
+            reach2 = (d_m / res) * (d_m / res)
+            inside2 = reach2 * (1.0 - 1e-9)
+            outside2 = reach2 * (1.0 + 1e-9)
             while r >= 0 and r < h and c >= 0 and c < w:
-                if hit and n > sure and np.hypot(r - e0, c - f0) * res > d_m:
-                    beyond = True
-                    break
+                if hit and n > sure:
+                    q = (r - e0) * (r - e0) + (c - f0) * (c - f0)
+                    if q > inside2 and (q > outside2 or np.hypot(r - e0, c - f0) * res > d_m):
+                        beyond = True
+                        break
                 if n > 0:
                     nt = _mark(state, touched_r, touched_c, nt, last_r, last_c, s, 1)
                 last_r = r
