@@ -64,6 +64,19 @@ def test_warm_up_compiles_every_kernel_and_a_run_after_it_compiles_nothing(tmp_p
                          env=env, cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-2000:]
     assert _cache_files(cache) == before  # every kernel a run calls was loaded, none compiled
+    # the vision cone's whole votes in uint16: 256 views or more within a cone's reach of a cell,
+    # as a ProcTHOR house's views often are (a synthetic house's never)
+    many = ("import numpy as np\n"
+            "from benchmark.aggregators import vision_cone as V\n"
+            "from benchmark.commands.compile_kernels import _scene\n"
+            "from benchmark.viewpoints import Autotrace\n"
+            "_, scene = _scene()\n"
+            "poses = np.repeat(np.asarray(Autotrace().generate(scene)), 40, axis=0)\n"
+            "proba = np.eye(len(scene.classes))[np.arange(len(poses)) % len(scene.classes)]\n"
+            "assert V.VisionCone().votes(scene.grid, poses, proba).dtype == np.uint16\n")
+    big = subprocess.run([sys.executable, "-c", many], env=env, cwd=ROOT, capture_output=True, text=True)
+    assert big.returncode == 0, big.stderr[-2000:]
+    assert _cache_files(cache) == before
 
 
 def _record(stages: dict[str, float], process: float, sigs: dict[str, int]) -> dict:

@@ -134,7 +134,11 @@ def stages() -> list[tuple[str, Callable[[], object]]]:
     return [
         ("render (floorplan)", lambda: FloorplanRenderer().render(house, scene, poses)),
         ("graph_knn", lambda: (GraphKNN()(grid, poses, proba), GraphKNN(weighting="probability")(grid, poses, proba))),
-        ("vision_cone", lambda: (VisionCone()(grid, poses, proba), VisionCone(vote="probability")(grid, poses, proba))),
+        # whole votes in uint8 and, with 256 views or more within a cone's reach of a cell (a ProcTHOR
+        # house's views often are), in uint16; probability votes in float32
+        ("vision_cone", lambda: (VisionCone()(grid, poses, proba), VisionCone(vote="probability")(grid, poses, proba),
+                                 VisionCone()(grid, np.repeat(poses, 256 // len(poses) + 1, axis=0),
+                                              np.repeat(proba, 256 // len(poses) + 1, axis=0)))),
         ("euclidean_knn", lambda: EuclideanKNN()(grid, poses, proba)),
         ("postprocess", lambda: PostProcess()(labels, grid)),
         ("distance segmenter", lambda: DistanceTransform()(grid)),
