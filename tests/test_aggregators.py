@@ -31,6 +31,50 @@ def random_case(seed, n=None, c=4):
     return grid, poses, proba
 
 
+@pytest.mark.parametrize("kind", ["graph_knn", "euclidean_knn"])
+def test_neighbours_kept_for_the_next_classifier_give_the_reference_labels(kind, monkeypatch):
+    """The neighbour tables kept per process (kept_neighbours): a second aggregation of the same
+    views on the same map with other probabilities reads the kept table and still equals the
+    reference; a map with one cell changed, or views with one moved, makes its own; a table larger
+    than the memo's budget is not kept."""
+    from benchmark.aggregators import common
+
+    monkeypatch.setattr(common, "_NEIGHBOURS", common.ByteLRU())
+    made = []
+    for name in ("knn_neighbours", "euclidean_neighbours"):
+        module = __import__(f"benchmark.aggregators.{kind}", fromlist=[name])
+        if hasattr(module, name):
+            real = getattr(module, name)
+            monkeypatch.setattr(module, name, lambda *a, real=real, **k: made.append(1) or real(*a, **k))
+
+    def labels(grid, poses, proba, k=3):
+        agg = GraphKNN(k=k) if kind == "graph_knn" else EuclideanKNN(k=k)
+        return agg(grid, poses, proba)
+
+    def reference(grid, poses, proba, k=3):
+        return (graph_knn_reference(grid, poses, proba, k, 4, "majority") if kind == "graph_knn"
+                else euclidean_knn_reference(grid, poses, proba, k, "majority"))
+
+    grid, poses, proba = random_case(3, n=14)
+    assert np.array_equal(labels(grid, poses, proba), reference(grid, poses, proba)) and len(made) == 1
+    other = np.random.default_rng(9).dirichlet(np.ones(4), len(poses))
+    assert not np.array_equal(reference(grid, poses, other), reference(grid, poses, proba))
+    assert np.array_equal(labels(grid, poses, other), reference(grid, poses, other)) and len(made) == 1  # kept
+    walk = grid.walkable.copy()
+    rr, cc = np.nonzero(walk)
+    walk[rr[-1], cc[-1]] = False  # one walkable cell fewer (no view on it)
+    changed = GridMap(walk, grid.resolution, grid.origin)
+    assert np.array_equal(labels(changed, poses, other), reference(changed, poses, other)) and len(made) == 2
+    moved = poses.copy()
+    moved[5, :2] = poses[6, :2]
+    assert np.array_equal(labels(grid, moved, other), reference(grid, moved, other)) and len(made) == 3
+    assert np.array_equal(labels(grid, poses, other, k=2), reference(grid, poses, other, k=2)) and len(made) == 4
+    assert len(common._NEIGHBOURS) == 4
+    monkeypatch.setattr(common, "NEIGHBOURS_MEMO_BYTES", 16)
+    labels(grid, poses, other, k=1)
+    assert len(common._NEIGHBOURS) == 0 and len(made) == 5  # over the budget: nothing kept, the rest let go
+
+
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("conn", [4, 8])
 @pytest.mark.parametrize("k", [1, 3, 5])

@@ -21,7 +21,7 @@ from typing import Annotated
 
 import numpy as np
 
-from benchmark.aggregators.common import view_cells, vote_neighbours
+from benchmark.aggregators.common import kept_neighbours, view_cells, vote_neighbours
 from benchmark.interfaces import Aggregator
 from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
@@ -168,7 +168,9 @@ class EuclideanKNN(Aggregator):
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
         r, c, _, p, _ = view_cells(grid, poses, proba, self.k)
         cells = np.argwhere(grid.walkable)
-        nbr = euclidean_neighbours(r, c, cells, self.k)
+        # the map and the views alone decide them: kept for another classifier's views (kept_neighbours)
+        nbr = kept_neighbours("euclidean_knn", grid.walkable, r, c, (self.k,),
+                              lambda: euclidean_neighbours(r, c, cells, self.k))
         out = np.full(grid.shape, -1, np.int32)
         out[cells[:, 0], cells[:, 1]] = vote_neighbours(nbr, p, self.weighting)
         return out

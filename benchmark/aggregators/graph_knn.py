@@ -22,7 +22,7 @@ from typing import Annotated
 
 import numpy as np
 
-from benchmark.aggregators.common import view_cells, vote_neighbours
+from benchmark.aggregators.common import kept_neighbours, view_cells, vote_neighbours
 from benchmark.interfaces import Aggregator
 from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
@@ -121,8 +121,11 @@ class GraphKNN(Aggregator):
 
     def __call__(self, grid: GridMap, poses: np.ndarray, proba: np.ndarray) -> np.ndarray:
         r, c, _, p, _ = view_cells(grid, poses, proba, self.k)
-        nbr = knn_neighbours(grid.walkable, r, c, self.k, self.connectivity)
         cells = np.flatnonzero(grid.walkable.ravel())
+        # the walkable cells' neighbours depend on the map and the views alone: kept per process
+        # for the next aggregation of the same views (another classifier's), kept_neighbours
+        nbr = kept_neighbours("graph_knn", grid.walkable, r, c, (self.k, self.connectivity),
+                              lambda: knn_neighbours(grid.walkable, r, c, self.k, self.connectivity)[cells])
         lab = np.full(grid.shape[0] * grid.shape[1], -1, np.int32)
-        lab[cells] = vote_neighbours(nbr[cells], p, self.weighting)
+        lab[cells] = vote_neighbours(nbr, p, self.weighting)
         return lab.reshape(grid.shape)
