@@ -6,6 +6,7 @@ records what every job saw."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -21,6 +22,7 @@ from hydra_plugins.roomseg_sweep.roomseg_sweep import (
     auto_jobs,
     grouped,
     one_per_grid,
+    units,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -165,6 +167,28 @@ def test_group_by_runs_every_grid_s_jobs_of_one_value_together(tmp_path):
         orders[name] = [k for k, _ in sorted(jobs.items(), key=lambda kv: kv[1]["num"])]
     assert orders["plain"] == ["a=x,n=2", "a=x,n=1", "a=y,n=2", "a=y,n=1", "b=u,n=2", "b=u,n=1", "b=v,n=2", "b=v,n=1"]
     assert orders["grouped"] == ["a=x,n=2", "a=y,n=2", "b=u,n=2", "b=v,n=2", "a=x,n=1", "a=y,n=1", "b=u,n=1", "b=v,n=1"]
+
+
+def test_units_join_the_jobs_that_differ_only_in_the_keys():
+    jobs = list(enumerate([["a=x", "n=1"], ["a=y", "n=1"], ["b=u"], ["a=x", "n=2"], ["+a=y", "n=2"], ["b=v"]]))
+    assert units(jobs, ["a"]) == [[jobs[0], jobs[1]], [jobs[2]], [jobs[3], jobs[4]], [jobs[5]]]
+    assert units(jobs, ["a", "n"]) == [[jobs[0], jobs[1], jobs[3], jobs[4]], [jobs[2]], [jobs[5]]]
+    assert units(jobs, []) == [[j] for j in jobs] and units([], ["a"]) == []
+    with pytest.raises(ValueError, match="same_worker must be a list of override keys"):
+        GridsSweeper(same_worker="a")
+
+
+def test_same_worker_runs_a_unit_s_jobs_one_after_another_on_one_worker(tmp_path):
+    """hydra.sweeper.same_worker=[a]: on two workers, the jobs that differ only in ``a`` run in
+    one process, in their order; the same jobs and configs as without it."""
+    app = _app(tmp_path, "params:\n  n: 1,2,3,4\n  a: x,y")
+    r = _run(app, "hydra.launcher.n_jobs=2", "hydra.sweeper.same_worker=[a]", env={**os.environ, "JOB_SLEEP": "0.2"})
+    assert r.returncode == 0, r.stderr[-2000:]
+    jobs = _jobs(tmp_path)
+    assert len(jobs) == 8 and len({j["pid"] for j in jobs.values()}) == 2
+    for n in "1234":
+        x, y = jobs[f"a=x,n={n}"], jobs[f"a=y,n={n}"]
+        assert x["pid"] == y["pid"] and y["num"] == x["num"] + 1 and x["a"] == {"v": 1} and y["a"] == {"v": 2}
 
 
 @pytest.mark.parametrize("launcher", ["hydra.launcher.n_jobs=1", "hydra.launcher.n_jobs=2"])

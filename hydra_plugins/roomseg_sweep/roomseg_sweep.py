@@ -18,6 +18,11 @@ the project, :mod:`benchmark.harness.processes` (Hydra imports it at start-up).
 - ``group_by: <key>``: the jobs of every grid that give the key one value run one after the
   other, the values in the order they first come (``experiment=robustness``: a condition's
   segmenters right after its methods, while the workers still keep its maps in memory).
+- ``same_worker: [<key>, ...]``: jobs whose overrides differ only in these keys are one unit,
+  which the local launcher runs one after another on one worker, so that what the first leaves
+  in that worker's per-process memos serves the next (``experiment=robustness``:
+  ``[classifier]``, a condition's KNN neighbour tables, which do not depend on the classes).
+  Other launchers run every job as always.
 
 ``LocalLauncher`` runs the jobs on ``n_jobs`` worker processes of this machine, like
 ``hydra-joblib-launcher``, but its workers are forked from the launching process on Linux, so
@@ -96,11 +101,14 @@ class GridsSweeper(BasicSweeper):
         group_by: a key (``corruption``): the jobs of every grid that give it the same value run
             one after the other, the groups in the order their values first come (each group's
             jobs in their grids' order); None: each grid's jobs after the one before.
+        same_worker: override keys (``[classifier]``): the local launcher runs jobs that differ
+            only in them one after another on one worker (:func:`units`); read by it from the
+            sweep's config.
     """
 
     def __init__(self, max_batch_size: int | None = None, params: Mapping[str, str] | None = None,
                  grids: Sequence[Mapping[str, str]] | None = None, validate: str = "quick",
-                 group_by: str | None = None) -> None:
+                 group_by: str | None = None, same_worker: Sequence[str] | None = None) -> None:
         # BasicSweeper's own __init__ is not called: it names its class through a module global
         # that Hydra's plugin rescans rebind (``super(BasicSweeper, self)`` then fails)
         self.overrides = None
@@ -115,6 +123,9 @@ class GridsSweeper(BasicSweeper):
         self.grids = [dict(g or {}) for g in (grids or [])]
         self.validate = validate
         self.group_by = group_by or None
+        if isinstance(same_worker, str) or not all(isinstance(k, str) for k in (same_worker or ())):
+            raise ValueError(f"hydra.sweeper.same_worker must be a list of override keys, got {same_worker!r}")
+        self.same_worker = list(same_worker or ())
         self.arguments: list[str] = []
 
     def sweep(self, arguments: list[str]) -> Any:
@@ -165,6 +176,19 @@ def grouped(jobs: Sequence[Sequence[str]], key: str) -> list[Sequence[str]]:
     for job in jobs:
         first.setdefault(value(job), len(first))
     return sorted(jobs, key=lambda job: first[value(job)])  # (stable)
+
+
+def units(jobs: Sequence[tuple[int, Sequence[str]]], keys: Sequence[str]) -> list[list[tuple[int, Sequence[str]]]]:
+    """``jobs`` ((index, overrides) pairs) in units of those whose overrides are the same but
+    for ``keys`` (``key=value``, with or without ``+``/``~``), each unit's jobs in their order, the
+    units in the order of their first job; without ``keys`` every job is a unit of its own."""
+    if not keys:
+        return [[job] for job in jobs]
+    out: dict[tuple[str, ...], list[tuple[int, Sequence[str]]]] = {}
+    for i, overrides in jobs:
+        rest = tuple(sorted(o for o in overrides if o.partition("=")[0].lstrip("+~") not in keys))
+        out.setdefault(rest, []).append((i, overrides))
+    return list(out.values())
 
 
 def one_per_grid(batch: Sequence[Sequence[str]]) -> list[Sequence[str]]:
@@ -294,6 +318,11 @@ def _run(idx: int, overrides: Sequence[str], n_jobs: int) -> JobReturn:
     return ret
 
 
+def _run_unit(unit: Sequence[tuple[int, Sequence[str]]], n_jobs: int) -> list[tuple[int, JobReturn]]:
+    """:func:`_run` of each job of ``unit`` in turn, in this worker; (index, return) each."""
+    return [(i, _run(i, overrides, n_jobs)) for i, overrides in unit]
+
+
 def _raise_if_pool_broken(ret: JobReturn) -> JobReturn:
     """A job run in this process whose pool of house workers lost a process ends the sweep
     (as a killed launcher worker does); any other failure is the job's own."""
@@ -409,11 +438,15 @@ class LocalLauncher(Launcher):
             share_threads(n)
         pool = ProcessPoolExecutor(n, mp_context=ctx, initializer=mod._init_worker,
                                    initargs=(state, os.getpid(), slots, n))
+        # jobs that differ only in the sweeper's same_worker keys go to one worker, one after another
+        keys = (self.config.hydra.get("sweeper") or {}).get("same_worker") or ()
         try:
-            futures = [pool.submit(mod._run, i, o, n) for i, o in jobs]
+            futures = [pool.submit(mod._run_unit, unit, n) for unit in units(jobs, list(keys))]
+            returns: dict[int, JobReturn] = {}
             for f in as_completed(futures):  # the progress line advances as jobs finish, in any order
-                done(f.result())
-            return [f.result() for f in futures]
+                for i, ret in f.result():
+                    returns[i] = done(ret)
+            return [returns[i] for i, _ in jobs]
         except BrokenProcessPool:
             _stop(pool)
             raise BrokenProcessPool(f"a worker process of the sweep in {sweep_dir} died (killed, or out "
