@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import hashlib
 import logging
 from collections.abc import Callable
 
 import numpy as np
 
+from envs.digest import arrays_key
 from envs.kernel_cache import njit
 from envs.maps.gridmap import GridMap
 from envs.memo import ByteLRU
@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 #: walkable cells x 5 neighbours take about 0.5 MB (int16), so the tables of a job's 100 houses
 #: stay while the next job (the same map and views, another classifier) reads them back
 NEIGHBOURS_MEMO_BYTES = 96 * 2**20
-#: kept per process, read-only: (kind, shape, digest of the map, views and settings) -> (M, K)
+#: kept per process, read-only: digest of the map, views, kind and settings -> (M, K)
 #: neighbour table (:func:`kept_neighbours`)
 _NEIGHBOURS = ByteLRU()
 
@@ -30,22 +30,17 @@ def kept_neighbours(kind: str, walkable: np.ndarray, rows: np.ndarray, cols: np.
     content of what it depends on, so that aggregating the same views on the same map again (the
     next classifier of a sweep: the neighbours do not depend on the classes) finds it.
 
-    The key is the bytes of ``walkable`` ((H, W) bool), of the views' cells ``rows`` and ``cols``
-    ((N,) ints) and ``settings`` (the aggregator's K, connectivity), hashed with BLAKE2b (64
-    bytes), with ``kind`` and the shape; a table is kept in the smallest of int16 and int32 that
+    The key is :func:`envs.digest.arrays_key` of ``walkable`` ((H, W) bool), the views' cells
+    ``rows`` and ``cols`` ((N,) ints), ``kind`` and ``settings`` (the aggregator's K,
+    connectivity); a table is kept in the smallest of int16 and int32 that
     holds its view indices (-1: none), read-only, at most :data:`NEIGHBOURS_MEMO_BYTES` of them
     (one larger than that is not kept). The values are ``make()``'s, whatever the dtype.
 
     Returns:
         (M, K) ints, view indices (a read-only array kept here, or ``make()``'s own).
     """
-    w = np.ascontiguousarray(walkable, np.bool_)
-    digest = hashlib.blake2b(w.tobytes(), digest_size=64)
-    for a in (rows, cols):
-        digest.update(np.ascontiguousarray(a, np.int64).tobytes())
-        digest.update(b"|")
-    digest.update(repr(settings).encode())
-    key = (kind, w.shape, digest.digest())
+    key = arrays_key((np.asarray(walkable, np.bool_), np.asarray(rows, np.int64), np.asarray(cols, np.int64)),
+                     (kind, settings))
     kept = _NEIGHBOURS.get(key)
     if kept is not None:
         return kept

@@ -125,7 +125,6 @@ class GridsSweeper(BasicSweeper):
         self.group_by = group_by or None
         if isinstance(same_worker, str) or not all(isinstance(k, str) for k in (same_worker or ())):
             raise ValueError(f"hydra.sweeper.same_worker must be a list of override keys, got {same_worker!r}")
-        self.same_worker = list(same_worker or ())
         self.arguments: list[str] = []
 
     def sweep(self, arguments: list[str]) -> Any:
